@@ -1,0 +1,251 @@
+"""Serial-arm forward kinematics and the twist Jacobian, batched over any leading shape.
+
+Conventions (SPEC §2); lengths in mm, angles in rad, joint value ``q_i`` adds to
+the joint offset ``theta_i``:
+
+- ``dh``     ``A_i = Rz(q_i+θ_i) · Tz(d_i) · Tx(a_i) · Rx(α_i)``
+- ``hayati`` ``A_i = Rz(q_i+θ_i) · Tz(d_i) · Tx(a_i) · Rx(α_i) · Ry(β_i)``
+- ``craig``  ``A_i = Rx(α_{i-1}) · Tx(a_{i-1}) · Rz(q_i+θ_i) · Tz(d_i)``; row i holds
+  ``(a_{i-1}, α_{i-1}, θ_i, d_i)``.
+
+End pose ``T = Base · A_1 ⋯ A_n · Tool``; the measured point is the origin of Tool.
+
+The geometry of a chain is one array ``geom`` of shape (..., n, 5) whose last axis
+holds :data:`KINDS` = (a, alpha, theta, d, beta).  Leading axes are free: a swarm
+passes (particles, n, 5) with joint values (poses, n) and gets (particles, poses, …)
+in one call; the only Python loop is over the joints.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from .transforms import homogeneous
+
+KINDS: tuple[str, ...] = ("a", "alpha", "theta", "d", "beta")
+CONVENTIONS: tuple[str, ...] = ("dh", "hayati", "craig")
+A, ALPHA, THETA, D, BETA = range(5)
+
+
+def _joint_rotation_translation(convention: str, g: np.ndarray, q: np.ndarray):
+    """Rotation (..., 3, 3) and translation (..., 3) of one joint transform.
+
+    g: (..., 5) geometry of the joint with a trailing singleton inserted by the
+    caller so that it broadcasts against q (..., m).
+    """
+    a, al, th, d, be = (g[..., k] for k in range(5))
+    t = q + th
+    ct, st = np.cos(t), np.sin(t)
+    ca, sa = np.cos(al), np.sin(al)
+    ct, st, ca, sa = np.broadcast_arrays(ct, st, ca, sa)
+    zero = np.zeros_like(ct)
+    if convention == "craig":
+        a_b, d_b = np.broadcast_arrays(a, d, ct)[:2]
+        R = np.stack(
+            [
+                np.stack([ct, -st, zero], -1),
+                np.stack([ca * st, ca * ct, -sa], -1),
+                np.stack([sa * st, sa * ct, ca], -1),
+            ],
+            -2,
+        )
+        p = np.stack([a_b, -sa * d_b, ca * d_b], -1)
+        return R, p
+    # Rz(t) · Rx(alpha)
+    c0 = np.stack([ct, st, zero], -1)
+    c1 = np.stack([-st * ca, ct * ca, sa], -1)
+    c2 = np.stack([st * sa, -ct * sa, ca], -1)
+    if convention == "hayati":
+        cb, sb = np.broadcast_arrays(np.cos(be), np.sin(be), ct)[:2]
+        c0, c2 = c0 * cb[..., None] - c2 * sb[..., None], c0 * sb[..., None] + c2 * cb[..., None]
+    R = np.stack([c0, c1, c2], -1)
+    a_b, d_b = np.broadcast_arrays(a, d, ct)[:2]
+    p = np.stack([a_b * ct, a_b * st, d_b], -1)
+    return R, p
+
+
+def _check_convention(convention: str) -> None:
+    if convention not in CONVENTIONS:
+        raise ValueError(f"unknown convention {convention!r}; expected one of {', '.join(CONVENTIONS)}")
+
+
+def chain_frames(convention: str, geom: np.ndarray, q: np.ndarray, base: np.ndarray | None = None):
+    """Frames of the chain (rotation, origin) from the base frame to the flange.
+
+    geom: (..., n, 5); q: (..., m, n) rad; base: (..., 4, 4) or None.
+    Returns lists ``Rs``, ``os`` of length n+1 with shapes (..., m, 3, 3), (..., m, 3):
+    index 0 is the base frame, index i the frame after joint i.
+    """
+    _check_convention(convention)
+    geom = np.asarray(geom, dtype=float)
+    q = np.asarray(q, dtype=float)
+    n = geom.shape[-2]
+    if q.shape[-1] != n:
+        raise ValueError(f"joint values have {q.shape[-1]} columns but the robot has {n} joints")
+    if base is None:
+        R = np.eye(3)
+        o = np.zeros(3)
+    else:
+        base = np.asarray(base, dtype=float)
+        R = base[..., None, :3, :3]
+        o = base[..., None, :3, 3]
+    Rs, os_ = [R], [o]
+    for i in range(n):
+        Ri, pi = _joint_rotation_translation(convention, geom[..., None, i, :], q[..., i])
+        o = o + (R @ pi[..., None])[..., 0]
+        R = R @ Ri
+        Rs.append(R)
+        os_.append(o)
+    return Rs, os_
+
+
+def chain_pose(convention: str, geom, q, base=None, tool=None):
+    """End pose of the chain: rotation (..., m, 3, 3) and position (..., m, 3) in mm.
+
+    tool: (..., m, 4, 4) or (..., 1, 4, 4) (one tool per pose allows several
+    targets on one flange), or None for the flange itself.
+    """
+    Rs, os_ = chain_frames(convention, geom, q, base)
+    R, o = Rs[-1], os_[-1]
+    if tool is not None:
+        tool = np.asarray(tool, dtype=float)
+        o = o + (R @ tool[..., :3, 3:])[..., 0]
+        R = R @ tool[..., :3, :3]
+    return np.broadcast_to(R, np.broadcast_shapes(R.shape, o.shape[:-1] + (3, 3))), o
+
+
+def chain_twist_jacobian(convention: str, geom, q, base=None, tool=None):
+    """Jacobian of the end pose with respect to each joint's geometric parameters.
+
+    Returns ``(J, R_e, p_e, R_flange)`` where J has shape (..., m, 6, n, 5): rows are
+    the end-point velocity (mm per unit of the parameter) and the angular velocity
+    (rad per unit) in the base-of-measurement frame, so that a small change ε of
+    parameter k moves the point by ``J[:3] ε`` and rotates the end frame by
+    ``Exp(J[3:] ε)`` applied on the left.  Columns for ``beta`` are zero unless the
+    convention is hayati.  The ``theta`` column is also the column of the joint value.
+    """
+    Rs, os_ = chain_frames(convention, geom, q, base)
+    geom = np.asarray(geom, dtype=float)
+    q = np.asarray(q, dtype=float)
+    R_f, o_f = Rs[-1], os_[-1]
+    if tool is not None:
+        tool = np.asarray(tool, dtype=float)
+        p_e = o_f + (R_f @ tool[..., :3, 3:])[..., 0]
+        R_e = R_f @ tool[..., :3, :3]
+    else:
+        p_e, R_e = o_f, R_f
+    n = geom.shape[-2]
+    shape = np.broadcast_shapes(p_e.shape, R_f.shape[:-1])[:-1]
+    J = np.zeros(shape + (6, n, 5))
+
+    def rot(col_i, kind, axis, point):
+        J[..., :3, col_i, kind] = np.cross(axis, p_e - point)
+        J[..., 3:, col_i, kind] = axis
+
+    def trans(col_i, kind, axis):
+        J[..., :3, col_i, kind] = axis
+
+    for i in range(n):
+        R0, o0, R1, o1 = Rs[i], os_[i], Rs[i + 1], os_[i + 1]
+        if convention == "craig":
+            x0 = R0[..., :, 0]
+            rot(i, ALPHA, x0, o0)
+            trans(i, A, x0)
+            z1 = R1[..., :, 2]
+            rot(i, THETA, z1, o1)
+            trans(i, D, z1)
+        else:
+            z0 = R0[..., :, 2]
+            rot(i, THETA, z0, o0)
+            trans(i, D, z0)
+            t = q[..., i] + geom[..., None, i, THETA]
+            # x axis after Rz(q+θ): the direction of Tx(a) and the axis of Rx(α)
+            xp = R0[..., :, 0] * np.cos(t)[..., None] + R0[..., :, 1] * np.sin(t)[..., None]
+            trans(i, A, xp)
+            rot(i, ALPHA, xp, o1)
+            if convention == "hayati":
+                rot(i, BETA, R1[..., :, 1], o1)
+    return J, R_e, p_e, R_f
+
+
+@dataclass(frozen=True, eq=False)
+class Robot:
+    """A serial arm: geometry, joint limits, base and tool frames.
+
+    geometry: (n, 5) array of (a mm, alpha rad, theta rad, d mm, beta rad) per joint.
+    limits: (n, 2) rad, ±inf where a joint has none.  base: measuring/world frame →
+    robot base (4×4, mm).  tool: flange → measured point (4×4).  targets: further
+    named tool frames for several reflectors on one flange (the unnamed target ""
+    is ``tool``).
+    """
+
+    convention: str
+    geometry: np.ndarray
+    limits: np.ndarray | None = None
+    base: np.ndarray = field(default_factory=lambda: np.eye(4))
+    tool: np.ndarray = field(default_factory=lambda: np.eye(4))
+    targets: Mapping[str, np.ndarray] = field(default_factory=dict)
+    name: str = ""
+
+    def __post_init__(self) -> None:
+        _check_convention(self.convention)
+        g = np.array(self.geometry, dtype=float)
+        if g.ndim != 2 or g.shape[1] != 5:
+            raise ValueError("geometry must have shape (n, 5)")
+        object.__setattr__(self, "geometry", g)
+        lim = np.tile([-np.inf, np.inf], (g.shape[0], 1)) if self.limits is None else np.array(self.limits, float)
+        object.__setattr__(self, "limits", lim)
+        object.__setattr__(self, "base", np.array(self.base, dtype=float))
+        object.__setattr__(self, "tool", np.array(self.tool, dtype=float))
+        object.__setattr__(self, "targets", {k: np.array(v, float) for k, v in self.targets.items()})
+
+    @classmethod
+    def from_dh(cls, convention: str, a, alpha, theta, d, beta=None, **kw) -> Robot:
+        """Build from per-joint sequences (mm, rad)."""
+        n = len(a)
+        beta = np.zeros(n) if beta is None else beta
+        return cls(convention, np.column_stack([a, alpha, theta, d, beta]), **kw)
+
+    @property
+    def n_joints(self) -> int:
+        return self.geometry.shape[0]
+
+    a = property(lambda self: self.geometry[:, A])
+    alpha = property(lambda self: self.geometry[:, ALPHA])
+    theta = property(lambda self: self.geometry[:, THETA])
+    d = property(lambda self: self.geometry[:, D])
+    beta = property(lambda self: self.geometry[:, BETA])
+
+    @property
+    def target_names(self) -> tuple[str, ...]:
+        return ("",) + tuple(self.targets)
+
+    def tool_frames(self, targets: Sequence[str] | None = None) -> np.ndarray:
+        """Tool frame per pose, (m, 4, 4), or (1, 4, 4) when no targets are given."""
+        if targets is None:
+            return self.tool[None]
+        table = {"": self.tool, **self.targets}
+        try:
+            return np.stack([table[t] for t in targets])
+        except KeyError as exc:
+            raise ValueError(f"robot has no tool frame for target {exc.args[0]!r}") from None
+
+    def fk(self, q, targets: Sequence[str] | None = None) -> np.ndarray:
+        """End poses (m, 4, 4) for joint values q (m, n) in rad."""
+        R, p = chain_pose(self.convention, self.geometry, np.atleast_2d(q), self.base, self.tool_frames(targets))
+        return homogeneous(R, p)
+
+    def positions(self, q, targets: Sequence[str] | None = None) -> np.ndarray:
+        """Measured-point positions (m, 3) in mm for joint values q (m, n) in rad."""
+        _, p = chain_pose(self.convention, self.geometry, np.atleast_2d(q), self.base, self.tool_frames(targets))
+        return p
+
+    def replace(self, **changes) -> Robot:
+        return replace(self, **changes)
+
+    def reach(self) -> float:
+        """A length scale of the arm (mm): sum of |a| and |d|, at least 1."""
+        return float(max(1.0, np.abs(self.a).sum() + np.abs(self.d).sum()))

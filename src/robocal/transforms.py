@@ -1,0 +1,173 @@
+"""Rotations and homogeneous transforms, batched over any leading shape.
+
+Conventions (SPEC §2, §6): ``rpy = (r, p, y)`` means ``R = Rz(y) · Ry(p) · Rx(r)``;
+rotation vectors are axis × angle in rad; homogeneous transforms are (..., 4, 4)
+with lengths in mm.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+_SMALL = 1e-8
+
+
+def skew(w: np.ndarray) -> np.ndarray:
+    """Cross-product matrix [w]× of vectors (..., 3) → (..., 3, 3)."""
+    w = np.asarray(w, dtype=float)
+    z = np.zeros(w.shape[:-1])
+    return np.stack(
+        [
+            np.stack([z, -w[..., 2], w[..., 1]], -1),
+            np.stack([w[..., 2], z, -w[..., 0]], -1),
+            np.stack([-w[..., 1], w[..., 0], z], -1),
+        ],
+        -2,
+    )
+
+
+def rot_x(t: np.ndarray) -> np.ndarray:
+    t = np.asarray(t, dtype=float)
+    c, s, o, z = np.cos(t), np.sin(t), np.ones_like(t), np.zeros_like(t)
+    return np.stack([np.stack([o, z, z], -1), np.stack([z, c, -s], -1), np.stack([z, s, c], -1)], -2)
+
+
+def rot_y(t: np.ndarray) -> np.ndarray:
+    t = np.asarray(t, dtype=float)
+    c, s, o, z = np.cos(t), np.sin(t), np.ones_like(t), np.zeros_like(t)
+    return np.stack([np.stack([c, z, s], -1), np.stack([z, o, z], -1), np.stack([-s, z, c], -1)], -2)
+
+
+def rot_z(t: np.ndarray) -> np.ndarray:
+    t = np.asarray(t, dtype=float)
+    c, s, o, z = np.cos(t), np.sin(t), np.ones_like(t), np.zeros_like(t)
+    return np.stack([np.stack([c, -s, z], -1), np.stack([s, c, z], -1), np.stack([z, z, o], -1)], -2)
+
+
+def rpy_to_matrix(rpy: np.ndarray) -> np.ndarray:
+    """(..., 3) roll, pitch, yaw in rad → R = Rz(yaw) Ry(pitch) Rx(roll), (..., 3, 3)."""
+    rpy = np.asarray(rpy, dtype=float)
+    return rot_z(rpy[..., 2]) @ rot_y(rpy[..., 1]) @ rot_x(rpy[..., 0])
+
+
+def matrix_to_rpy(R: np.ndarray) -> np.ndarray:
+    """Inverse of :func:`rpy_to_matrix`; pitch in [−π/2, π/2], yaw=0 chosen at gimbal lock."""
+    R = np.asarray(R, dtype=float)
+    pitch = np.arcsin(np.clip(-R[..., 2, 0], -1.0, 1.0))
+    cp = np.sqrt(R[..., 2, 1] ** 2 + R[..., 2, 2] ** 2)
+    lock = cp < 1e-9
+    roll = np.where(lock, np.arctan2(-R[..., 1, 2], R[..., 1, 1]), np.arctan2(R[..., 2, 1], R[..., 2, 2]))
+    yaw = np.where(lock, 0.0, np.arctan2(R[..., 1, 0], R[..., 0, 0]))
+    return np.stack([roll, pitch, yaw], -1)
+
+
+def exp_so3(w: np.ndarray) -> np.ndarray:
+    """Rotation vectors (..., 3) → rotation matrices (..., 3, 3) (Rodrigues)."""
+    w = np.asarray(w, dtype=float)
+    th2 = np.sum(w * w, -1)
+    th = np.sqrt(th2)
+    small = th < 1e-4
+    ths = np.where(small, 1.0, th)
+    # Series below 1e-4 rad keep full double precision where the closed form cancels.
+    a = np.where(small, 1.0 - th2 / 6.0, np.sin(ths) / ths)
+    b = np.where(small, 0.5 - th2 / 24.0, (1.0 - np.cos(ths)) / ths**2)
+    K = skew(w)
+    eye = np.broadcast_to(np.eye(3), K.shape)
+    return eye + a[..., None, None] * K + b[..., None, None] * (K @ K)
+
+
+def log_so3(R: np.ndarray) -> np.ndarray:
+    """Rotation matrices (..., 3, 3) → rotation vectors (..., 3), angle in [0, π]."""
+    R = np.asarray(R, dtype=float)
+    tr = R[..., 0, 0] + R[..., 1, 1] + R[..., 2, 2]
+    cos_t = np.clip((tr - 1.0) / 2.0, -1.0, 1.0)
+    th = np.arccos(cos_t)
+    v = np.stack([R[..., 2, 1] - R[..., 1, 2], R[..., 0, 2] - R[..., 2, 0], R[..., 1, 0] - R[..., 0, 1]], -1)
+    small = th < 1e-4
+    sin_t = np.sin(th)
+    factor = np.where(small, 0.5 + th**2 / 12.0, th / (2.0 * np.where(small, 1.0, sin_t)))
+    w = factor[..., None] * v
+    near_pi = th > np.pi - 1e-3
+    if np.any(near_pi):
+        # sin θ → 0 makes the antisymmetric part useless; take the axis from the
+        # symmetric part instead (scipy does this carefully).
+        from scipy.spatial.transform import Rotation
+
+        w[near_pi] = Rotation.from_matrix(R[near_pi]).as_rotvec()
+    return w
+
+
+def right_jacobian_inv(phi: np.ndarray) -> np.ndarray:
+    """J_r⁻¹(φ): log(Exp(φ)·Exp(ε)) ≈ φ + J_r⁻¹(φ) ε.  (..., 3) → (..., 3, 3)."""
+    phi = np.asarray(phi, dtype=float)
+    th = np.linalg.norm(phi, axis=-1)
+    small = th < 1e-4
+    ths = np.where(small, 1.0, th)
+    c = np.where(small, 1.0 / 12.0 + th**2 / 720.0, 1.0 / ths**2 - (1.0 + np.cos(ths)) / (2.0 * ths * np.sin(ths)))
+    K = skew(phi)
+    eye = np.broadcast_to(np.eye(3), K.shape)
+    return eye + 0.5 * K + c[..., None, None] * (K @ K)
+
+
+def left_jacobian(phi: np.ndarray) -> np.ndarray:
+    """J_l(φ): Exp(φ + ε) ≈ Exp(J_l(φ) ε) · Exp(φ).  (..., 3) → (..., 3, 3)."""
+    phi = np.asarray(phi, dtype=float)
+    th2 = np.sum(phi * phi, -1)
+    th = np.sqrt(th2)
+    small = th < 1e-4
+    ths = np.where(small, 1.0, th)
+    b = np.where(small, 0.5 - th2 / 24.0, (1.0 - np.cos(ths)) / ths**2)
+    c = np.where(small, 1.0 / 6.0 - th2 / 120.0, (ths - np.sin(ths)) / ths**3)
+    K = skew(phi)
+    eye = np.broadcast_to(np.eye(3), K.shape)
+    return eye + b[..., None, None] * K + c[..., None, None] * (K @ K)
+
+
+def homogeneous(R: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """Rotation (..., 3, 3) and translation (..., 3) → (..., 4, 4)."""
+    R = np.asarray(R, dtype=float)
+    p = np.asarray(p, dtype=float)
+    shape = np.broadcast_shapes(R.shape[:-2], p.shape[:-1])
+    T = np.zeros(shape + (4, 4))
+    T[..., :3, :3] = R
+    T[..., :3, 3] = p
+    T[..., 3, 3] = 1.0
+    return T
+
+
+def xyz_rpy_to_transform(xyz, rpy) -> np.ndarray:
+    """Translation (mm) and rpy (rad) → (4, 4)."""
+    return homogeneous(rpy_to_matrix(np.asarray(rpy, dtype=float)), np.asarray(xyz, dtype=float))
+
+
+def transform_to_xyz_rpy(T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    T = np.asarray(T, dtype=float)
+    return T[..., :3, 3].copy(), matrix_to_rpy(T[..., :3, :3])
+
+
+def invert(T: np.ndarray) -> np.ndarray:
+    """Inverse of rigid transforms (..., 4, 4)."""
+    R = T[..., :3, :3]
+    Rt = np.swapaxes(R, -1, -2)
+    return homogeneous(Rt, -(Rt @ T[..., :3, 3:])[..., 0])
+
+
+def project_to_so3(M: np.ndarray) -> np.ndarray:
+    """Nearest rotation (Frobenius) to each (..., 3, 3) matrix; used to average rotations."""
+    U, _, Vt = np.linalg.svd(M)
+    D = np.ones(M.shape[:-1])
+    D[..., 2] = np.sign(np.linalg.det(U @ Vt))
+    return (U * D[..., None, :]) @ Vt
+
+
+def rigid_registration(src: np.ndarray, dst: np.ndarray) -> np.ndarray:
+    """Closed-form least-squares rigid transform T with dst ≈ T · src (Kabsch/Umeyama, no scale).
+
+    src, dst: (m, 3) corresponding points (mm).  Needs three non-collinear points.
+    """
+    cs, cd = src.mean(0), dst.mean(0)
+    H = (src - cs).T @ (dst - cd)
+    U, _, Vt = np.linalg.svd(H)
+    d = np.sign(np.linalg.det(Vt.T @ U.T))
+    R = Vt.T @ np.diag([1.0, 1.0, d]) @ U.T
+    return homogeneous(R, cd - R @ cs)
