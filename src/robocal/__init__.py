@@ -5,9 +5,11 @@ The command line (``robocal``) is a thin layer over this API::
     import robocal
     robot = robocal.load_robot("er10l-c10")
     sim = robocal.simulate(robot, 32, errors="paper", noise=0.02, seed=1)
-    print(robocal.Metrics.of(robot, sim.measurements).position)
+    result = robocal.calibrate(robot, sim.measurements, method="lm")
+    print(result.metrics["before"].position, result.metrics["after"].position)
 """
 
+from .calibration import CalibrationResult, calibrate
 from .errors import InputError, RobocalWarning
 from .kinematics import Robot
 from .measurements import Measurements, load_measurements, save_measurements
@@ -17,6 +19,8 @@ from .robotfile import builtin_names, load_robot, save_robot
 from .simulate import simulate
 
 __all__ = [
+    "CalibrationResult",
+    "calibrate",
     "InputError",
     "Measurements",
     "Metrics",

@@ -6,9 +6,11 @@ command-line misuse become one line on stderr and exit code 2.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import sys
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -19,6 +21,8 @@ from rich.table import Table
 from .errors import InputError, atomic_write
 from .measurements import load_measurements, measurements_to_csv
 from .metrics import Metrics
+from .objectives import DEFAULT_K
+from .optimizers import METHODS
 from .robotfile import builtin_names, builtin_source, load_robot, robot_to_toml
 from .simulate import simulate as run_simulation
 
@@ -179,6 +183,108 @@ def evaluate_cmd(
         print(json.dumps(metrics.to_dict(), indent=2))
     else:
         console.print(metrics_table(f"{r.name} on {data} ({meas.n_poses} poses)", {"error": metrics}))
+
+
+def _progress_bar(quiet: bool, label: str):
+    """A rich progress bar for swarm generations, or nothing when quiet."""
+    if quiet or not sys.stderr.isatty():
+        return contextlib.nullcontext(None)
+    from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
+
+    return Progress(
+        TextColumn(f"[bold]{label}"),
+        BarColumn(),
+        TextColumn("{task.completed}/{task.total}"),
+        TextColumn("best {task.fields[best]:.6g}"),
+        TimeRemainingColumn(),
+        console=Console(stderr=True),
+        transient=True,
+    )
+
+
+def _warn(messages: list[str]) -> None:
+    for m in messages:
+        print(f"robocal: warning: {_one_line(m)}", file=sys.stderr)
+
+
+@app.command("calibrate")
+def calibrate_cmd(
+    robot: str = typer.Argument(..., help="nominal robot: file or built-in name"),
+    data: Path = typer.Argument(..., help="measurement CSV"),
+    method: str = typer.Option("lm", "--method", help="lm | pso | ipso | ldpso-bt | hybrid"),
+    validate: Path | None = typer.Option(None, "--validate", help="validation CSV (poses not used to identify)"),
+    frames: str = typer.Option("none", "--frames", help="none | base | base+tool"),
+    seed: int = typer.Option(0, "--seed"),
+    params: str | None = typer.Option(
+        None, "--params", help="candidate joint parameters: comma list, or wen2019 | kou2022 (default: all)"
+    ),
+    objective: str | None = typer.Option(None, "--objective", help="sum_squares | sum_norms (default: method's)"),
+    k: float = typer.Option(DEFAULT_K, "--k", help="orientation weight of the pose objective, mm²/rad²"),
+    position_only: bool = typer.Option(False, "--position-only", help="ignore rx, ry, rz columns"),
+    loss: str = typer.Option("linear", "--loss", help="LM loss: linear | huber | soft_l1 | cauchy"),
+    f_scale: float = typer.Option(1.0, "--f-scale", help="robust loss scale, mm"),
+    particles: int | None = typer.Option(None, "--particles", help="swarm size (default: the paper's)"),
+    iterations: int | None = typer.Option(None, "--iterations", help="swarm generations (default: the paper's)"),
+    box: str | None = typer.Option(None, "--box", help="swarm search half-widths LEN_MM,ANGLE_RAD"),
+    halton: str = typer.Option("scrambled", "--halton", help="IPSO start: scrambled | plain"),
+    out: Path | None = typer.Option(None, "--out", help="result JSON to write"),
+    export: Path | None = typer.Option(None, "--export", help="calibrated robot TOML to write"),
+    column: list[str] | None = typer.Option(None, "--column", help="map a file column: FILE=ROBOCAL (repeatable)"),
+    quiet: bool = typer.Option(False, "--quiet", "-q", help="no table, no progress bar"),
+) -> None:
+    """Identify a robot's geometric parameters from measured poses."""
+    from .calibration import calibrate
+
+    if method not in METHODS:
+        raise InputError(f"unknown method {method!r} (expected {' | '.join(METHODS)})", source="--method")
+    if halton not in ("scrambled", "plain"):
+        raise InputError(f"expected scrambled or plain, got {halton!r}", source="--halton")
+    for name, value in (("--particles", particles), ("--iterations", iterations)):
+        if value is not None and value < 1:
+            raise InputError(f"must be ≥ 1, got {value}", source=name)
+    if not (math.isfinite(f_scale) and f_scale > 0):
+        raise InputError(f"must be a finite value > 0, got {f_scale}", source="--f-scale")
+    box_v = _floats(box, "--box", (2,))
+    if box_v is not None and min(box_v) <= 0:
+        raise InputError(f"half-widths must be > 0, got {box}", source="--box")
+    nominal = load_robot(robot)
+    cols = _column_map(column)
+    meas = load_measurements(data, n_joints=nominal.n_joints, columns=cols)
+    val = None if validate is None else load_measurements(validate, n_joints=nominal.n_joints, columns=cols)
+    with _progress_bar(quiet or method == "lm", method) as bar:
+        callback = None
+        if bar is not None:
+            task = bar.add_task(method, total=iterations, best=float("nan"))
+
+            def callback(t, total, best):
+                bar.update(task, completed=t, total=total, best=best)
+
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            result = calibrate(
+                nominal, meas, method, frames=frames, params=params, validate=val, seed=seed, objective=objective,
+                k=k, use_orientation=not position_only, loss=loss, f_scale=f_scale, particles=particles,
+                iterations=iterations, box=None if box_v is None else (box_v[0], box_v[1]),
+                swarm_options={"halton_scramble": halton == "scrambled"}, progress=callback,
+            )  # fmt: skip
+    if out is not None:
+        result.save(out)
+    if export is not None:
+        result.export(export)
+    _warn(result.warnings)
+    if not quiet:
+        cols_m = {"before": result.metrics["before"], "after": result.metrics["after"]}
+        if "validation_before" in result.metrics:
+            cols_m["validation before"] = result.metrics["validation_before"]
+            cols_m["validation after"] = result.metrics["validation_after"]
+        console.print(metrics_table(f"{nominal.name}: {method} on {data} ({result.n_poses} poses)", cols_m))
+        ident = result.identifiability
+        console.print(
+            f"{len(result.names)} parameters identified, {len(ident.dropped)} dropped"
+            + (f" ({', '.join(ident.dropped)})" if ident.dropped else "")
+            + f"; condition number {ident.condition:.3g}; {result.optimisation.status} after "
+            f"{result.optimisation.nit} iterations, {result.optimisation.nfev} evaluations, {result.time_s:.2f} s"
+        )
 
 
 def _one_line(text: str) -> str:
