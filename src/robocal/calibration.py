@@ -121,6 +121,8 @@ class CalibrationResult:
     full_pose: bool = False
     warnings: list[str] = field(default_factory=list)
     time_s: float = 0.0
+    measurements: Measurements | None = field(default=None, repr=False)
+    validation: Measurements | None = field(default=None, repr=False)
 
     def parameter(self, name: str) -> float:
         return float(self.x[self.names.index(name)])
@@ -391,6 +393,7 @@ def calibrate(
         robot=calibrated, initial=initial, nominal=nominal, names=ident.kept, x=x, uncertainty=unc,
         identifiability=ident, optimisation=opt, metrics=metrics, loss=loss, data=meas.source,
         n_poses=meas.n_poses, full_pose=full_pose, warnings=caught, time_s=time.perf_counter() - start,
+        measurements=meas, validation=val,
     )  # fmt: skip
 
 

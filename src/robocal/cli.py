@@ -229,6 +229,7 @@ def calibrate_cmd(
     halton: str = typer.Option("scrambled", "--halton", help="IPSO start: scrambled | plain"),
     out: Path | None = typer.Option(None, "--out", help="result JSON to write"),
     export: Path | None = typer.Option(None, "--export", help="calibrated robot TOML to write"),
+    report: Path | None = typer.Option(None, "--report", help="self-contained HTML report to write"),
     column: list[str] | None = typer.Option(None, "--column", help="map a file column: FILE=ROBOCAL (repeatable)"),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="no table, no progress bar"),
 ) -> None:
@@ -271,6 +272,10 @@ def calibrate_cmd(
         result.save(out)
     if export is not None:
         result.export(export)
+    if report is not None:
+        from .report import write_report
+
+        write_report(result, report)
     _warn(result.warnings)
     if not quiet:
         cols_m = {"before": result.metrics["before"], "after": result.metrics["after"]}
@@ -285,6 +290,31 @@ def calibrate_cmd(
             + f"; condition number {ident.condition:.3g}; {result.optimisation.status} after "
             f"{result.optimisation.nit} iterations, {result.optimisation.nfev} evaluations, {result.time_s:.2f} s"
         )
+
+
+@app.command("reproduce")
+def reproduce_cmd(
+    scenario: str = typer.Argument(..., help="wen2019 | kou2022 | all"),
+    out: Path = typer.Option(..., "--out", help="folder for summary.md, results.json and figures"),
+    quick: bool = typer.Option(False, "--quick", help="shortened settings (a smoke test, not the paper's)"),
+    runs: int = typer.Option(10, "--runs", help="runs per swarm method (kou2022)"),
+    seed: int = typer.Option(0, "--seed"),
+    quiet: bool = typer.Option(False, "--quiet", "-q"),
+) -> None:
+    """Re-run a paper's experiment and write what it published beside what robocal measures."""
+    from .reproduce import reproduce
+
+    if runs < 1:
+        raise InputError(f"must be ≥ 1, got {runs}", source="--runs")
+    err = Console(stderr=True)
+
+    def say(message: str) -> None:
+        if not quiet:
+            err.print(f"[dim]{message}[/dim]")
+
+    reproduce(scenario, out, quick=quick, runs=runs, seed=seed, say=say)
+    if not quiet:
+        console.print(f"wrote {out}")
 
 
 def _one_line(text: str) -> str:
