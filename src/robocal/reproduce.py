@@ -343,6 +343,9 @@ def _kou_summary(r: dict, before: Metrics) -> str:
     red = r["time_reduction_pct"]
     red_verdict = "reproduces it" if abs(red - 41.85) <= 10 else "beats it" if red > 41.85 else "does not reproduce it"
     ratio = s["ldpso-bt"]["fitness_mean"] / s["pso"]["fitness_mean"]
+    fitness_verdict = (
+        "reproduces it" if 0.5 <= ratio <= 2 else f"does not reproduce it: LDPSO-BT ends at {_f(ratio, 3)}× PSO's"
+    )
     b = r["before"]["axis_max"]
     lines = [
         "# Kou, Guo, Ren (2022): PSO against LDPSO-BT on the KUKA KR5 arc — reproduction",
@@ -367,7 +370,7 @@ def _kou_summary(r: dict, before: Metrics) -> str:
         f"| LDPSO-BT time saving over PSO | 41.85 % | {_f(red, 4)} % | {red_verdict} (expected from particle "
         "counts alone: 1 − 140/240 = 41.7 %) |",
         f"| mean fitness LDPSO-BT vs PSO | “about the same” | ratio {_f(ratio, 3)} | "
-        f"{'reproduces it' if 0.5 <= ratio <= 2 else 'does not reproduce it: LDPSO-BT ends ' + _f(ratio, 3) + '× higher'} |",
+        f"{fitness_verdict} |",
         "",
         "## Swarms over the runs",
         "",
