@@ -204,8 +204,9 @@ def _wen_summary(r: dict) -> str:
         lines += [
             f"## {case['label']}",
             "",
-            "| method | before mean (mm) | after mean | after std | after max | orient. after mean X/Y/Z (deg) | | "
-            "| validation before rms | validation after rms | max param. error (mm) | max param. error (rad) "
+            "| method | before mean (mm) | after mean | after std | after max | orient. X after mean (deg) "
+            "| orient. Y | orient. Z | validation before rms | validation after rms | max param. error (mm) "
+            "| max param. error (rad) "
             "| optimiser time (s) | evaluations |",
             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
         ]
