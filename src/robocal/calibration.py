@@ -579,6 +579,8 @@ def _uncertainty(problem: Problem, x: np.ndarray) -> np.ndarray | None:
     if dof <= 0:
         return np.full(x.size, np.nan)
     J = problem.residual_jacobian(x)
+    if J.shape[0] > 4 * J.shape[1]:
+        J = np.linalg.qr(J, mode="r")  # same singular values and right vectors, k×k
     _, s, Vt = np.linalg.svd(J, full_matrices=False)
     if s[-1] <= s[0] * 1e-14:
         return np.full(x.size, np.nan)

@@ -125,14 +125,14 @@ def analyse(
     J = np.asarray(J, dtype=float)
     k = J.shape[1]
     scale = np.where(angle_mask, 1.0 / length_scale, 1.0)  # rad columns in mm per L-mm
-    Js = J * scale
-    norms = np.linalg.norm(Js, axis=0)
+    raw_norms = np.linalg.norm(J, axis=0)
+    norms = raw_norms * scale
     biggest = norms.max() if k else 0.0
     zero = norms <= ZERO_TOL * max(biggest, 1e-300)
     reasons: dict[str, str] = {}
     for i in np.flatnonzero(zero):
         reasons[names[i]] = "no effect on the measured data (zero Jacobian column)"
-    Jn = np.where(zero, 0.0, J / np.where(zero, 1.0, np.linalg.norm(J, axis=0)))
+    Jn = np.where(zero, 0.0, J / np.where(zero, 1.0, raw_norms))
     # Work in the k×k triangular factor: same column geometry as J, cheap for 10⁵ poses.
     R = np.linalg.qr(Jn, mode="r") if Jn.shape[0] > k else Jn
     basis: list[np.ndarray] = []
@@ -161,9 +161,12 @@ def analyse(
     kept = [names[i] for i in sorted(kept_idx)]
     dropped = [n for n in names if n in reasons]
     kidx = sorted(kept_idx)
+    # Jn = Q R with orthonormal Q: singular values of column subsets (and of their
+    # rescalings) come from the small R instead of the tall Jacobian.
+    col_scale = np.where(zero, 0.0, raw_norms) * scale
     if kidx:
-        sv = np.linalg.svd(Js[:, kidx], compute_uv=False)
-        sn = np.linalg.svd(Jn[:, kidx], compute_uv=False)
+        sv = np.linalg.svd(R[:, kidx] * col_scale[kidx], compute_uv=False)
+        sn = np.linalg.svd(R[:, kidx], compute_uv=False)
         cond = float(sn[0] / sn[-1]) if sn[-1] > 0 else float("inf")
     else:
         sv, cond = np.zeros(0), float("inf")
@@ -179,7 +182,7 @@ def analyse(
         reasons=reasons,
         singular_values=sv,
         condition=cond,
-        observability=observability(Js[:, kidx], n_poses) if kidx else observability(Js[:, :0], n_poses),
+        observability=observability(R[:, kidx] * col_scale[kidx], n_poses),
         length_scale=length_scale,
         n_poses=n_poses,
         warnings=warnings,

@@ -102,25 +102,90 @@ def chain_frames(convention: str, geom: np.ndarray, q: np.ndarray, base: np.ndar
     return Rs, os_
 
 
+def _apply_chain(convention: str, geom: np.ndarray, q: np.ndarray, V: np.ndarray) -> np.ndarray:
+    """Apply A_1 ⋯ A_n to the column vectors of V, from the flange back to the base.
+
+    V: (..., m, 3, c) vectors in the flange frame; its last column is a point
+    (translations apply to it), the others are directions.  Working backwards on
+    vectors needs only elementwise rotations about x, y, z — no 3×3 products — and
+    for positions alone V is a single column.
+    """
+    n = geom.shape[-2]
+    V = np.asarray(V, dtype=float)
+    x, y, z = V[..., 0, :], V[..., 1, :], V[..., 2, :]
+    e = np.zeros(V.shape[-1])
+    e[-1] = 1.0  # translations act on the last column only
+    for i in range(n - 1, -1, -1):
+        g = geom[..., i, :]
+        a, d = g[..., A, None], g[..., D, None]  # (..., 1): broadcast over poses
+        ca, sa = np.cos(g[..., ALPHA])[..., None, None], np.sin(g[..., ALPHA])[..., None, None]
+        t = q[..., i] + g[..., THETA, None]
+        ct, st = np.cos(t)[..., None], np.sin(t)[..., None]
+        if convention == "craig":
+            # Rx(α) · Tx(a) · Rz(t) · Tz(d)
+            z = z + d[..., None] * e
+            x, y = ct * x - st * y, st * x + ct * y
+            x = x + a[..., None] * e
+            y, z = ca * y - sa * z, sa * y + ca * z
+        else:
+            if convention == "hayati":
+                cb, sb = np.cos(g[..., BETA])[..., None, None], np.sin(g[..., BETA])[..., None, None]
+                x, z = cb * x + sb * z, cb * z - sb * x
+            # Rz(t) · Tz(d) · Tx(a) · Rx(α)
+            y, z = ca * y - sa * z, sa * y + ca * z
+            x = x + a[..., None] * e
+            z = z + d[..., None] * e
+            x, y = ct * x - st * y, st * x + ct * y
+    return np.stack(np.broadcast_arrays(x, y, z), axis=-2)
+
+
+def _tool_vectors(tool, columns: slice) -> np.ndarray:
+    if tool is None:
+        tool = np.eye(4)[None]
+    return np.asarray(tool, dtype=float)[..., :3, columns]
+
+
+def _to_base(V: np.ndarray, base) -> np.ndarray:
+    if base is None:
+        return V
+    base = np.asarray(base, dtype=float)
+    out = base[..., None, :3, :3] @ V
+    out[..., 3 if V.shape[-1] == 4 else 0] += base[..., None, :3, 3]
+    return out
+
+
 def chain_pose(convention: str, geom, q, base=None, tool=None):
     """End pose of the chain: rotation (..., m, 3, 3) and position (..., m, 3) in mm.
 
-    tool: (..., m, 4, 4) or (..., 1, 4, 4) (one tool per pose allows several
-    targets on one flange), or None for the flange itself.
+    geom (..., n, 5); q (..., m, n) rad; base (..., 4, 4) or None; tool (..., m, 4, 4)
+    or (..., 1, 4, 4) (one tool per pose allows several targets on one flange), or
+    None for the flange itself.
     """
-    Rs, os_ = chain_frames(convention, geom, q, base)
-    R, o = Rs[-1], os_[-1]
-    if tool is not None:
-        tool = np.asarray(tool, dtype=float)
-        o = o + (R @ tool[..., :3, 3:])[..., 0]
-        R = R @ tool[..., :3, :3]
-    return np.broadcast_to(R, np.broadcast_shapes(R.shape, o.shape[:-1] + (3, 3))), o
+    _check_convention(convention)
+    geom = np.asarray(geom, dtype=float)
+    q = np.asarray(q, dtype=float)
+    if q.shape[-1] != geom.shape[-2]:
+        raise ValueError(f"joint values have {q.shape[-1]} columns but the robot has {geom.shape[-2]} joints")
+    V = _to_base(_apply_chain(convention, geom, q, _tool_vectors(tool, slice(0, 4))), base)
+    return V[..., :3], V[..., 3]
+
+
+def chain_points(convention: str, geom, q, base=None, tool=None) -> np.ndarray:
+    """Positions (..., m, 3) in mm of the measured point only: the cheap path for swarms."""
+    _check_convention(convention)
+    geom = np.asarray(geom, dtype=float)
+    q = np.asarray(q, dtype=float)
+    if q.shape[-1] != geom.shape[-2]:
+        raise ValueError(f"joint values have {q.shape[-1]} columns but the robot has {geom.shape[-2]} joints")
+    V = _to_base(_apply_chain(convention, geom, q, _tool_vectors(tool, slice(3, 4))), base)
+    return V[..., 0]
 
 
 def chain_twist_jacobian(convention: str, geom, q, base=None, tool=None):
     """Jacobian of the end pose with respect to each joint's geometric parameters.
 
-    Returns ``(J, R_e, p_e, R_flange)`` where J has shape (..., m, 6, n, 5): rows are
+    Returns ``(J, R_e, p_e, R_flange)`` where J has shape (n, 5, ..., m, 6) — one
+    contiguous block per parameter, the layout least-squares wants: entries are
     the end-point velocity (mm per unit of the parameter) and the angular velocity
     (rad per unit) in the base-of-measurement frame, so that a small change ε of
     parameter k moves the point by ``J[:3] ε`` and rotates the end frame by
@@ -139,14 +204,18 @@ def chain_twist_jacobian(convention: str, geom, q, base=None, tool=None):
         p_e, R_e = o_f, R_f
     n = geom.shape[-2]
     shape = np.broadcast_shapes(p_e.shape, R_f.shape[:-1])[:-1]
-    J = np.zeros(shape + (6, n, 5))
+    J = np.zeros((n, 5) + shape + (6,))
 
     def rot(col_i, kind, axis, point):
-        J[..., :3, col_i, kind] = np.cross(axis, p_e - point)
-        J[..., 3:, col_i, kind] = axis
+        r = p_e - point
+        out = J[col_i, kind]
+        out[..., 0] = axis[..., 1] * r[..., 2] - axis[..., 2] * r[..., 1]
+        out[..., 1] = axis[..., 2] * r[..., 0] - axis[..., 0] * r[..., 2]
+        out[..., 2] = axis[..., 0] * r[..., 1] - axis[..., 1] * r[..., 0]
+        out[..., 3:] = axis
 
     def trans(col_i, kind, axis):
-        J[..., :3, col_i, kind] = axis
+        J[col_i, kind, ..., :3] = axis
 
     for i in range(n):
         R0, o0, R1, o1 = Rs[i], os_[i], Rs[i + 1], os_[i + 1]

@@ -17,9 +17,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import _fast
 from .measurements import Measurements
-from .parameters import ParameterSpace
-from .transforms import log_so3, right_jacobian_inv
+from .parameters import ParameterSpace, joint_kinds
+from .transforms import log_so3
 
 OBJECTIVES = ("sum_squares", "sum_norms")
 
@@ -27,6 +28,15 @@ OBJECTIVES = ("sum_squares", "sum_norms")
 #: so 0.01° weighs like 0.017 mm — about the ratio of a laser tracker's position noise to
 #: its 6-DOF probe's orientation noise.  Wen et al. (2019) do not give their k.
 DEFAULT_K = 1.0e4
+
+
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """a × b for a (m, 3) against b (k, m, 3), componentwise (np.cross copies axes around)."""
+    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
+    out[..., 0] = a[:, 1] * b[..., 2] - a[:, 2] * b[..., 1]
+    out[..., 1] = a[:, 2] * b[..., 0] - a[:, 0] * b[..., 2]
+    out[..., 2] = a[:, 0] * b[..., 1] - a[:, 1] * b[..., 0]
+    return out
 
 
 @dataclass(eq=False)
@@ -43,6 +53,12 @@ class Problem:
         self.use_orientation = bool(self.use_orientation and self.meas.full_pose)
         self._Rm = self.meas.rotation if self.use_orientation else None
         self._sqrt_k = float(np.sqrt(self.k))
+        _, base, tools = self.space.expand(np.zeros(self.space.size))
+        self._nominal_frames = (base, tools)
+        kinds = len(joint_kinds(self.space.robot.convention))
+        self._geom_cols = (self.active // kinds) * 5 + self.active % kinds  # into the flat (n, 5) geometry
+        self._tiles: dict = {}
+        self._qtrig = _fast.joint_trig(self.meas.q)
 
     @property
     def names(self) -> list[str]:
@@ -65,23 +81,69 @@ class Problem:
 
     def errors(self, X: np.ndarray):
         """Position errors (…, m, 3) mm and orientation errors (…, m, 3) rad (or None)."""
-        R, p = self.space.pose(self.full(X), self.meas.q, self.target_idx)
-        dp = self.meas.position - p
         if self._Rm is None:
-            return dp, None
-        return dp, log_so3(self._Rm @ np.swapaxes(R, -1, -2))
+            return self.meas.position - self.space.points(self.full(X), self.meas.q, self.target_idx), None
+        R, p = self.space.pose(self.full(X), self.meas.q, self.target_idx)
+        return self.meas.position - p, log_so3(self._Rm @ np.swapaxes(R, -1, -2))
 
-    def objective(self, X: np.ndarray, kind: str = "sum_squares") -> np.ndarray:
-        """Objective of each candidate in X (P, k_active) → (P,)."""
+    def objective(self, X: np.ndarray, kind: str = "sum_squares", *, fast: bool | None = None) -> np.ndarray:
+        """Objective of each candidate in X (P, k_active) → (P,).
+
+        fast: use the compiled kernel (default: when numba is installed); the numpy
+        path gives the same numbers.
+        """
+        if kind not in OBJECTIVES:
+            raise ValueError(f"unknown objective {kind!r}")
+        X = np.asarray(X, dtype=float)
+        if (_fast.AVAILABLE if fast is None else fast) and X.ndim == 2:
+            return self._fast_objective(X, kind)
         dp, dr = self.errors(X)
         if kind == "sum_norms":
             return np.sqrt(np.sum(dp * dp, axis=-1)).sum(-1)
-        if kind != "sum_squares":
-            raise ValueError(f"unknown objective {kind!r}")
         f = np.sum(dp * dp, axis=(-1, -2))
         if dr is not None:
             f = f + self.k * np.sum(dr * dr, axis=(-1, -2))
         return f
+
+    def _expand(self, X: np.ndarray):
+        """space.expand(full(X)) without the frame algebra when no frame parameter is estimated.
+
+        Swarms call this every generation: the nominal frames and geometry are tiled once
+        per population size and only the estimated columns change.
+        """
+        space = self.space
+        if np.any(self.active >= space.n_joint_params):
+            return space.expand(self.full(X))
+        P = len(X)
+        if P not in self._tiles:
+            r = space.robot
+            base, tools = self._nominal_frames
+            self._tiles = {
+                P: (np.tile(r.geometry.ravel(), (P, 1)), np.tile(base, (P, 1, 1)), np.tile(tools, (P, 1, 1, 1)))
+            }
+        geom0, base, tools = self._tiles[P]
+        geom = geom0.copy()
+        geom[:, self._geom_cols] += X
+        return geom.reshape(P, -1, 5), base, tools
+
+    def _fast_objective(self, X: np.ndarray, kind: str) -> np.ndarray:
+        geom, base, tools = self._expand(X)
+        tidx = np.zeros(self.meas.n_poses, dtype=np.int64) if self.target_idx is None else self.target_idx
+        use_rot = self._Rm is not None
+        Rm = self._Rm if use_rot else np.zeros((1, 3, 3))
+        return _fast.objective(
+            _fast.CONVENTION_CODE[self.space.robot.convention],
+            _fast.trig(geom),
+            base,
+            tools,
+            self._qtrig,
+            tidx.astype(np.int64),
+            self.meas.position,
+            Rm,
+            use_rot,
+            self.k,
+            0 if kind == "sum_squares" else 1,
+        )
 
     def residuals(self, x: np.ndarray) -> np.ndarray:
         """Stacked residual vector [δp (3m), √k·δ (3m)] of one solution (k_active,)."""
@@ -91,12 +153,24 @@ class Problem:
         return np.concatenate([dp.ravel(), self._sqrt_k * dr.ravel()])
 
     def residual_jacobian(self, x: np.ndarray) -> np.ndarray:
-        """Exact ∂residuals/∂x, (n_residuals, k_active)."""
-        J, R, _ = self.space.jacobian(self.full(x), self.meas.q, self.target_idx)
-        J = J[:, :, self.active]
-        Jp = -J[:, :3, :].reshape(-1, self.n_params)
-        if self._Rm is None:
-            return Jp
-        dr = log_so3(self._Rm @ np.swapaxes(R, -1, -2))
-        Jr = -(right_jacobian_inv(dr) @ J[:, 3:, :])
-        return np.concatenate([Jp, self._sqrt_k * Jr.reshape(-1, self.n_params)])
+        """Exact ∂residuals/∂x, (n_residuals, k_active), Fortran-ordered as MINPACK wants."""
+        frames = bool(np.any(self.active >= self.space.n_joint_params))
+        Jc, R, _ = self.space.jacobian_columns(self.full(x), self.meas.q, self.target_idx, frames=frames)
+        Jc = Jc[self.active]  # (k, m, 6)
+        k, m = Jc.shape[0], Jc.shape[1]
+        out = np.empty((k, self.n_residuals))
+        out[:, : 3 * m] = -Jc[:, :, :3].reshape(k, 3 * m)
+        if self._Rm is not None:
+            dr = log_so3(self._Rm @ np.swapaxes(R, -1, -2))
+            # J_r⁻¹(δ) w = w + ½ δ×w + c(θ) δ×(δ×w): cross products instead of 3×3 products
+            th = np.linalg.norm(dr, axis=-1)
+            small = th < 1e-4
+            ths = np.where(small, 1.0, th)
+            c = np.where(
+                small, 1.0 / 12.0 + th**2 / 720.0, 1.0 / ths**2 - (1.0 + np.cos(ths)) / (2.0 * ths * np.sin(ths))
+            )
+            w = Jc[:, :, 3:]
+            dxw = _cross(dr, w)
+            Jr = w + 0.5 * dxw + c[:, None] * _cross(dr, dxw)
+            out[:, 3 * m :] = -self._sqrt_k * Jr.reshape(k, 3 * m)
+        return out.T

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .kinematics import KINDS, Robot, chain_pose, chain_twist_jacobian
+from .kinematics import KINDS, Robot, chain_points, chain_pose, chain_twist_jacobian
 from .transforms import exp_so3, homogeneous, left_jacobian
 
 FRAME_AXES = ("x", "y", "z", "rx", "ry", "rz")
@@ -116,12 +116,20 @@ class ParameterSpace:
 
     def expand(self, delta: np.ndarray):
         """(…, k) → geometry (…, n, 5), base (…, 4, 4), tools (…, T, 4, 4)."""
+        delta = np.asarray(delta, dtype=float)
         joints, db, dt = self._split(delta)
         r = self.robot
         geom = np.broadcast_to(r.geometry, joints.shape[:-2] + r.geometry.shape).copy()
         geom[..., : joints.shape[-1]] += joints
-        base = homogeneous(exp_so3(db[..., 3:]) @ r.base[:3, :3], r.base[:3, 3] + db[..., :3])
         nominal_tools = np.stack([r.tool_frames([t])[0] for t in self.targets])
+        if not np.any(db) and not np.any(dt):  # the common case: frames as given, no SO(3) algebra
+            lead = delta.shape[:-1]
+            return (
+                geom,
+                np.broadcast_to(r.base, lead + (4, 4)).copy(),
+                np.broadcast_to(nominal_tools, lead + nominal_tools.shape).copy(),
+            )
+        base = homogeneous(exp_so3(db[..., 3:]) @ r.base[:3, :3], r.base[:3, 3] + db[..., :3])
         tools = homogeneous(nominal_tools[:, :3, :3] @ exp_so3(dt[..., 3:]), nominal_tools[:, :3, 3] + dt[..., :3])
         return geom, base, tools
 
@@ -142,33 +150,62 @@ class ParameterSpace:
         tool = tools[..., :1, :, :] if target_idx is None else tools[..., target_idx, :, :]
         return chain_pose(self.robot.convention, geom, q, base, tool)
 
+    def points(self, delta: np.ndarray, q: np.ndarray, target_idx: np.ndarray | None = None) -> np.ndarray:
+        """Measured-point positions (…, m, 3) only: the cheap path of position-only objectives."""
+        geom, base, tools = self.expand(delta)
+        tool = tools[..., :1, :, :] if target_idx is None else tools[..., target_idx, :, :]
+        return chain_points(self.robot.convention, geom, q, base, tool)
+
     def jacobian(self, delta: np.ndarray, q: np.ndarray, target_idx: np.ndarray | None = None):
         """Exact derivative of the end pose with respect to ``delta`` (k,).
 
         Returns ``(J, R, p)``: J (m, 6, k) with rows (position mm, rotation rad about
-        the measuring-frame axes, left perturbation), R (m, 3, 3), p (m, 3).
+        the measuring-frame axes, left perturbation), R (m, 3, 3), p (m, 3).  J is a
+        view of a (k, m, 6) array: each parameter's column is contiguous.
         """
+        Jc, R_e, p_e = self.jacobian_columns(delta, q, target_idx)
+        return np.moveaxis(Jc, 0, -1), R_e, p_e
+
+    def jacobian_columns(
+        self, delta: np.ndarray, q: np.ndarray, target_idx: np.ndarray | None = None, frames: bool = True
+    ):
+        """As :meth:`jacobian` with J laid out (k, m, 6); ``frames=False`` leaves the base and
+        tool columns zero (cheaper when none of them is estimated)."""
         delta = np.asarray(delta, dtype=float)
         geom, base, tools = self.expand(delta)
         tool = tools[:1] if target_idx is None else tools[target_idx]
         Jj, R_e, p_e, R_f = chain_twist_jacobian(self.robot.convention, geom, q, base, tool)
         m = p_e.shape[0]
-        kinds = joint_kinds(self.robot.convention)
-        Jj = Jj[..., : len(kinds)].reshape(m, 6, -1)
+        kinds = len(joint_kinds(self.robot.convention))
+        J = np.zeros((self.size, m, 6))
+        nj = self.n_joint_params
+        J[:nj] = Jj[:, :kinds].reshape(nj, m, 6)
+        if not frames:
+            return J, R_e, p_e
         _, db, dt = self._split(delta)
-        Jb = np.zeros((m, 6, 6))
-        Jb[:, :3, :3] = np.eye(3)
+        Jb = J[nj : nj + 6]
+        for k in range(3):
+            Jb[k, :, k] = 1.0
         Wb = left_jacobian(db[3:])  # Exp(δ+ε) = Exp(J_l ε) Exp(δ)
-        Jb[:, :3, 3:] = np.cross(Wb.T[None, :, :], (p_e - base[:3, 3])[:, None, :]).transpose(0, 2, 1)
-        Jb[:, 3:, 3:] = Wb
-        Jt = np.zeros((m, 6, 6 * len(self.targets)))
-        tidx = np.zeros(m, dtype=int) if target_idx is None else target_idx
-        for k in range(len(self.targets)):
-            rows = tidx == k
-            if not np.any(rows):
-                continue
+        r = p_e - base[:3, 3]
+        for k in range(3):
+            w = Wb[:, k]
+            Jb[3 + k, :, :3] = np.cross(w, r)
+            Jb[3 + k, :, 3:] = w
+        for t in range(len(self.targets)):
+            if target_idx is None:
+                if t > 0:
+                    break
+                rows = slice(None)
+            else:
+                rows = target_idx == t
+                if not np.any(rows):
+                    continue
             # R_tool° Exp(δ+ε) = R_tool° Exp(δ) Exp(J_r(δ) ε), J_r(δ) = J_l(−δ)
-            Wt = left_jacobian(-dt[k, 3:])
-            Jt[rows, :3, 6 * k : 6 * k + 3] = R_f[rows]
-            Jt[rows, 3:, 6 * k + 3 : 6 * k + 6] = R_e[rows] @ Wt
-        return np.concatenate([Jj, Jb, Jt], axis=2), R_e, p_e
+            Wt = R_e[rows] @ left_jacobian(-dt[t, 3:])
+            c = nj + 6 + 6 * t
+            Rf = R_f[rows]
+            for k in range(3):
+                J[c + k, rows, :3] = Rf[:, :, k]
+                J[c + 3 + k, rows, 3:] = Wt[:, :, k]
+        return J, R_e, p_e

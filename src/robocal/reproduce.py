@@ -370,8 +370,7 @@ def _kou_summary(r: dict, before: Metrics) -> str:
         f"{_verdict_axes(s['ldpso-bt']['axis_max_after_best'], KOU_PUBLISHED['ldpso-bt'])} |",
         f"| LDPSO-BT time saving over PSO | 41.85 % | {_f(red, 4)} % | {red_verdict} (expected from particle "
         "counts alone: 1 − 140/240 = 41.7 %) |",
-        f"| mean fitness LDPSO-BT vs PSO | “about the same” | ratio {_f(ratio, 3)} | "
-        f"{fitness_verdict} |",
+        f"| mean fitness LDPSO-BT vs PSO | “about the same” | ratio {_f(ratio, 3)} | {fitness_verdict} |",
         "",
         "## Swarms over the runs",
         "",
