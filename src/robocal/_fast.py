@@ -103,21 +103,37 @@ def _chain(conv, g, q, base, tool, V, ncol):
             V[r, c] = base[r, 0] * x + base[r, 1] * y + base[r, 2] * z + (base[r, 3] if c == 3 else 0.0)
 
 
+@njit(cache=True, inline="always")
+def _trig_one(geom, g):
+    """In-kernel :func:`trig` of one particle: geom (n, 5) → g (n, 8)."""
+    for i in range(geom.shape[0]):
+        g[i, 0] = geom[i, 0]
+        g[i, 1] = math.cos(geom[i, 1])
+        g[i, 2] = math.sin(geom[i, 1])
+        g[i, 3] = math.cos(geom[i, 2])
+        g[i, 4] = math.sin(geom[i, 2])
+        g[i, 5] = geom[i, 3]
+        g[i, 6] = math.cos(geom[i, 4])
+        g[i, 7] = math.sin(geom[i, 4])
+
+
 @njit(cache=True, parallel=True)
-def objective(conv, g, base, tools, q, tidx, pm, Rm, use_rot, k, kind):  # pragma: no cover
+def objective(conv, geom, base, tools, q, tidx, pm, Rm, use_rot, k, kind):  # pragma: no cover
     """Objective per particle: kind 0 = Σ |δp|² + k θ², kind 1 = Σ |δp| (θ: angle of R_m Rᵀ).
 
-    g from :func:`trig`, q from :func:`joint_trig`.
+    geom (P, n, 5) as in :mod:`robocal.kinematics`, q from :func:`joint_trig`.
     """
-    P = g.shape[0]
+    P = geom.shape[0]
     m = q.shape[0]
     out = np.empty(P)
     ncol = 4 if use_rot else 1
     for p in prange(P):
         V = np.empty((3, 4))
+        g = np.empty((geom.shape[1], 8))
+        _trig_one(geom[p], g)
         acc = 0.0
         for j in range(m):
-            _chain(conv, g[p], q[j], base[p], tools[p, tidx[j]], V, ncol)
+            _chain(conv, g, q[j], base[p], tools[p, tidx[j]], V, ncol)
             dx = pm[j, 0] - V[0, 3]
             dy = pm[j, 1] - V[1, 3]
             dz = pm[j, 2] - V[2, 3]
@@ -166,3 +182,37 @@ def points(conv, g, base, tool, q):  # pragma: no cover
             out[p, j, 1] = V[1, 3]
             out[p, j, 2] = V[2, 3]
     return out
+
+
+@njit(cache=True)
+def swarm_step(mode, v, x, pbest, gbest, r1, r2, a, c1, c2, vmax, lo, hi):  # pragma: no cover
+    """Velocity and position update of a swarm, fused, in the numpy path's operation order.
+
+    mode 0: v ← a v + c1 r1 (pbest − x) + c2 r2 (gbest − x)   (inertia weight a)
+    mode 1: v ← a (v + c1 r1 (pbest − x) + c2 r2 (gbest − x)) (constriction a)
+    mode 2: v ← a v + c2 r2 (gbest − x)                       (social only)
+    Then |v| ≤ vmax, x ← x + v, and a coordinate leaving [lo, hi] is put on the wall with
+    its velocity zeroed.  Returns the new (x, v).
+    """
+    P, k = x.shape
+    xn = np.empty_like(x)
+    vn = np.empty_like(v)
+    for p in range(P):
+        for j in range(k):
+            if mode == 0:
+                u = a * v[p, j] + c1 * r1[p, j] * (pbest[p, j] - x[p, j]) + c2 * r2[p, j] * (gbest[j] - x[p, j])
+            elif mode == 1:
+                u = a * (v[p, j] + c1 * r1[p, j] * (pbest[p, j] - x[p, j]) + c2 * r2[p, j] * (gbest[j] - x[p, j]))
+            else:
+                u = a * v[p, j] + c2 * r2[p, j] * (gbest[j] - x[p, j])
+            u = min(max(u, -vmax[j]), vmax[j])
+            y = x[p, j] + u
+            if y < lo[j]:
+                y = lo[j]
+                u = 0.0
+            elif y > hi[j]:
+                y = hi[j]
+                u = 0.0
+            xn[p, j] = y
+            vn[p, j] = u
+    return xn, vn

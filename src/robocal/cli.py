@@ -317,6 +317,24 @@ def reproduce_cmd(
         console.print(f"wrote {out}")
 
 
+@app.command("bench")
+def bench_cmd(
+    quick: bool = typer.Option(False, "--quick", help="fewer repeats, no 100 000-pose LM"),
+) -> None:
+    """Time the workloads of robocal's speed targets (medians), with peers side by side."""
+    from .bench import format_value, run_all
+
+    err = Console(stderr=True)
+    rows = run_all(quick=quick, say=lambda m: err.print(f"[dim]{m}[/dim]"))
+    table = Table(title="robocal bench" + (" (quick)" if quick else ""))
+    for col in ("workload", "median", "target", "met", "peer", "note"):
+        table.add_column(col)
+    for r in rows:
+        met = "" if r.met is None else ("yes" if r.met else "falls short")
+        table.add_row(r.workload, format_value(r), r.target, met, r.peer, r.note)
+    console.print(table)
+
+
 def _one_line(text: str) -> str:
     return " ".join(str(text).split())
 

@@ -57,8 +57,12 @@ class Problem:
         self._nominal_frames = (base, tools)
         kinds = len(joint_kinds(self.space.robot.convention))
         self._geom_cols = (self.active // kinds) * 5 + self.active % kinds  # into the flat (n, 5) geometry
-        self._tiles: dict = {}
+        self._tiles: tuple | None = None
         self._qtrig = _fast.joint_trig(self.meas.q)
+        self._conv_code = _fast.CONVENTION_CODE[self.space.robot.convention]
+        m = self.meas.n_poses
+        self._tidx64 = np.zeros(m, dtype=np.int64) if self.target_idx is None else self.target_idx.astype(np.int64)
+        self._Rm_kernel = self._Rm if self._Rm is not None else np.zeros((1, 3, 3))
 
     @property
     def names(self) -> list[str]:
@@ -115,32 +119,27 @@ class Problem:
         if np.any(self.active >= space.n_joint_params):
             return space.expand(self.full(X))
         P = len(X)
-        if P not in self._tiles:
+        if self._tiles is None or len(self._tiles[0]) < P:
             r = space.robot
             base, tools = self._nominal_frames
-            self._tiles = {
-                P: (np.tile(r.geometry.ravel(), (P, 1)), np.tile(base, (P, 1, 1)), np.tile(tools, (P, 1, 1, 1)))
-            }
-        geom0, base, tools = self._tiles[P]
+            self._tiles = (np.tile(r.geometry.ravel(), (P, 1)), np.tile(base, (P, 1, 1)), np.tile(tools, (P, 1, 1, 1)))
+        geom0, base, tools = (a[:P] for a in self._tiles)  # a shrinking swarm reuses the leading rows
         geom = geom0.copy()
         geom[:, self._geom_cols] += X
         return geom.reshape(P, -1, 5), base, tools
 
     def _fast_objective(self, X: np.ndarray, kind: str) -> np.ndarray:
         geom, base, tools = self._expand(X)
-        tidx = np.zeros(self.meas.n_poses, dtype=np.int64) if self.target_idx is None else self.target_idx
-        use_rot = self._Rm is not None
-        Rm = self._Rm if use_rot else np.zeros((1, 3, 3))
         return _fast.objective(
-            _fast.CONVENTION_CODE[self.space.robot.convention],
-            _fast.trig(geom),
+            self._conv_code,
+            geom,
             base,
             tools,
             self._qtrig,
-            tidx.astype(np.int64),
+            self._tidx64,
             self.meas.position,
-            Rm,
-            use_rot,
+            self._Rm_kernel,
+            self._Rm is not None,
             self.k,
             0 if kind == "sum_squares" else 1,
         )

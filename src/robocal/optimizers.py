@@ -36,6 +36,8 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.stats import qmc
 
+from . import _fast
+
 Objective = Callable[[np.ndarray], np.ndarray]
 Progress = Callable[[int, int, float], None]
 
@@ -117,13 +119,26 @@ class _Swarm:
         self.callback = callback
         self.iterations = iterations
 
-    def move(self, v: np.ndarray, t: int) -> None:
-        v = np.minimum(np.maximum(v, -self.vmax), self.vmax)
-        x = self.x + v
-        out = (x < self.lo) | (x > self.hi)
-        if out.any():
-            x = np.minimum(np.maximum(x, self.lo), self.hi)
-            v[out] = 0.0
+    def step(self, mode: int, a: float, c1: float, c2: float, r1, r2, t: int) -> None:
+        """One generation: velocity update (mode 0 inertia weight, 1 constriction, 2 social
+        only), velocity limit, move, walls, evaluation and bests."""
+        if _fast.AVAILABLE:
+            x, v = _fast.swarm_step(
+                mode, self.v, self.x, self.pbest, self.gbest, r1, r2, a, c1, c2, self.vmax, self.lo, self.hi
+            )
+        else:
+            if mode == 0:
+                v = a * self.v + c1 * r1 * (self.pbest - self.x) + c2 * r2 * (self.gbest - self.x)
+            elif mode == 1:
+                v = a * (self.v + c1 * r1 * (self.pbest - self.x) + c2 * r2 * (self.gbest - self.x))
+            else:
+                v = a * self.v + c2 * r2 * (self.gbest - self.x)
+            v = np.minimum(np.maximum(v, -self.vmax), self.vmax)
+            x = self.x + v
+            out = (x < self.lo) | (x > self.hi)
+            if out.any():
+                x = np.minimum(np.maximum(x, self.lo), self.hi)
+                v[out] = 0.0
         self.x, self.v = x, v
         fx = self.f(x)
         self.nfev += len(x)
@@ -185,7 +200,7 @@ def pso(
     s = _Swarm(objective, lower, upper, x0, v0, callback, iterations)
     for t in range(1, iterations + 1):
         r1, r2 = rng.random((2,) + s.x.shape)
-        s.move(w * s.v + c1 * r1 * (s.pbest - s.x) + c2 * r2 * (s.gbest - s.x), t)
+        s.step(0, w, c1, c2, r1, r2, t)
     return s.result("pso", start, {"particles": particles, "w": w, "c1": c1, "c2": c2})
 
 
@@ -219,7 +234,7 @@ def ipso(
     s = _Swarm(objective, lower, upper, x0, v0, callback, iterations)
     for t in range(1, iterations + 1):
         r1, r2 = rng.random((2,) + s.x.shape)
-        s.move(K * (s.v + c1 * r1 * (s.pbest - s.x) + c2 * r2 * (s.gbest - s.x)), t)
+        s.step(1, K, c1, c2, r1, r2, t)
     return s.result(
         "ipso", start, {"particles": particles, "c1": c1, "c2": c2, "K": K, "halton_scramble": halton_scramble}
     )
@@ -255,11 +270,9 @@ def ldpso_bt(
         sizes.append(len(s.x))
         r2 = rng.random(s.x.shape)
         if t <= switch * iterations:
-            r1 = rng.random(s.x.shape)
-            v = w1 * s.v + c1 * r1 * (s.pbest - s.x) + c2 * r2 * (s.gbest - s.x)
+            s.step(0, w1, c1, c2, rng.random(s.x.shape), r2, t)
         else:
-            v = w2 * s.v + c2 * r2 * (s.gbest - s.x)
-        s.move(v, t)
+            s.step(2, w2, 0.0, c2, r2, r2, t)
     return s.result(
         "ldpso-bt",
         start,
