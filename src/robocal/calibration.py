@@ -493,6 +493,8 @@ def _optimise(
 #: significance level of the F-test that decides whether parameters that become
 #: identifiable at the estimate are worth adding
 ADD_SIGNIFICANCE = 0.01
+#: residual evaluations allowed to the refit with the added parameters
+REFIT_EVALUATIONS = 100
 
 
 def _refine_identifiable(probe, candidates, problem, ident, opt, initial, meas, k, full_pose, loss, f_scale):
@@ -525,7 +527,11 @@ def _refine_identifiable(probe, candidates, problem, ident, opt, initial, meas, 
         return problem, ident, opt
     names = ident.kept + added
     new = Problem(space, space.index(names), meas, k=k, use_orientation=full_pose)
-    lm = levenberg_marquardt(new.residuals, new.residual_jacobian, delta[new.active], loss=loss, f_scale=f_scale)
+    # A parameter that separates only weakly makes LM crawl along a valley; the refit is a
+    # test of whether the addition pays, so it gets a bounded budget.
+    lm = levenberg_marquardt(
+        new.residuals, new.residual_jacobian, delta[new.active], loss=loss, f_scale=f_scale, max_nfev=REFIT_EVALUATIONS
+    )
     n_res, k_new = new.n_residuals, len(names)
     rss_old, rss_new = opt.fun, lm.fun  # both sums of squared residuals (LM stage of lm and hybrid)
     dof = n_res - k_new

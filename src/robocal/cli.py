@@ -332,7 +332,7 @@ def bench_cmd(
     for r in rows:
         met = "" if r.met is None else ("yes" if r.met else "falls short")
         table.add_row(r.workload, format_value(r), r.target, met, r.peer, r.note)
-    console.print(table)
+    Console(width=max(console.width, 160)).print(table)
 
 
 def _one_line(text: str) -> str:
