@@ -292,6 +292,49 @@ def calibrate_cmd(
         )
 
 
+@app.command("compensate")
+def compensate_cmd(
+    nominal: str = typer.Argument(..., help="nominal robot (what the controller runs): file or built-in name"),
+    calibrated: str = typer.Argument(..., help="calibrated robot file"),
+    targets: Path = typer.Argument(..., help="targets CSV: q1..qn and/or x, y, z[, rx, ry, rz] (deg, mm)"),
+    out: Path = typer.Option(..., "--out", help="commands CSV to write"),
+    truth: str | None = typer.Option(None, "--truth", help="simulated true robot: report its errors"),
+    position_only: bool = typer.Option(
+        False, "--position-only", help="match positions only (use for models calibrated from position data)"
+    ),
+    as_json: Path | None = typer.Option(None, "--json", help="write the summary as JSON too"),
+    column: list[str] | None = typer.Option(None, "--column", help="map a file column: FILE=ROBOCAL (repeatable)"),
+    quiet: bool = typer.Option(False, "--quiet", "-q"),
+) -> None:
+    """Corrected joint commands and Cartesian goals that make the calibrated robot reach its targets."""
+    from .compensation import compensate, load_targets
+
+    nom = load_robot(nominal)
+    cal = load_robot(calibrated)
+    tru = None if truth is None else load_robot(truth)
+    if cal.n_joints != nom.n_joints or (tru is not None and tru.n_joints != nom.n_joints):
+        raise InputError("nominal, calibrated and true robots must have the same number of joints", source=calibrated)
+    tg = load_targets(targets, n_joints=nom.n_joints, columns=_column_map(column))
+    result = compensate(nom, cal, tg, truth=tru, position_only=position_only or None)
+    result.save(out)
+    counts = result.counts()
+    summary = {"targets": tg.n, "status": counts, "full_pose": result.full_pose}
+    val = result.validation()
+    if val is not None:
+        summary["validation"] = {k: v.to_dict() for k, v in val.items()}
+    if as_json is not None:
+        atomic_write(as_json, json.dumps(summary, indent=2) + "\n")
+    if not quiet:
+        console.print(f"{tg.n} targets: " + ", ".join(f"{v} {k}" for k, v in counts.items()) + f"; wrote {out}")
+        if val is not None and "nominal_commands" in val:
+            console.print(
+                metrics_table(
+                    "true robot at the targets (rows with status ok)",
+                    {"nominal commands": val["nominal_commands"], "compensated commands": val["compensated_commands"]},
+                )
+            )
+
+
 @app.command("reproduce")
 def reproduce_cmd(
     scenario: str = typer.Argument(..., help="wen2019 | kou2022 | all"),

@@ -111,16 +111,31 @@ def _float(cell: str, source: str, row: int, col: str) -> float:
     return value
 
 
-def parse_measurements(
+@dataclass
+class Table:
+    """The validated numeric content of a measurement-style CSV (deg and mm as in the file)."""
+
+    q: np.ndarray | None
+    position: np.ndarray | None
+    rpy: np.ndarray | None
+    pose_ids: list[str] | None
+    targets: list[str] | None
+    rows: np.ndarray
+
+
+def read_table(
     text: str,
     *,
-    source: str = "<data>",
+    source: str,
     n_joints: int | None = None,
     columns: Mapping[str, str] | None = None,
-    average: bool = True,
-    repeat_tolerance: float = REPEAT_TOLERANCE_MM,
-) -> Measurements:
-    """Parse CSV text; see :func:`load_measurements`."""
+    require_joints: bool = True,
+    require_position: bool = True,
+) -> Table:
+    """Read and validate a CSV with columns q1..qn, x, y, z, rx, ry, rz, pose_id, target.
+
+    Every problem is an :class:`InputError` naming the file, row and column.
+    """
     if not text.strip():
         raise InputError("file is empty", source=source)
     reader = csv.reader(io.StringIO(text.lstrip("\ufeff")))
@@ -159,33 +174,39 @@ def parse_measurements(
                 " map other names with a column mapping)",
                 source=source,
             )
-    if not joint_cols:
+    if not joint_cols and require_joints:
         raise InputError("no joint columns (q1, q2, …)", source=source)
     numbers = [k for k, _ in joint_cols]
-    if numbers != list(range(1, len(numbers) + 1)):
+    if numbers and numbers != list(range(1, len(numbers) + 1)):
         missing = sorted(set(range(1, max(numbers) + 1)) - set(numbers))
         raise InputError(f"joint column 'q{missing[0]}' is missing", source=source)
-    if n_joints is not None and len(numbers) != n_joints:
+    if numbers and n_joints is not None and len(numbers) != n_joints:
         raise InputError(
             f"file has {len(numbers)} joint columns (q1..q{len(numbers)}) but the robot has {n_joints} joints",
             source=source,
         )
-    for c in POSITION:
-        if c not in seen:
-            raise InputError(f"missing column '{c}'", source=source)
+    have_pos = [c in seen for c in POSITION]
+    if require_position or any(have_pos):
+        for c in POSITION:
+            if c not in seen:
+                raise InputError(f"missing column '{c}'", source=source)
+    elif not numbers:
+        raise InputError("needs joint columns (q1..qn) or a position (x, y, z)", source=source)
     have_rot = [c in seen for c in ORIENTATION]
     if any(have_rot) and not all(have_rot):
         missing = [c for c, h in zip(ORIENTATION, have_rot) if not h]
         raise InputError(f"orientation columns rx, ry, rz come together; '{missing[0]}' is missing", source=source)
+    if all(have_rot) and not all(have_pos):
+        raise InputError("orientation columns rx, ry, rz need x, y, z too", source=source)
     data = rows[1:]
     if not data:
         raise InputError("file has a header but no data rows", source=source)
     qcols = [seen[h] for _, h in joint_cols]
-    pcols = [seen[c] for c in POSITION]
+    pcols = [seen[c] for c in POSITION] if all(have_pos) else []
     rcols = [seen[c] for c in ORIENTATION] if all(have_rot) else []
     m = len(data)
-    q = np.empty((m, len(qcols)))
-    pos = np.empty((m, 3))
+    q = np.empty((m, len(qcols))) if qcols else None
+    pos = np.empty((m, 3)) if pcols else None
     rpy = np.empty((m, 3)) if rcols else None
     line_numbers = np.empty(m, dtype=int)
     pose_ids: list[str] | None = [] if "pose_id" in seen else None
@@ -197,13 +218,9 @@ def parse_measurements(
             raise InputError(
                 f"has {len(cells)} cells, the header has {len(header)}{extra}", source=source, where=f"row {ln}"
             )
-        for j, c in enumerate(qcols):
-            q[r, j] = _float(cells[c], source, ln, header[c])
-        for j, c in enumerate(pcols):
-            pos[r, j] = _float(cells[c], source, ln, header[c])
-        if rpy is not None:
-            for j, c in enumerate(rcols):
-                rpy[r, j] = _float(cells[c], source, ln, header[c])
+        for arr, cols in ((q, qcols), (pos, pcols), (rpy, rcols)):
+            for j, c in enumerate(cols):
+                arr[r, j] = _float(cells[c], source, ln, header[c])
         if pose_ids is not None:
             pid = cells[seen["pose_id"]].strip()
             if not pid:
@@ -211,22 +228,36 @@ def parse_measurements(
             pose_ids.append(pid)
         if targets is not None:
             targets.append(cells[seen["target"]].strip())
-    if m >= 3 and np.abs(q).max() <= math.pi + 1e-9 and np.abs(q).max() > 0:
+    if q is not None and m >= 3 and np.abs(q).max() <= math.pi + 1e-9 and np.abs(q).max() > 0:
         raise InputError(
-            "all joint values lie within ±π: they look like radians; measurement files give joints in degrees",
+            "all joint values lie within ±π: they look like radians; files give joints in degrees",
             source=source,
         )
+    return Table(q, pos, rpy, pose_ids, targets, line_numbers)
+
+
+def parse_measurements(
+    text: str,
+    *,
+    source: str = "<data>",
+    n_joints: int | None = None,
+    columns: Mapping[str, str] | None = None,
+    average: bool = True,
+    repeat_tolerance: float = REPEAT_TOLERANCE_MM,
+) -> Measurements:
+    """Parse CSV text; see :func:`load_measurements`."""
+    t = read_table(text, source=source, n_joints=n_joints, columns=columns)
     meas = Measurements(
-        q=np.radians(q),
-        position=pos,
-        rotation=None if rpy is None else rpy_to_matrix(np.radians(rpy)),
-        targets=None if targets is None else tuple(targets),
-        pose_ids=None if pose_ids is None else tuple(pose_ids),
-        rows=line_numbers,
+        q=np.radians(t.q),
+        position=t.position,
+        rotation=None if t.rpy is None else rpy_to_matrix(np.radians(t.rpy)),
+        targets=None if t.targets is None else tuple(t.targets),
+        pose_ids=None if t.pose_ids is None else tuple(t.pose_ids),
+        rows=t.rows,
         source=source,
-        n_raw=m,
+        n_raw=len(t.rows),
     )
-    if average and pose_ids is not None:
+    if average and t.pose_ids is not None:
         meas = average_repeats(meas, repeat_tolerance)
     return meas
 
@@ -281,6 +312,17 @@ def average_repeats(meas: Measurements, tolerance: float = REPEAT_TOLERANCE_MM) 
     )
 
 
+def read_text(path: str | Path, what: str) -> str:
+    """A text file's content, or an InputError naming it."""
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"no such {what}", source=path)
+    try:
+        return path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(f"cannot read {what} ({exc.__class__.__name__})", source=path) from None
+
+
 def load_measurements(
     path: str | Path,
     *,
@@ -295,13 +337,7 @@ def load_measurements(
     of file column name → robocal column name (e.g. ``{"A1": "q1"}``).  average:
     average repeated rows by pose_id.
     """
-    path = Path(path)
-    if not path.is_file():
-        raise InputError("no such measurement file", source=path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"cannot read measurement file ({exc.__class__.__name__})", source=path) from None
+    text = read_text(path, "measurement file")
     return parse_measurements(
         text, source=str(path), n_joints=n_joints, columns=columns, average=average, repeat_tolerance=repeat_tolerance
     )
