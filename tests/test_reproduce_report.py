@@ -67,6 +67,25 @@ def test_kou2022_quick_outputs(quick_all):
     assert "41.85 %" in text and re.search(r"\| after PSO, best run \(mm\) \| 0.14/0.13/0.10 \|", text)
 
 
+def test_chen2023_quick_outputs(quick_all):
+    d = quick_all / "chen2023"
+    for f in (
+        "summary.md",
+        "results.json",
+        "sensitivity_limb1.png",
+        "sensitivity_all_limbs.png",
+        "compensation_noisefree.png",
+        "pso_convergence_noisy.png",
+    ):
+        assert (d / f).stat().st_size > 0, f
+    r = json.loads((d / "results.json").read_text())
+    nf = r["cases"]["noise_free"]["targets"]
+    assert nf["paper (eq. 18, PSO)"]["improvement_pct"] > 50  # quick: 20 PSO iterations, not 200
+    assert nf["identified model"]["improvement_pct"] > 99.9
+    text = (d / "summary.md").read_text()
+    assert "98.148 %" in text and "87.457 %" in text and "cannot reproduce" in text
+
+
 def test_reproduce_rejects_unknown_scenario(tmp_path, run_cli):
     code, _, err = run_cli("reproduce", "smith2020", "--out", tmp_path / "x")
     assert code == 2 and "smith2020" in err and err.count("\n") == 1

@@ -32,7 +32,8 @@ app = typer.Typer(
     help="Geometric calibration and error compensation of robots.",
     pretty_exceptions_enable=False,
 )
-console = Console()
+# tables stay readable when the output goes to a file or a pipe
+console = Console(width=None if sys.stdout.isatty() else 140)
 
 
 def _floats(text: str | None, what: str, sizes: tuple[int, ...]) -> list[float] | None:
@@ -376,6 +377,197 @@ def bench_cmd(
         met = "" if r.met is None else ("yes" if r.met else "falls short")
         table.add_row(r.workload, format_value(r), r.target, met, r.peer, r.note)
     Console(width=max(console.width, 160)).print(table)
+
+
+pkm_app = typer.Typer(help="The 2TPR&2TPS parallel mechanism (Chen et al.).", no_args_is_help=True)
+app.add_typer(pkm_app, name="pkm")
+
+
+def _pkm_rows(text: str | None, path: Path | None, names: tuple[str, ...], what: str) -> np.ndarray:
+    """Rows of numbers from a comma list (one row) or a CSV file with the named columns."""
+    if (text is None) == (path is None):
+        raise InputError(f"give either a comma list or a file of {', '.join(names)}", source=what)
+    if text is not None:
+        return np.array([_floats(text, what, (len(names),))])
+    import csv as _csv
+    import io as _io
+
+    from .measurements import read_text
+
+    body = read_text(path, "file")
+    reader = list(_csv.reader(_io.StringIO(body)))
+    if not reader:
+        raise InputError("file is empty", source=path)
+    header = [h.strip() for h in reader[0]]
+    missing = [n for n in names if n not in header]
+    if missing:
+        raise InputError(f"missing column '{missing[0]}'", source=path)
+    rows = []
+    for ln, r in enumerate(reader[1:], start=2):
+        if not any(c.strip() for c in r):
+            continue
+        vals = []
+        for n in names:
+            try:
+                v = float(r[header.index(n)])
+            except (ValueError, IndexError):
+                raise InputError("not a number", source=path, where=f"row {ln}, column '{n}'") from None
+            if not math.isfinite(v):
+                raise InputError("value is not finite", source=path, where=f"row {ln}, column '{n}'")
+            vals.append(v)
+        rows.append(vals)
+    if not rows:
+        raise InputError("file has a header but no data rows", source=path)
+    return np.array(rows)
+
+
+@pkm_app.command("ik")
+def pkm_ik_cmd(
+    pose: str | None = typer.Option(None, "--pose", help="y,z,alpha,beta (mm, deg)"),
+    poses: Path | None = typer.Option(None, "--poses", help="CSV with columns y, z, alpha, beta (mm, deg)"),
+    geometry: str | None = typer.Option(None, "--geometry", help="mechanism TOML (default: built-in 2tpr2tps)"),
+) -> None:
+    """Rod lengths for platform poses (γ = 0, x = z tan β)."""
+    from .pkm import check_workspace, ik, load_pkm, reduced_to_pose
+
+    g = load_pkm(geometry)
+    q = _pkm_rows(pose, poses, ("y", "z", "alpha", "beta"), "--pose")
+    q[:, 2:] = np.radians(q[:, 2:])
+    check_workspace(g, reduced_to_pose(q), source=str(poses or "--pose"))
+    table = Table(title="inverse kinematics (commanded rod lengths, mm)")
+    for col in ("y", "z", "α°", "β°", "L1", "L2", "L3", "L4"):
+        table.add_column(col, justify="right")
+    for qi, Li in zip(q, ik(g, q)):
+        table.add_row(*(f"{v:.4f}" for v in (qi[0], qi[1], math.degrees(qi[2]), math.degrees(qi[3]), *Li)))
+    console.print(table)
+
+
+@pkm_app.command("fk")
+def pkm_fk_cmd(
+    lengths: str | None = typer.Option(None, "--lengths", help="L1,L2,L3,L4 (mm)"),
+    file: Path | None = typer.Option(None, "--file", help="CSV with columns L1, L2, L3, L4 (mm)"),
+    geometry: str | None = typer.Option(None, "--geometry", help="mechanism TOML (default: built-in 2tpr2tps)"),
+) -> None:
+    """Platform pose for rod lengths (Newton iteration, tolerance 1e-10 mm)."""
+    from .pkm import fk, load_pkm
+
+    g = load_pkm(geometry)
+    L = _pkm_rows(lengths, file, ("L1", "L2", "L3", "L4"), "--lengths")
+    p = fk(g, L)
+    table = Table(title="forward kinematics")
+    for col in ("x mm", "y mm", "z mm", "α°", "β°", "γ°"):
+        table.add_column(col, justify="right")
+    for row in p:
+        table.add_row(*(f"{v:.6f}" for v in (*row[:3], *np.degrees(row[3:]))))
+    console.print(table)
+
+
+@pkm_app.command("sensitivity")
+def pkm_sensitivity_cmd(
+    out: Path = typer.Option(..., "--out", help="JSON file of mean |E| per case"),
+    poses: int = typer.Option(30, "--poses"),
+    seed: int = typer.Option(0, "--seed"),
+    geometry: str | None = typer.Option(None, "--geometry"),
+) -> None:
+    """Chen et al. Fig. 4–9: pose errors for 1 mm of error per parameter over workspace poses."""
+    from .pkm import load_pkm
+    from .pkm_study import sensitivity, workspace_targets
+
+    if poses < 1:
+        raise InputError(f"need at least 1 pose, got {poses}", source="--poses")
+    g = load_pkm(geometry)
+    table = sensitivity(g, workspace_targets(g, poses, seed, angle=0.2)).mean_table()
+    atomic_write(out, json.dumps(table, indent=1) + "\n")
+    t = Table(title=f"mean |E| over {poses} poses, 1 mm error")
+    for col in ("case", "parameter", "dx mm", "dy mm", "dz mm", "dα°", "dβ°"):
+        t.add_column(col)
+    for group, rows in table.items():
+        for name, v in rows.items():
+            t.add_row(group, name, *(f"{x:.4f}" for x in v[:3]), *(f"{math.degrees(x):.4f}" for x in v[3:5]))
+    console.print(t)
+
+
+@pkm_app.command("compensate")
+def pkm_compensate_cmd(
+    errors: float = typer.Option(0.5, "--errors", help="planted errors: uniform ± this many mm on all 28"),
+    targets: int = typer.Option(30, "--targets"),
+    noise: float = typer.Option(0.0, "--noise", help="tracker noise σ, mm"),
+    seed: int = typer.Option(0, "--seed"),
+    out: Path | None = typer.Option(None, "--out", help="JSON summary"),
+) -> None:
+    """Compensate a simulated machine: the paper's eq. 18 (PSO), its iteration, and the identified model."""
+    from .pkm import chen2023, forward, ik, reduced_to_pose
+    from .pkm_study import (
+        compensate_iterated,
+        compensate_model,
+        compensate_paper,
+        identify,
+        improvement,
+        planted,
+        uncompensated,
+        workspace_targets,
+    )
+
+    for name, v in (("--errors", errors), ("--noise", noise)):
+        if not math.isfinite(v) or v < 0:
+            raise InputError(f"must be a finite value ≥ 0, got {v}", source=name)
+    if targets < 1:
+        raise InputError(f"need at least 1 target, got {targets}", source="--targets")
+    g = chen2023()
+    real = g.with_errors(planted(seed, errors, errors))
+    q = workspace_targets(g, targets, seed + 1)
+    qc = workspace_targets(g, 40, seed + 2, angle=0.2)
+    Lc = ik(g, qc)
+    Pc = forward(real, Lc, reduced_to_pose(qc)).pose[:, :3]
+    Pc = Pc + np.random.default_rng(seed + 3).normal(0.0, noise, Pc.shape) if noise else Pc
+    model = identify(g, Lc, Pc).geometry
+    base = uncompensated(g, real, q)
+    runs = [
+        base,
+        compensate_paper(g, real, q, noise=noise, seed=seed),
+        compensate_iterated(g, real, q, noise=noise, seed=seed),
+        compensate_model(model, real, q),
+    ]
+    t = Table(title=f"{targets} targets, planted ±{errors} mm, tracker noise {noise} mm")
+    for col in ("method", "mean error mm", "max mm", "improvement %"):
+        t.add_column(col)
+    summary = {}
+    for r in runs:
+        imp = improvement(base, r)
+        summary[r.method] = {"mean_mm": r.mean_error, "improvement_pct": imp}
+        t.add_row(r.method, f"{r.mean_error:.6f}", f"{np.linalg.norm(r.error, axis=1).max():.6f}", f"{imp:.3f}")
+    if out is not None:
+        atomic_write(out, json.dumps(summary, indent=1) + "\n")
+    console.print(t)
+
+
+@pkm_app.command("calibrate")
+def pkm_calibrate_cmd(
+    data: Path = typer.Argument(..., help="CSV with columns L1..L4 (commanded, mm) and x, y, z (measured, mm)"),
+    geometry: str | None = typer.Option(None, "--geometry"),
+    out: Path | None = typer.Option(None, "--out", help="result JSON"),
+    export: Path | None = typer.Option(None, "--export", help="identified mechanism TOML"),
+) -> None:
+    """Identify the identifiable subset of the 28 parameters from measured platform positions."""
+    from .pkm import load_pkm, save_pkm
+    from .pkm_study import identify
+
+    g = load_pkm(geometry)
+    rows = _pkm_rows(None, data, ("L1", "L2", "L3", "L4", "x", "y", "z"), "data")
+    if len(rows) < 10:
+        raise InputError(f"{len(rows)} poses are too few to identify the mechanism (need ≥ 10)", source=data)
+    try:
+        res = identify(g, rows[:, :4], rows[:, 4:])
+    except ValueError as exc:
+        raise InputError(str(exc), source=data) from None
+    if out is not None:
+        atomic_write(out, json.dumps(res.to_dict(), indent=1) + "\n")
+    if export is not None:
+        save_pkm(res.geometry, export, comment=f"Identified by robocal from {data}")
+    console.print(
+        f"{len(res.names)} parameters identified, dropped: {', '.join(res.identifiability.dropped) or 'none'};"
+        f" position RMS {res.rms_before:.4f} → {res.rms_after:.6f} mm ({res.status})"
+    )
 
 
 def _one_line(text: str) -> str:

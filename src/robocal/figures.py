@@ -95,3 +95,40 @@ def orientation_errors(before: np.ndarray, after: np.ndarray, title: str):
         ax.legend(fontsize=8)
     fig.tight_layout()
     return fig
+
+
+def sensitivity_bars(table: dict[str, list[float]], title: str):
+    """Mean |E| per parameter: position components (mm) and orientation components (deg)."""
+    labels = list(table)
+    vals = np.array([table[k] for k in labels])
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 3.8))
+    x = np.arange(len(labels))
+    w = 0.27
+    for k, (name, color) in enumerate(zip(("dx", "dy", "dz"), ("tab:blue", "tab:orange", "tab:green"))):
+        a1.bar(x + (k - 1) * w, vals[:, k], w, label=name, color=color)
+    for k, (name, color) in enumerate(zip(("dα", "dβ", "dγ"), ("tab:red", "tab:purple", "tab:gray"))):
+        a2.bar(x + (k - 1) * w, np.degrees(vals[:, 3 + k]), w, label=name, color=color)
+    for ax, unit in ((a1, "mean |E| (mm)"), (a2, "mean |E| (deg)")):
+        ax.set_xticks(x, labels, rotation=30)
+        ax.set_ylabel(unit)
+        ax.grid(True, axis="y", alpha=0.3)
+        ax.legend(fontsize=8)
+    fig.suptitle(title)
+    fig.tight_layout()
+    return fig
+
+
+def per_pose_errors(errors: dict[str, np.ndarray], title: str, ylabel: str = "|position error| (mm)"):
+    """One line per method or parameter: a per-pose magnitude (log scale)."""
+    fig, ax = plt.subplots(figsize=(7, 4))
+    for name, e in errors.items():
+        e = np.asarray(e, float)
+        mag = np.linalg.norm(e, axis=1) if e.ndim == 2 else e
+        ax.plot(np.arange(1, len(mag) + 1), np.maximum(mag, 1e-16), "o-", ms=3, label=name)
+    ax.set_yscale("log")
+    ax.set_xlabel("pose")
+    ax.set_ylabel(ylabel)
+    ax.set_title(title)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8)
+    return fig

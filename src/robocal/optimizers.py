@@ -289,6 +289,57 @@ def ldpso_bt(
     )
 
 
+def pso_batch(
+    objective: Callable[[np.ndarray], np.ndarray],
+    lower,
+    upper,
+    batch: int,
+    *,
+    particles=100,
+    iterations=200,
+    w=0.8,
+    c1=1.5,
+    c2=1.5,
+    seed=0,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Independent global-best PSO swarms, one per problem of a batch, advanced together.
+
+    objective maps X (batch, particles, k) to (batch, particles).  Same update, walls and
+    velocity limit as :func:`pso`.  Returns the best x (batch, k), its objective (batch,)
+    and the best objective per iteration (iterations + 1, batch).
+    """
+    rng = np.random.default_rng(seed)
+    lo, hi = np.asarray(lower, float), np.asarray(upper, float)
+    vmax = 0.5 * (hi - lo)
+    k = lo.size
+    x = rng.uniform(lo, hi, (batch, particles, k))
+    v = rng.uniform(-vmax, vmax, (batch, particles, k))
+    fx = objective(x)
+    pbest, pbest_f = x.copy(), fx.copy()
+    g = np.argmin(pbest_f, axis=1)
+    rows = np.arange(batch)
+    gbest, gbest_f = pbest[rows, g].copy(), pbest_f[rows, g].copy()
+    history = [gbest_f.copy()]
+    for _ in range(iterations):
+        r1, r2 = rng.random((2, batch, particles, k))
+        v = w * v + c1 * r1 * (pbest - x) + c2 * r2 * (gbest[:, None, :] - x)
+        v = np.minimum(np.maximum(v, -vmax), vmax)
+        x = x + v
+        out = (x < lo) | (x > hi)
+        x = np.minimum(np.maximum(x, lo), hi)
+        v[out] = 0.0
+        fx = objective(x)
+        better = fx < pbest_f
+        pbest[better] = x[better]
+        pbest_f[better] = fx[better]
+        g = np.argmin(pbest_f, axis=1)
+        improved = pbest_f[rows, g] < gbest_f
+        gbest[improved] = pbest[rows, g][improved]
+        gbest_f[improved] = pbest_f[rows, g][improved]
+        history.append(gbest_f.copy())
+    return gbest, gbest_f, np.array(history)
+
+
 #: above this many residuals, LM solves its steps from the normal equations (k×k) instead
 #: of MINPACK's QR of the tall Jacobian: 10⁵ full poses are 6·10⁵ rows
 NORMAL_EQUATIONS_ROWS = 30_000

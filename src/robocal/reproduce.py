@@ -25,7 +25,7 @@ from .robotfile import load_robot
 from .simulate import WEN2019_ERRORS, planted_errors, simulate
 
 Say = Callable[[str], None]
-SCENARIOS = ("wen2019", "kou2022")
+SCENARIOS = ("wen2019", "kou2022", "chen2023")
 
 WEN_PUBLISHED = {
     "time_s": 220.0,
@@ -429,6 +429,10 @@ def reproduce(
         folder.mkdir(parents=True, exist_ok=True)
         if n == "wen2019":
             done[n] = wen2019(folder, quick=quick, seed=seed, say=say)
-        else:
+        elif n == "kou2022":
             done[n] = kou2022(folder, quick=quick, runs=runs, seed=seed, say=say)
+        else:
+            from .pkm_reproduce import chen2023
+
+            done[n] = chen2023(folder, quick=quick, seed=seed, say=say)
     return done
