@@ -96,6 +96,11 @@ def chen2023() -> PKMGeometry:
 # --- poses ------------------------------------------------------------------------------
 
 
+def _rotate(R: np.ndarray, P: np.ndarray) -> np.ndarray:
+    """R (…, 3, 3) applied to the four points P (4, 3) → (…, 4, 3)."""
+    return np.swapaxes(R @ P.T, -1, -2)
+
+
 def reduced_to_pose(q) -> np.ndarray:
     """(…, 4) (y, z, α, β) → (…, 6) pose with x = z tan β, γ = 0 (the nominal constraints)."""
     q = np.asarray(q, dtype=float)
@@ -124,7 +129,7 @@ def leg_vectors(geom: PKMGeometry, pose) -> np.ndarray:
     """u_i = R B_i + o1 − T_i, (…, 4, 3) in mm."""
     pose = np.asarray(pose, dtype=float)
     R = rotation(pose)
-    return np.einsum("...ab,ib->...ia", R, geom.B) + pose[..., None, :3] - geom.T
+    return _rotate(R, geom.B) + pose[..., None, :3] - geom.T
 
 
 def rod_lengths(geom: PKMGeometry, pose) -> np.ndarray:
@@ -146,15 +151,15 @@ def jacobian(geom: PKMGeometry, q) -> np.ndarray:
     q = np.asarray(q, dtype=float)
     pose = reduced_to_pose(q)
     R, (Ra, Rb, _) = _rotation_derivatives(pose)
-    u = np.einsum("...ab,ib->...ia", R, geom.B) + pose[..., None, :3] - geom.T
+    u = _rotate(R, geom.B) + pose[..., None, :3] - geom.T
     L = np.linalg.norm(u, axis=-1)
     z, b = q[..., 1], q[..., 3]
     du = np.zeros(u.shape + (4,))
     du[..., 1, 0] = 1.0
     du[..., 0, 1] = np.tan(b)[..., None]
     du[..., 2, 1] = 1.0
-    du[..., 2] = np.einsum("...ab,ib->...ia", Ra, geom.B)
-    du[..., :, 3] = np.einsum("...ab,ib->...ia", Rb, geom.B)
+    du[..., 2] = _rotate(Ra, geom.B)
+    du[..., :, 3] = _rotate(Rb, geom.B)
     du[..., 0, 3] += (z / np.cos(b) ** 2)[..., None]
     return np.einsum("...ia,...iak->...ik", u, du) / L[..., None]
 
@@ -165,20 +170,20 @@ def jacobian(geom: PKMGeometry, q) -> np.ndarray:
 def _equations(geom: PKMGeometry, pose, L_cmd):
     """F (…, 6): rod-length mismatches (4) and TPR constraints (2), and ∂F/∂pose (…, 6, 6)."""
     R, dR = _rotation_derivatives(pose)
-    u = np.einsum("...ab,ib->...ia", R, geom.B) + pose[..., None, :3] - geom.T
+    u = _rotate(R, geom.B) + pose[..., None, :3] - geom.T
     Ln = np.linalg.norm(u, axis=-1)
     n = u / Ln[..., None]
     x1 = R[..., :, 0]  # R e1, the R joints' axis
-    F = np.concatenate([Ln - geom.rod_zero - L_cmd, np.einsum("...a,...ia->...i", x1, u[..., 2:, :])], -1)
+    F = np.concatenate([Ln - geom.rod_zero - L_cmd, np.sum(x1[..., None, :] * u[..., 2:, :], axis=-1)], -1)
     J = np.zeros(F.shape + (6,))
     J[..., :4, :3] = n
     J[..., 4:, :3] = x1[..., None, :]
     for k in range(3):
         dRk = dR[k]
-        du = np.einsum("...ab,ib->...ia", dRk, geom.B)
-        J[..., :4, 3 + k] = np.einsum("...ia,...ia->...i", n, du)
+        du = _rotate(dRk, geom.B)
+        J[..., :4, 3 + k] = np.sum(n * du, axis=-1)
         # c_i = e1·B_i + (R e1)·(o1 − T_i): the first term does not depend on the pose
-        J[..., 4:, 3 + k] = np.einsum("...a,...ia->...i", dRk[..., :, 0], pose[..., None, :3] - geom.T[2:])
+        J[..., 4:, 3 + k] = np.sum(dRk[..., None, :, 0] * (pose[..., None, :3] - geom.T[2:]), axis=-1)
     return F, J
 
 
@@ -199,27 +204,25 @@ def forward(geom: PKMGeometry, L_cmd, guess=None, *, tol: float = FK_TOL, max_it
     L_cmd = np.asarray(L_cmd, dtype=float)
     pose = np.broadcast_to(HOME if guess is None else np.asarray(guess, float), L_cmd.shape[:-1] + (6,)).copy()
     it = 0
+    converged_in_loop = False
     for it in range(1, max_iter + 1):  # noqa: B007 (it is reported)
         F, J = _equations(geom, pose, L_cmd)
         res = np.abs(F).max(axis=-1)
         if np.all(res < tol):
+            converged_in_loop = True
             break
         try:
             step = np.linalg.solve(J, -F[..., None])[..., 0]
         except np.linalg.LinAlgError:  # a singular configuration somewhere in the batch
             step = (np.linalg.pinv(J) @ -F[..., None])[..., 0]
         # a Newton step that jumps more than 100 mm or 0.5 rad is damped: the assembly is far
-        scale = np.minimum(
-            1.0,
-            np.minimum(
-                100.0 / np.maximum(np.abs(step[..., :3]).max(-1), 1e-300),
-                0.5 / np.maximum(np.abs(step[..., 3:]).max(-1), 1e-300),
-            ),
-        )
+        scale = np.minimum(1.0, np.minimum(100.0 / np.maximum(np.abs(step[..., :3]).max(-1), 1e-300),
+                                           0.5 / np.maximum(np.abs(step[..., 3:]).max(-1), 1e-300)))
         pose = pose + step * scale[..., None]
         pose = np.where(np.isfinite(pose), pose, HOME)
-    F, _ = _equations(geom, pose, L_cmd)
-    res = np.abs(F).max(axis=-1)
+    if not converged_in_loop:
+        F, _ = _equations(geom, pose, L_cmd)
+        res = np.abs(F).max(axis=-1)
     return FKResult(pose, res < tol * 10, it, res)
 
 
