@@ -333,9 +333,17 @@ def w5(repeats: int = 5) -> list[Row]:
     L = ik(g, workspace_targets(g, 10_000, seed=3, angle=0.2))
     forward(g, L)
     t_fk = median_time(lambda: forward(g, L), repeats)
-    return [Row("W5 eq. 18 PSO 100×200, 30 targets in one batch", t_pso, "s", "≤ 0.5 s", t_pso <= 0.5,
-                note="includes driving and measuring the simulated machine"),
-            Row("W5 PKM forward kinematics, 10 000 rod sets", t_fk, "s", "≤ 0.2 s", t_fk <= 0.2)]
+    return [
+        Row(
+            "W5 eq. 18 PSO 100×200, 30 targets in one batch",
+            t_pso,
+            "s",
+            "≤ 0.5 s",
+            t_pso <= 0.5,
+            note="includes driving and measuring the simulated machine",
+        ),
+        Row("W5 PKM forward kinematics, 10 000 rod sets", t_fk, "s", "≤ 0.2 s", t_fk <= 0.2),
+    ]
 
 
 def run_all(quick: bool = False, say: Callable[[str], None] = lambda s: None) -> list[Row]:

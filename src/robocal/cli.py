@@ -23,6 +23,7 @@ from .measurements import load_measurements, measurements_to_csv
 from .metrics import Metrics
 from .objectives import DEFAULT_K
 from .optimizers import METHODS
+from .parameters import is_angle
 from .robotfile import builtin_names, builtin_source, load_robot, robot_to_toml
 from .simulate import simulate as run_simulation
 
@@ -334,6 +335,101 @@ def compensate_cmd(
                     {"nominal commands": val["nominal_commands"], "compensated commands": val["compensated_commands"]},
                 )
             )
+
+
+def _joint_limits_arg(text: str | None, n: int) -> np.ndarray | None:
+    """'lo:hi,lo:hi,…' (deg, one per joint) → (n, 2) rad."""
+    if text is None:
+        return None
+    parts = [p.strip() for p in text.split(",")]
+    if len(parts) != n:
+        raise InputError(f"expected {n} ranges lo:hi (deg), got {len(parts)}", source="--limits")
+    out = []
+    for j, p in enumerate(parts):
+        try:
+            lo, hi = (float(v) for v in p.split(":"))
+        except ValueError:
+            raise InputError(f"joint {j + 1}: expected lo:hi in degrees, got {p!r}", source="--limits") from None
+        if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
+            raise InputError(f"joint {j + 1}: need finite lo < hi, got {p!r}", source="--limits")
+        out.append((math.radians(lo), math.radians(hi)))
+    return np.array(out)
+
+
+@app.command("plan")
+def plan_cmd(
+    robot: str = typer.Argument(..., help="robot file or built-in name"),
+    poses: int = typer.Option(30, "--poses", help="number of poses to measure"),
+    candidates: int = typer.Option(2000, "--candidates", help="random joint sets to choose from"),
+    criterion: str = typer.Option("O1", "--criterion", help="O1 | O2 | O3 | O4 | D"),
+    measure: str = typer.Option("pose", "--measure", help="pose | position"),
+    frames: str = typer.Option("none", "--frames", help="none | base | base+tool"),
+    joint_range: str | None = typer.Option(None, "--range", help="LO,HI deg for every joint"),
+    limits: str | None = typer.Option(None, "--limits", help="per joint lo:hi deg, comma-separated (work cell)"),
+    noise: float = typer.Option(0.02, "--noise", help="position noise σ, mm"),
+    angle_noise: float = typer.Option(0.001, "--angle-noise", help="orientation noise σ, deg"),
+    seed: int = typer.Option(0, "--seed"),
+    out: Path = typer.Option(..., "--out", help="measurement-file skeleton to write (pose_id, q1..qn)"),
+    report: Path | None = typer.Option(None, "--json", help="write the plan report as JSON"),
+    quiet: bool = typer.Option(False, "--quiet", "-q"),
+) -> None:
+    """Choose the joint sets worth measuring (greedy + exchange on an observability criterion)."""
+    from .planning import plan_poses
+
+    r = load_robot(robot)
+    if poses < 1 or candidates < poses:
+        raise InputError(f"need 1 ≤ poses ≤ candidates, got {poses} and {candidates}", source="--poses")
+    for name, v in (("--noise", noise), ("--angle-noise", angle_noise)):
+        if not (math.isfinite(v) and v > 0):
+            raise InputError(f"must be a finite value > 0, got {v}", source=name)
+    if frames not in ("none", "base", "base+tool"):
+        raise InputError(f"unknown frames mode {frames!r} (expected none | base | base+tool)", source="--frames")
+    rng_arg = _floats(joint_range, "--range", (2,))
+    jr = _joint_limits_arg(limits, r.n_joints)
+    if jr is None and rng_arg is not None:
+        jr = (math.radians(rng_arg[0]), math.radians(rng_arg[1]))
+    p = plan_poses(
+        r,
+        poses,
+        candidates=candidates,
+        criterion=criterion,
+        measure=measure,
+        frames=frames,
+        joint_range=jr,
+        noise=noise,
+        angle_noise=math.radians(angle_noise),
+        seed=seed,
+    )
+    lines = ["pose_id," + ",".join(f"q{i + 1}" for i in range(r.n_joints))]
+    lines += [f"P{j + 1:03d}," + ",".join(f"{v:.6f}" for v in np.degrees(q)) for j, q in enumerate(p.q)]
+    atomic_write(out, "\n".join(lines) + "\n")
+    if report is not None:
+        atomic_write(report, json.dumps(p.to_dict(), indent=1) + "\n")
+    if not quiet:
+        t = Table(title=f"{r.name}: {poses} of {candidates} candidates, criterion {criterion}, {measure}")
+        for col in ("", "criterion", "predicted validation RMS (mm)"):
+            t.add_column(col, justify="right")
+        t.add_row("plan", f"{p.value:.6g}", f"{p.predicted_rms:.5f}")
+        t.add_row(
+            f"median of {len(p.random_rms)} random sets",
+            f"{np.median(p.random_values):.6g}",
+            f"{np.median(p.random_rms):.5f}",
+        )
+        console.print(t)
+        worst = np.argsort(-p.predicted_std / np.where([is_angle(n) for n in p.names], 1 / r.reach(), 1.0))[:3]
+        console.print(
+            "least determined: "
+            + ", ".join(
+                f"{p.names[i]} ± {p.predicted_std[i]:.3g} {'rad' if is_angle(p.names[i]) else 'mm'}" for i in worst
+            )
+            + (
+                f"; calibrate with --k {(noise / math.radians(angle_noise)) ** 2:.3g} to weigh orientation as "
+                f"planned ({noise} mm, {angle_noise}°)"
+                if measure == "pose"
+                else ""
+            )
+        )
+        console.print(f"wrote {out}")
 
 
 @app.command("reproduce")

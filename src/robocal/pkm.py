@@ -216,8 +216,13 @@ def forward(geom: PKMGeometry, L_cmd, guess=None, *, tol: float = FK_TOL, max_it
         except np.linalg.LinAlgError:  # a singular configuration somewhere in the batch
             step = (np.linalg.pinv(J) @ -F[..., None])[..., 0]
         # a Newton step that jumps more than 100 mm or 0.5 rad is damped: the assembly is far
-        scale = np.minimum(1.0, np.minimum(100.0 / np.maximum(np.abs(step[..., :3]).max(-1), 1e-300),
-                                           0.5 / np.maximum(np.abs(step[..., 3:]).max(-1), 1e-300)))
+        scale = np.minimum(
+            1.0,
+            np.minimum(
+                100.0 / np.maximum(np.abs(step[..., :3]).max(-1), 1e-300),
+                0.5 / np.maximum(np.abs(step[..., 3:]).max(-1), 1e-300),
+            ),
+        )
         pose = pose + step * scale[..., None]
         pose = np.where(np.isfinite(pose), pose, HOME)
     if not converged_in_loop:
