@@ -176,7 +176,7 @@ def evaluate_cmd(
 ) -> None:
     """Error metrics (SPEC §8) of a robot model on measured data."""
     r = load_robot(robot)
-    meas = load_measurements(data, n_joints=r.n_joints, columns=_column_map(column))
+    meas = load_measurements(data, n_joints=r.n_joints, columns=_column_map(column), robot_label=r.source)
     try:
         metrics = Metrics.of(r, meas)
     except ValueError as exc:
@@ -252,8 +252,12 @@ def calibrate_cmd(
         raise InputError(f"half-widths must be > 0, got {box}", source="--box")
     nominal = load_robot(robot)
     cols = _column_map(column)
-    meas = load_measurements(data, n_joints=nominal.n_joints, columns=cols)
-    val = None if validate is None else load_measurements(validate, n_joints=nominal.n_joints, columns=cols)
+    meas = load_measurements(data, n_joints=nominal.n_joints, columns=cols, robot_label=nominal.source)
+    val = (
+        None
+        if validate is None
+        else load_measurements(validate, n_joints=nominal.n_joints, columns=cols, robot_label=nominal.source)
+    )
     with _progress_bar(quiet or method == "lm", method) as bar:
         callback = None
         if bar is not None:

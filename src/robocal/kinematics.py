@@ -258,6 +258,7 @@ class Robot:
     tool: np.ndarray = field(default_factory=lambda: np.eye(4))
     targets: Mapping[str, np.ndarray] = field(default_factory=dict)
     name: str = ""
+    source: str = ""  # where it was loaded from (file path or "built-in NAME"), for messages
 
     def __post_init__(self) -> None:
         _check_convention(self.convention)

@@ -131,6 +131,7 @@ def read_table(
     columns: Mapping[str, str] | None = None,
     require_joints: bool = True,
     require_position: bool = True,
+    robot_label: str = "",
 ) -> Table:
     """Read and validate a CSV with columns q1..qn, x, y, z, rx, ry, rz, pose_id, target.
 
@@ -182,7 +183,8 @@ def read_table(
         raise InputError(f"joint column 'q{missing[0]}' is missing", source=source)
     if numbers and n_joints is not None and len(numbers) != n_joints:
         raise InputError(
-            f"file has {len(numbers)} joint columns (q1..q{len(numbers)}) but the robot has {n_joints} joints",
+            f"file has {len(numbers)} joint columns (q1..q{len(numbers)}) but the robot"
+            f"{f' ({Path(robot_label).name})' if robot_label else ''} has {n_joints} joints",
             source=source,
         )
     have_pos = [c in seen for c in POSITION]
@@ -244,9 +246,10 @@ def parse_measurements(
     columns: Mapping[str, str] | None = None,
     average: bool = True,
     repeat_tolerance: float = REPEAT_TOLERANCE_MM,
+    robot_label: str = "",
 ) -> Measurements:
     """Parse CSV text; see :func:`load_measurements`."""
-    t = read_table(text, source=source, n_joints=n_joints, columns=columns)
+    t = read_table(text, source=source, n_joints=n_joints, columns=columns, robot_label=robot_label)
     meas = Measurements(
         q=np.radians(t.q),
         position=t.position,
@@ -330,6 +333,7 @@ def load_measurements(
     columns: Mapping[str, str] | None = None,
     average: bool = True,
     repeat_tolerance: float = REPEAT_TOLERANCE_MM,
+    robot_label: str = "",
 ) -> Measurements:
     """Load and validate a measurement CSV.
 
@@ -339,7 +343,13 @@ def load_measurements(
     """
     text = read_text(path, "measurement file")
     return parse_measurements(
-        text, source=str(path), n_joints=n_joints, columns=columns, average=average, repeat_tolerance=repeat_tolerance
+        text,
+        source=str(path),
+        n_joints=n_joints,
+        columns=columns,
+        average=average,
+        repeat_tolerance=repeat_tolerance,
+        robot_label=robot_label,
     )
 
 

@@ -170,7 +170,7 @@ def parse_robot(text: str, *, source: str = "<robot>", default_name: str = "robo
             raise InputError("expected tables [targets.NAME]", source=source, where="key 'targets'")
         for tname, table in data["targets"].items():
             targets[str(tname)] = _frame(table, source, f"targets.{tname}")
-    return Robot(conv, geom, np.radians(limits), base=base, tool=tool, targets=targets, name=name)
+    return Robot(conv, geom, np.radians(limits), base=base, tool=tool, targets=targets, name=name, source=source)
 
 
 def _deg(x_rad: float) -> str:
