@@ -145,6 +145,8 @@ def read_table(
     except csv.Error as exc:
         raise InputError(f"not a valid CSV file ({exc})", source=source) from None
     rows = [(ln, r) for ln, r in rows if any(c.strip() for c in r)]
+    if not rows:
+        raise InputError("file has no header row (only empty cells)", source=source)
     header_line, header = rows[0]
     header = [h.strip() for h in header]
     if len(header) == 1 and (";" in header[0] or "\t" in header[0]):
