@@ -9,8 +9,8 @@ from hypothesis import strategies as st
 from robocal.compensation import parse_targets
 from robocal.errors import InputError
 from robocal.measurements import Measurements, parse_measurements
-from robocal.robotfile import parse_robot, robot_to_toml
 from robocal.robotfile import load_robot as _load
+from robocal.robotfile import parse_robot, robot_to_toml
 
 GOOD_ROBOT = robot_to_toml(_load("kr5-arc"))
 GOOD_CSV = (

@@ -123,6 +123,7 @@ class CalibrationResult:
     time_s: float = 0.0
     measurements: Measurements | None = field(default=None, repr=False)
     validation: Measurements | None = field(default=None, repr=False)
+    outliers: list[dict] = field(default_factory=list)
 
     def parameter(self, name: str) -> float:
         return float(self.x[self.names.index(name)])
@@ -169,6 +170,7 @@ class CalibrationResult:
             "evaluations": opt.nfev,
             "optimiser": {k: v for k, v in opt.extra.items()},
             "history": [float(h) for h in opt.history],
+            "outliers": list(self.outliers),
             "warnings": list(self.warnings),
             "time_s": self.time_s,
         }
@@ -327,7 +329,7 @@ def calibrate(
                 source=meas.source,
             )
     _check_units(nominal, meas, frames)
-    caught: list[str] = []
+    caught: list[str] = _degeneracy_warnings(nominal, meas)
     initial = register_frames(nominal, meas, frames)
     space = ParameterSpace.of(initial, meas.target_names if frames == "base+tool" else None)
     joint_names, explicit = _resolve_params(params, nominal, space)
@@ -371,6 +373,36 @@ def calibrate(
         swarm_options or {},
         progress,
     )
+    outliers: list[dict] = []
+    all_rows = meas
+    if method in ("lm", "hybrid") and loss != "linear" and opt.status == "converged":
+        flagged, sigma = _outlier_rows(problem, opt.x)
+        if flagged.size:
+            outliers = _describe_outliers(problem, opt.x, flagged)
+            meas = meas.subset(np.setdiff1d(np.arange(meas.n_poses), flagged))
+            probe = Problem(space, space.index(candidates), meas, k=k, use_orientation=full_pose)
+            problem = Problem(space, space.index(ident.kept), meas, k=k, use_orientation=full_pose)
+            # refit the inliers by plain least squares: the answer as if the outliers were never measured
+            lm = levenberg_marquardt(problem.residuals, problem.residual_jacobian, opt.x)
+            opt = OptimizeResult(
+                method=opt.method, x=lm.x, fun=lm.fun, history=np.concatenate([opt.history, lm.history]),
+                nit=opt.nit + lm.nit, nfev=opt.nfev + lm.nfev, status=lm.status,
+                message=f"{opt.message}; {len(flagged)} outliers removed, inliers refitted: {lm.message}",
+                time_s=opt.time_s + lm.time_s, extra={**opt.extra, "robust_scale_mm": sigma},
+            )  # fmt: skip
+            caught.append(
+                f"{len(flagged)} outlier poses (residual > {OUTLIER_SIGMAS:g} σ̂, σ̂ = {sigma:.3g} mm) "
+                f"left out: rows {', '.join(str(o['row']) for o in outliers[:10])}"
+                + (" …" if len(outliers) > 10 else "")
+            )
+    elif method in ("lm", "hybrid") and opt.status == "converged":
+        flagged, sigma = _outlier_rows(problem, opt.x)
+        if flagged.size:
+            rows = ", ".join(str(int(meas.rows[i])) for i in flagged[:10])
+            caught.append(
+                f"rows {rows}{' …' if flagged.size > 10 else ''} look like outliers (residual > "
+                f"{OUTLIER_SIGMAS:g} σ̂, σ̂ = {sigma:.3g} mm); a robust fit (--loss huber) would leave them out"
+            )
     if opt.status in ("diverged", "failed"):
         caught.append(f"optimiser {opt.method} {opt.status}: {opt.message}")
     elif method in ("lm", "hybrid") and opt.status != "converged":
@@ -383,6 +415,8 @@ def calibrate(
     unc = _uncertainty(problem, x) if method in ("lm", "hybrid") else None
     calibrated = space.apply(problem.full(x)).replace(name=f"{nominal.name} (calibrated)")
     metrics = {"before": Metrics.of(initial, meas), "after": Metrics.of(calibrated, meas)}
+    if outliers:
+        metrics["after_all_rows"] = Metrics.of(calibrated, all_rows)
     if val is not None:
         metrics["validation_before"] = Metrics.of(initial, val)
         metrics["validation_after"] = Metrics.of(calibrated, val)
@@ -393,8 +427,65 @@ def calibrate(
         robot=calibrated, initial=initial, nominal=nominal, names=ident.kept, x=x, uncertainty=unc,
         identifiability=ident, optimisation=opt, metrics=metrics, loss=loss, data=meas.source,
         n_poses=meas.n_poses, full_pose=full_pose, warnings=caught, time_s=time.perf_counter() - start,
-        measurements=meas, validation=val,
+        measurements=meas, validation=val, outliers=outliers,
     )  # fmt: skip
+
+
+#: a pose whose position residual exceeds this many robust σ is an outlier.  For
+#: isotropic Gaussian noise |δp| follows a Maxwell law; P(|δp| > 6σ) ≈ 1e-7.
+OUTLIER_SIGMAS = 6.0
+#: median of the Maxwell distribution in units of the per-axis σ
+_MAXWELL_MEDIAN = 1.5382
+
+
+def _outlier_rows(problem: Problem, x: np.ndarray) -> tuple[np.ndarray, float]:
+    """Poses whose position residual is beyond OUTLIER_SIGMAS robust standard deviations."""
+    dp, _ = problem.errors(x)
+    norm = np.linalg.norm(dp, axis=1)
+    sigma = float(np.median(norm)) / _MAXWELL_MEDIAN
+    if problem.meas.n_poses < 8:
+        return np.zeros(0, dtype=int), sigma
+    return np.flatnonzero(norm > OUTLIER_SIGMAS * max(sigma, 1e-9)), sigma
+
+
+def _describe_outliers(problem: Problem, x: np.ndarray, flagged: np.ndarray) -> list[dict]:
+    dp, _ = problem.errors(x)
+    meas = problem.meas
+    return [
+        {
+            "row": int(meas.rows[i]),
+            "pose_id": None if meas.pose_ids is None else meas.pose_ids[i],
+            "error_mm": float(np.linalg.norm(dp[i])),
+        }
+        for i in flagged
+    ]
+
+
+def _degeneracy_warnings(robot: Robot, meas: Measurements) -> list[str]:
+    """Degenerate but valid data: say what is off; identifiability then drops what it must."""
+    out = []
+    q = meas.q
+    if meas.n_poses > 1 and np.all(np.ptp(q, axis=0) < 1e-9):
+        out.append(f"all {meas.n_poses} poses command the same joints: only what a single pose shows can be identified")
+    else:
+        still = [i + 1 for i in range(q.shape[1]) if np.ptp(q[:, i]) < math.radians(0.05)]
+        if still:
+            out.append(
+                f"joint{'s' if len(still) > 1 else ''} {', '.join(map(str, still))} never move"
+                f"{'' if len(still) > 1 else 's'} in these data: parameters that need "
+                f"{'their' if len(still) > 1 else 'its'} motion are dropped"
+            )
+    from .compensation import _condition
+
+    cond = _condition(robot, q, meas.full_pose, 1000.0)
+    bad = np.flatnonzero(cond > 1e4)
+    if bad.size:
+        rows = ", ".join(str(int(meas.rows[i])) for i in bad[:10])
+        out.append(
+            f"rows {rows}{' …' if bad.size > 10 else ''} are near-singular configurations (joint Jacobian "
+            "condition > 1e4): they pin down little"
+        )
+    return out
 
 
 def _swarm_box(problem: Problem, method: str, box):
@@ -456,7 +547,13 @@ def _optimise(
 
     if method == "lm":
         return levenberg_marquardt(
-            problem.residuals, problem.residual_jacobian, np.zeros(problem.n_params), loss=loss, f_scale=f_scale
+            problem.residuals,
+            problem.residual_jacobian,
+            np.zeros(problem.n_params),
+            loss=loss,
+            f_scale=f_scale,
+            max_nfev=options.get("max_evaluations"),
+            callback=progress,
         )
     lower, upper = _swarm_box(search, method, box)
     if method == "pso":

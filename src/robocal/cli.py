@@ -258,13 +258,14 @@ def calibrate_cmd(
         if validate is None
         else load_measurements(validate, n_joints=nominal.n_joints, columns=cols, robot_label=nominal.source)
     )
-    with _progress_bar(quiet or method == "lm", method) as bar:
+    # LM on a few thousand poses takes well under a second; beyond that show it working
+    with _progress_bar(quiet or (method == "lm" and meas.n_poses < 5000), method) as bar:
         callback = None
         if bar is not None:
             task = bar.add_task(method, total=iterations, best=float("nan"))
 
             def callback(t, total, best):
-                bar.update(task, completed=t, total=total, best=best)
+                bar.update(task, completed=t, total=total or None, best=best)
 
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")

@@ -345,7 +345,9 @@ def pso_batch(
 NORMAL_EQUATIONS_ROWS = 30_000
 
 
-def _lm_normal(residuals, jacobian, x0, tol: float, max_iter: int = 200) -> OptimizeResult:
+def _lm_normal(
+    residuals, jacobian, x0, tol: float, max_iter: int = 200, callback: Progress | None = None
+) -> OptimizeResult:
     """Levenberg–Marquardt on the normal equations, with Marquardt's diagonal scaling and
     Nielsen's damping update.  Steps cost one JᵀJ product (BLAS) and a k×k solve; the
     residual itself is always evaluated exactly, so the fixed point is the same as MINPACK's."""
@@ -379,6 +381,8 @@ def _lm_normal(residuals, jacobian, x0, tol: float, max_iter: int = 200) -> Opti
         cost_new = float(r_new @ r_new)
         predicted = float(h @ (lam * D * h - g))  # 2·(L(0) − L(h)) of the linear model
         rho = (cost - cost_new) / predicted if predicted > 0 else -1.0
+        if callback is not None:
+            callback(nfev, 0, min(cost, cost_new))
         if rho > 0 and np.isfinite(cost_new):
             decrease = cost - cost_new
             x, r, cost = x_new, r_new, cost_new
@@ -420,6 +424,7 @@ def levenberg_marquardt(
     f_scale: float = 1.0,
     max_nfev: int | None = None,
     tol: float = 1e-12,
+    callback: Progress | None = None,
 ) -> OptimizeResult:
     """Levenberg–Marquardt (MINPACK through scipy ``least_squares``) with an analytic Jacobian.
 
@@ -434,11 +439,15 @@ def levenberg_marquardt(
         r = residuals(x)
         value = float(r @ r)
         history.append(min(value, history[-1]) if history else value)
+        if callback is not None:
+            callback(len(history), 0, history[-1])  # total 0: unknown in advance
         return r
 
     r0 = residuals(np.asarray(x0, float))
     if loss == "linear" and r0.size > NORMAL_EQUATIONS_ROWS:
-        return _lm_normal(residuals, jacobian, x0, tol)
+        return _lm_normal(
+            residuals, jacobian, x0, tol, max_iter=200 if max_nfev is None else max_nfev, callback=callback
+        )
     method = "lm" if loss == "linear" and r0.size >= len(x0) else "trf"
     kwargs = {"loss": loss, "f_scale": f_scale} if method == "trf" else {}
     try:
