@@ -4,12 +4,12 @@ import numpy as np
 import pytest
 from hypothesis import settings
 
+from robocal.cli import main
+
 # 300 examples per property in the suite; HYPOTHESIS_PROFILE=deep for a longer hunt
 settings.register_profile("suite", max_examples=300)
 settings.register_profile("deep", max_examples=5000)
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "suite"))
-
-from robocal.cli import main
 
 
 @pytest.fixture
