@@ -78,17 +78,9 @@ def metrics_table(title: str, columns: dict[str, Metrics]) -> Table:
     table.add_column("error")
     for name in columns:
         table.add_column(name, justify="right")
-    first = next(iter(columns.values()))
-    rows = [(f"position {k} (mm)", lambda m, k=k: m.position[k]) for k in ("rms", "mean", "std", "max")]
-    rows += [(f"max |{ax}| (mm)", lambda m, ax=ax: m.axis_max[ax]) for ax in "xyz"]
-    if first.orientation is not None:
-        rows += [
-            (f"orient. {ax} {k} (deg)", lambda m, ax=ax, k=k: m.orientation[ax][k])
-            for ax in "xyz"
-            for k in ("mean", "std", "max")
-        ]
-    for label, get in rows:
-        table.add_row(label, *(f"{get(m):.4f}" for m in columns.values()))
+    rows = [m.rows() for m in columns.values()]
+    for i, (label, _) in enumerate(rows[0]):
+        table.add_row(label, *(f"{r[i][1]:.4f}" for r in rows))
     return table
 
 
@@ -597,17 +589,8 @@ def pkm_compensate_cmd(
     out: Path | None = typer.Option(None, "--out", help="JSON summary"),
 ) -> None:
     """Compensate a simulated machine: the paper's eq. 18 (PSO), its iteration, and the identified model."""
-    from .pkm import chen2023, forward, ik, reduced_to_pose
-    from .pkm_study import (
-        compensate_iterated,
-        compensate_model,
-        compensate_paper,
-        identify,
-        improvement,
-        planted,
-        uncompensated,
-        workspace_targets,
-    )
+    from .pkm import chen2023
+    from .pkm_study import compare_methods, identify_simulated, improvement, planted, workspace_targets
 
     for name, v in (("--errors", errors), ("--noise", noise)):
         if not math.isfinite(v) or v < 0:
@@ -616,19 +599,11 @@ def pkm_compensate_cmd(
         raise InputError(f"need at least 1 target, got {targets}", source="--targets")
     g = chen2023()
     real = g.with_errors(planted(seed, errors, errors))
-    q = workspace_targets(g, targets, seed + 1)
-    qc = workspace_targets(g, 40, seed + 2, angle=0.2)
-    Lc = ik(g, qc)
-    Pc = forward(real, Lc, reduced_to_pose(qc)).pose[:, :3]
-    Pc = Pc + np.random.default_rng(seed + 3).normal(0.0, noise, Pc.shape) if noise else Pc
-    model = identify(g, Lc, Pc).geometry
-    base = uncompensated(g, real, q)
-    runs = [
-        base,
-        compensate_paper(g, real, q, noise=noise, seed=seed),
-        compensate_iterated(g, real, q, noise=noise, seed=seed),
-        compensate_model(model, real, q),
-    ]
+    model = identify_simulated(g, real, workspace_targets(g, 40, seed + 2, angle=0.2), noise=noise, seed=seed)
+    runs = compare_methods(
+        g, real, workspace_targets(g, targets, seed + 1), model.geometry, noise=noise, seed=seed, rounds=5
+    )
+    base = runs[0]
     t = Table(title=f"{targets} targets, planted ±{errors} mm, tracker noise {noise} mm")
     for col in ("method", "mean error mm", "max mm", "improvement %"):
         t.add_column(col)

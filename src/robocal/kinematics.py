@@ -72,6 +72,15 @@ def _check_convention(convention: str) -> None:
         raise ValueError(f"unknown convention {convention!r}; expected one of {', '.join(CONVENTIONS)}")
 
 
+def _chain_inputs(convention: str, geom, q):
+    _check_convention(convention)
+    geom = np.asarray(geom, dtype=float)
+    q = np.asarray(q, dtype=float)
+    if q.shape[-1] != geom.shape[-2]:
+        raise ValueError(f"joint values have {q.shape[-1]} columns but the robot has {geom.shape[-2]} joints")
+    return geom, q
+
+
 def chain_frames(convention: str, geom: np.ndarray, q: np.ndarray, base: np.ndarray | None = None):
     """Frames of the chain (rotation, origin) from the base frame to the flange.
 
@@ -79,12 +88,8 @@ def chain_frames(convention: str, geom: np.ndarray, q: np.ndarray, base: np.ndar
     Returns lists ``Rs``, ``os`` of length n+1 with shapes (..., m, 3, 3), (..., m, 3):
     index 0 is the base frame, index i the frame after joint i.
     """
-    _check_convention(convention)
-    geom = np.asarray(geom, dtype=float)
-    q = np.asarray(q, dtype=float)
+    geom, q = _chain_inputs(convention, geom, q)
     n = geom.shape[-2]
-    if q.shape[-1] != n:
-        raise ValueError(f"joint values have {q.shape[-1]} columns but the robot has {n} joints")
     if base is None:
         R = np.eye(3)
         o = np.zeros(3)
@@ -161,22 +166,14 @@ def chain_pose(convention: str, geom, q, base=None, tool=None):
     or (..., 1, 4, 4) (one tool per pose allows several targets on one flange), or
     None for the flange itself.
     """
-    _check_convention(convention)
-    geom = np.asarray(geom, dtype=float)
-    q = np.asarray(q, dtype=float)
-    if q.shape[-1] != geom.shape[-2]:
-        raise ValueError(f"joint values have {q.shape[-1]} columns but the robot has {geom.shape[-2]} joints")
+    geom, q = _chain_inputs(convention, geom, q)
     V = _to_base(_apply_chain(convention, geom, q, _tool_vectors(tool, slice(0, 4))), base)
     return V[..., :3], V[..., 3]
 
 
 def chain_points(convention: str, geom, q, base=None, tool=None) -> np.ndarray:
     """Positions (..., m, 3) in mm of the measured point only: the cheap path for swarms."""
-    _check_convention(convention)
-    geom = np.asarray(geom, dtype=float)
-    q = np.asarray(q, dtype=float)
-    if q.shape[-1] != geom.shape[-2]:
-        raise ValueError(f"joint values have {q.shape[-1]} columns but the robot has {geom.shape[-2]} joints")
+    geom, q = _chain_inputs(convention, geom, q)
     V = _to_base(_apply_chain(convention, geom, q, _tool_vectors(tool, slice(3, 4))), base)
     return V[..., 0]
 

@@ -58,6 +58,15 @@ class Metrics:
     def of(cls, robot: Robot, meas: Measurements) -> Metrics:
         return cls.from_errors(*pose_errors(robot, meas))
 
+    def rows(self) -> list[tuple[str, float]]:
+        """(label, value) pairs in the order tables show them (mm, deg)."""
+        out = [(f"position {k} (mm)", self.position[k]) for k in ("rms", "mean", "std", "max")]
+        out += [(f"max |δp{ax}| (mm)", self.axis_max[ax]) for ax in "xyz"]
+        if self.orientation is not None:
+            out += [(f"orientation {ax} {k} (deg)", self.orientation[ax][k]) for ax in "xyz"
+                    for k in ("mean", "std", "max")]  # fmt: skip
+        return out
+
     def to_dict(self) -> dict:
         out = {"n": self.n, "position": dict(self.position), "axis_max": dict(self.axis_max)}
         if self.orientation is not None:

@@ -11,19 +11,9 @@ import numpy as np
 
 from . import figures
 from .errors import atomic_write
-from .pkm import PARAM_NAMES, forward, ik, reduced_to_pose
+from .pkm import PARAM_NAMES
 from .pkm import chen2023 as chen_geometry
-from .pkm_study import (
-    compensate_iterated,
-    compensate_model,
-    compensate_paper,
-    identify,
-    improvement,
-    planted,
-    sensitivity,
-    uncompensated,
-    workspace_targets,
-)
+from .pkm_study import compare_methods, identify_simulated, improvement, planted, sensitivity, workspace_targets
 
 PUBLISHED = {"simulation_pct": 98.148, "real_pct": 87.457}
 
@@ -56,19 +46,11 @@ def chen2023(out: Path, *, quick: bool = False, seed: int = 0, say: Callable[[st
     }
     for noise in (0.0, 0.01):
         say(f"chen2023: compensation, tracker noise {noise} mm")
-        L_cal = ik(nominal, calib_q)
-        P_cal = forward(real, L_cal, reduced_to_pose(calib_q)).pose[:, :3]
-        P_cal = P_cal + np.random.default_rng(seed + 5).normal(0.0, noise, P_cal.shape) if noise else P_cal
-        cal = identify(nominal, L_cal, P_cal)
+        cal = identify_simulated(nominal, real, calib_q, noise=noise, seed=seed)
         case = {"identification": cal.to_dict(), "targets": {}, "fresh": {}}
         for label, q in (("targets", targets), ("fresh", fresh)):
-            base = uncompensated(nominal, real, q)
-            runs = [
-                base,
-                compensate_paper(nominal, real, q, noise=noise, seed=seed, pso=pso),
-                compensate_iterated(nominal, real, q, rounds=3, noise=noise, seed=seed),
-                compensate_model(cal.geometry, real, q),
-            ]
+            runs = compare_methods(nominal, real, q, cal.geometry, noise=noise, seed=seed, pso=pso)
+            base = runs[0]
             case[label] = {
                 r.method: {
                     "mean_mm": r.mean_error,

@@ -336,6 +336,38 @@ def uncompensated(nominal: PKMGeometry, real: PKMGeometry, q_target) -> Compensa
     return Compensation("none (nominal IK)", L, reached, reached[:, :3] - P_star[:, :3])
 
 
+def identify_simulated(
+    nominal: PKMGeometry, real: PKMGeometry, calibration_poses, *, noise: float = 0.0, seed: int = 0
+) -> PKMCalibration:
+    """Identify a simulated machine from its positions at ``calibration_poses`` (tracker noise σ mm)."""
+    L = rod_lengths(nominal, reduced_to_pose(calibration_poses))
+    P = forward(real, L, reduced_to_pose(calibration_poses)).pose[:, :3]
+    if noise > 0:
+        P = P + np.random.default_rng(seed + 5).normal(0.0, noise, P.shape)
+    return identify(nominal, L, P)
+
+
+def compare_methods(
+    nominal: PKMGeometry,
+    real: PKMGeometry,
+    targets,
+    model: PKMGeometry,
+    *,
+    noise: float = 0.0,
+    seed: int = 0,
+    rounds: int = 3,
+    pso: dict | None = None,
+) -> list[Compensation]:
+    """Compensate ``targets`` four ways: not at all, the paper's eq. 18, its iteration, and
+    through the identified ``model``."""
+    return [
+        uncompensated(nominal, real, targets),
+        compensate_paper(nominal, real, targets, noise=noise, seed=seed, pso=pso),
+        compensate_iterated(nominal, real, targets, rounds=rounds, noise=noise, seed=seed),
+        compensate_model(model, real, targets),
+    ]
+
+
 def improvement(before: Compensation, after: Compensation) -> float:
     """Mean position accuracy improvement, % (the paper's figure): 100 (1 − mean_after / mean_before)."""
     return 100.0 * (1.0 - after.mean_error / before.mean_error)

@@ -25,19 +25,11 @@ def _img(fig) -> str:
 
 
 def _metrics_table(columns: dict[str, Metrics]) -> str:
-    first = next(iter(columns.values()))
-    rows = [(f"position {k} (mm)", lambda m, k=k: m.position[k]) for k in ("rms", "mean", "std", "max")]
-    rows += [(f"max |δp{ax}| (mm)", lambda m, ax=ax: m.axis_max[ax]) for ax in "xyz"]
-    if first.orientation is not None:
-        rows += [
-            (f"orientation {ax} {k} (deg)", lambda m, ax=ax, k=k: m.orientation[ax][k])
-            for ax in "xyz"
-            for k in ("mean", "std", "max")
-        ]
+    rows = [m.rows() for m in columns.values()]
     head = "".join(f"<th>{html.escape(c)}</th>" for c in columns)
     body = "".join(
-        f"<tr><td>{html.escape(label)}</td>" + "".join(f"<td>{get(m):.4f}</td>" for m in columns.values()) + "</tr>"
-        for label, get in rows
+        f"<tr><td>{html.escape(label)}</td>" + "".join(f"<td>{r[i][1]:.4f}</td>" for r in rows) + "</tr>"
+        for i, (label, _) in enumerate(rows[0])
     )
     return f"<table><tr><th>error</th>{head}</tr>{body}</table>"
 
