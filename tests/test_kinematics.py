@@ -155,3 +155,14 @@ def test_parameter_space_apply_matches_batched_pose(rng):
         T = space.apply(deltas[i]).fk(q)
         np.testing.assert_allclose(p[i], T[:, :3, 3], atol=1e-9)
         np.testing.assert_allclose(R[i], T[:, :3, :3], atol=1e-12)
+
+
+def test_right_jacobian_inverse_matches_finite_differences(rng):
+    from robocal.transforms import apply_right_jacobian_inv, exp_so3
+
+    axes = rng.normal(size=(5, 3))
+    phi = axes / np.linalg.norm(axes, axis=1, keepdims=True) * np.array([[1e-6], [1e-3], [0.3], [1.5], [2.8]])
+    w = rng.normal(size=(2, 5, 3))
+    h = 1e-7
+    fd = (log_so3(exp_so3(phi) @ exp_so3(h * w)) - log_so3(exp_so3(phi) @ exp_so3(-h * w))) / (2 * h)
+    np.testing.assert_allclose(apply_right_jacobian_inv(phi, w), fd, atol=1e-6)

@@ -133,8 +133,7 @@ class CalibrationResult:
 
     def to_dict(self) -> dict:
         ident = self.identifiability
-        space = ParameterSpace.of(self.initial)
-        initial_values = _nominal_values(self.initial, space)
+        initial_values = _nominal_values(self.initial)
         params = []
         for i, n in enumerate(self.names):
             nominal = initial_values.get(n, 0.0)
@@ -197,7 +196,7 @@ def _finite_or_none(v: float):
     return float(v) if math.isfinite(v) else None
 
 
-def _nominal_values(robot: Robot, space: ParameterSpace) -> dict[str, float]:
+def _nominal_values(robot: Robot) -> dict[str, float]:
     out: dict[str, float] = {}
     kinds = joint_kinds(robot.convention)
     col = {"a": 0, "alpha": 1, "theta": 2, "d": 3, "beta": 4}

@@ -20,7 +20,7 @@ import numpy as np
 from . import _fast
 from .measurements import Measurements
 from .parameters import ParameterSpace, joint_kinds
-from .transforms import log_so3
+from .transforms import apply_right_jacobian_inv, log_so3
 
 OBJECTIVES = ("sum_squares", "sum_norms")
 
@@ -28,15 +28,6 @@ OBJECTIVES = ("sum_squares", "sum_norms")
 #: so 0.01° weighs like 0.017 mm — about the ratio of a laser tracker's position noise to
 #: its 6-DOF probe's orientation noise.  Wen et al. (2019) do not give their k.
 DEFAULT_K = 1.0e4
-
-
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """a × b for a (m, 3) against b (k, m, 3), componentwise (np.cross copies axes around)."""
-    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
-    out[..., 0] = a[:, 1] * b[..., 2] - a[:, 2] * b[..., 1]
-    out[..., 1] = a[:, 2] * b[..., 0] - a[:, 0] * b[..., 2]
-    out[..., 2] = a[:, 0] * b[..., 1] - a[:, 1] * b[..., 0]
-    return out
 
 
 @dataclass(eq=False)
@@ -161,15 +152,6 @@ class Problem:
         out[:, : 3 * m] = -Jc[:, :, :3].reshape(k, 3 * m)
         if self._Rm is not None:
             dr = log_so3(self._Rm @ np.swapaxes(R, -1, -2))
-            # J_r⁻¹(δ) w = w + ½ δ×w + c(θ) δ×(δ×w): cross products instead of 3×3 products
-            th = np.linalg.norm(dr, axis=-1)
-            small = th < 1e-4
-            ths = np.where(small, 1.0, th)
-            c = np.where(
-                small, 1.0 / 12.0 + th**2 / 720.0, 1.0 / ths**2 - (1.0 + np.cos(ths)) / (2.0 * ths * np.sin(ths))
-            )
-            w = Jc[:, :, 3:]
-            dxw = _cross(dr, w)
-            Jr = w + 0.5 * dxw + c[:, None] * _cross(dr, dxw)
+            Jr = apply_right_jacobian_inv(dr, Jc[:, :, 3:])
             out[:, 3 * m :] = -self._sqrt_k * Jr.reshape(k, 3 * m)
         return out.T

@@ -97,16 +97,28 @@ def log_so3(R: np.ndarray) -> np.ndarray:
     return w
 
 
-def right_jacobian_inv(phi: np.ndarray) -> np.ndarray:
-    """J_r⁻¹(φ): log(Exp(φ)·Exp(ε)) ≈ φ + J_r⁻¹(φ) ε.  (..., 3) → (..., 3, 3)."""
+def apply_right_jacobian_inv(phi: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """J_r⁻¹(φ) applied to vectors: log(Exp(φ)·Exp(ε)) ≈ φ + J_r⁻¹(φ) ε.
+
+    phi: (m, 3) rotation vectors; w: (..., m, 3) vectors, one batch per leading index.
+    Uses J_r⁻¹(φ) w = w + ½ φ×w + c(θ) φ×(φ×w), cross products instead of 3×3 products.
+    """
     phi = np.asarray(phi, dtype=float)
     th = np.linalg.norm(phi, axis=-1)
     small = th < 1e-4
     ths = np.where(small, 1.0, th)
     c = np.where(small, 1.0 / 12.0 + th**2 / 720.0, 1.0 / ths**2 - (1.0 + np.cos(ths)) / (2.0 * ths * np.sin(ths)))
-    K = skew(phi)
-    eye = np.broadcast_to(np.eye(3), K.shape)
-    return eye + 0.5 * K + c[..., None, None] * (K @ K)
+    pxw = _cross_rows(phi, w)
+    return w + 0.5 * pxw + c[:, None] * _cross_rows(phi, pxw)
+
+
+def _cross_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """a × b for a (m, 3) against b (..., m, 3), componentwise (np.cross copies axes around)."""
+    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
+    out[..., 0] = a[:, 1] * b[..., 2] - a[:, 2] * b[..., 1]
+    out[..., 1] = a[:, 2] * b[..., 0] - a[:, 0] * b[..., 2]
+    out[..., 2] = a[:, 0] * b[..., 1] - a[:, 1] * b[..., 0]
+    return out
 
 
 def left_jacobian(phi: np.ndarray) -> np.ndarray:
