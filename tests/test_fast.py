@@ -62,3 +62,13 @@ def test_points_kernel_equals_numpy(convention, rng):
     # the kernel takes one shared tool: compare with the numpy path given the same one
     ref = chain_points(convention, geom, q, base, robot.tool[None, None])
     assert np.abs(got - ref).max() < 1e-9
+
+
+def test_right_jacobian_inverse_kernel_equals_numpy(rng):
+    from robocal.transforms import apply_right_jacobian_inv
+
+    phi = rng.normal(size=(50, 3)) * np.logspace(-7, 0, 50)[:, None]
+    w = rng.normal(size=(7, 50, 3))
+    np.testing.assert_allclose(
+        _fast.apply_right_jacobian_inv(phi, w), apply_right_jacobian_inv(phi, w), rtol=1e-13, atol=1e-13
+    )

@@ -117,52 +117,90 @@ def _trig_one(geom, g):
         g[i, 7] = math.sin(geom[i, 4])
 
 
+@njit(cache=True, inline="always")
+def _particle_objective(conv, g, base, tools, q, tidx, pm, Rm, use_rot, k, kind, V):
+    """Objective of one particle whose chain constants are g (n, 8)."""
+    ncol = 4 if use_rot else 1
+    acc = 0.0
+    for j in range(q.shape[0]):
+        _chain(conv, g, q[j], base, tools[tidx[j]], V, ncol)
+        dx = pm[j, 0] - V[0, 3]
+        dy = pm[j, 1] - V[1, 3]
+        dz = pm[j, 2] - V[2, 3]
+        s = dx * dx + dy * dy + dz * dz
+        if kind == 1:
+            acc += math.sqrt(s)
+        else:
+            acc += s
+            if use_rot:
+                # M = R_m Rᵀ: trace and antisymmetric part give the angle at full precision
+                tr = 0.0
+                for r in range(3):
+                    tr += Rm[j, r, 0] * V[r, 0] + Rm[j, r, 1] * V[r, 1] + Rm[j, r, 2] * V[r, 2]
+                m21 = Rm[j, 2, 0] * V[1, 0] + Rm[j, 2, 1] * V[1, 1] + Rm[j, 2, 2] * V[1, 2]
+                m12 = Rm[j, 1, 0] * V[2, 0] + Rm[j, 1, 1] * V[2, 1] + Rm[j, 1, 2] * V[2, 2]
+                m02 = Rm[j, 0, 0] * V[2, 0] + Rm[j, 0, 1] * V[2, 1] + Rm[j, 0, 2] * V[2, 2]
+                m20 = Rm[j, 2, 0] * V[0, 0] + Rm[j, 2, 1] * V[0, 1] + Rm[j, 2, 2] * V[0, 2]
+                m10 = Rm[j, 1, 0] * V[0, 0] + Rm[j, 1, 1] * V[0, 1] + Rm[j, 1, 2] * V[0, 2]
+                m01 = Rm[j, 0, 0] * V[1, 0] + Rm[j, 0, 1] * V[1, 1] + Rm[j, 0, 2] * V[1, 2]
+                w0 = m21 - m12
+                w1 = m02 - m20
+                w2 = m10 - m01
+                theta = math.atan2(0.5 * math.sqrt(w0 * w0 + w1 * w1 + w2 * w2), 0.5 * (tr - 1.0))
+                acc += k * theta * theta
+    return acc
+
+
 @njit(cache=True, parallel=True)
 def objective(conv, geom, base, tools, q, tidx, pm, Rm, use_rot, k, kind):  # pragma: no cover
     """Objective per particle: kind 0 = Σ |δp|² + k θ², kind 1 = Σ |δp| (θ: angle of R_m Rᵀ).
 
-    geom (P, n, 5) as in :mod:`robocal.kinematics`, q from :func:`joint_trig`.
+    geom (P, n, 5) as in :mod:`robocal.kinematics`, base (P, 4, 4), tools (P, T, 4, 4),
+    q from :func:`joint_trig`.
     """
     P = geom.shape[0]
-    m = q.shape[0]
     out = np.empty(P)
-    ncol = 4 if use_rot else 1
     for p in prange(P):
         V = np.empty((3, 4))
         g = np.empty((geom.shape[1], 8))
         _trig_one(geom[p], g)
-        acc = 0.0
-        for j in range(m):
-            _chain(conv, g, q[j], base[p], tools[p, tidx[j]], V, ncol)
-            dx = pm[j, 0] - V[0, 3]
-            dy = pm[j, 1] - V[1, 3]
-            dz = pm[j, 2] - V[2, 3]
-            s = dx * dx + dy * dy + dz * dz
-            if kind == 1:
-                acc += math.sqrt(s)
-            else:
-                acc += s
-                if use_rot:
-                    # M = R_m Rᵀ: trace and antisymmetric part give the angle at full precision
-                    tr = 0.0
-                    w0 = 0.0
-                    w1 = 0.0
-                    w2 = 0.0
-                    for r in range(3):
-                        tr += Rm[j, r, 0] * V[r, 0] + Rm[j, r, 1] * V[r, 1] + Rm[j, r, 2] * V[r, 2]
-                    m21 = Rm[j, 2, 0] * V[1, 0] + Rm[j, 2, 1] * V[1, 1] + Rm[j, 2, 2] * V[1, 2]
-                    m12 = Rm[j, 1, 0] * V[2, 0] + Rm[j, 1, 1] * V[2, 1] + Rm[j, 1, 2] * V[2, 2]
-                    m02 = Rm[j, 0, 0] * V[2, 0] + Rm[j, 0, 1] * V[2, 1] + Rm[j, 0, 2] * V[2, 2]
-                    m20 = Rm[j, 2, 0] * V[0, 0] + Rm[j, 2, 1] * V[0, 1] + Rm[j, 2, 2] * V[0, 2]
-                    m10 = Rm[j, 1, 0] * V[0, 0] + Rm[j, 1, 1] * V[0, 1] + Rm[j, 1, 2] * V[0, 2]
-                    m01 = Rm[j, 0, 0] * V[1, 0] + Rm[j, 0, 1] * V[1, 1] + Rm[j, 0, 2] * V[1, 2]
-                    w0 = m21 - m12
-                    w1 = m02 - m20
-                    w2 = m10 - m01
-                    theta = math.atan2(0.5 * math.sqrt(w0 * w0 + w1 * w1 + w2 * w2), 0.5 * (tr - 1.0))
-                    acc += k * theta * theta
-        out[p] = acc
+        out[p] = _particle_objective(conv, g, base[p], tools[p], q, tidx, pm, Rm, use_rot, k, kind, V)
     return out
+
+
+@njit(cache=True, parallel=True)
+def objective_joints(conv, geom0, cols, X, base, tools, q, tidx, pm, Rm, use_rot, k, kind):  # pragma: no cover
+    """:func:`objective` when only joint parameters vary: particle p has geometry geom0 (n, 5)
+    with X[p] added at the flat positions ``cols``; base (4, 4) and tools (T, 4, 4) are shared.
+    No per-generation array of geometries is built."""
+    P = X.shape[0]
+    n = geom0.shape[0]
+    out = np.empty(P)
+    for p in prange(P):
+        V = np.empty((3, 4))
+        geom = geom0.copy()
+        flat = geom.reshape(n * 5)
+        for c in range(cols.shape[0]):
+            flat[cols[c]] += X[p, c]
+        g = np.empty((n, 8))
+        _trig_one(geom, g)
+        out[p] = _particle_objective(conv, g, base, tools, q, tidx, pm, Rm, use_rot, k, kind, V)
+    return out
+
+
+@njit(cache=True)
+def update_bests(x, fx, pbest, pbest_f):  # pragma: no cover
+    """Personal bests in place (a non-finite fx never improves one); returns argmin of pbest_f."""
+    best = 0
+    for p in range(x.shape[0]):
+        f = fx[p]
+        if f < pbest_f[p]:  # NaN compares false; +inf never below a finite best
+            pbest_f[p] = f
+            for j in range(x.shape[1]):
+                pbest[p, j] = x[p, j]
+        if pbest_f[p] < pbest_f[best]:
+            best = p
+    return best
 
 
 @njit(cache=True, parallel=True)
@@ -216,3 +254,26 @@ def swarm_step(mode, v, x, pbest, gbest, r1, r2, a, c1, c2, vmax, lo, hi):  # pr
             xn[p, j] = y
             vn[p, j] = u
     return xn, vn
+
+
+@njit(cache=True, parallel=True)
+def apply_right_jacobian_inv(phi, w):  # pragma: no cover
+    """:func:`robocal.transforms.apply_right_jacobian_inv` for w (k, m, 3), fused."""
+    k, m = w.shape[0], w.shape[1]
+    out = np.empty_like(w)
+    for j in prange(m):
+        a0, a1, a2 = phi[j, 0], phi[j, 1], phi[j, 2]
+        th = math.sqrt(a0 * a0 + a1 * a1 + a2 * a2)
+        if th < 1e-4:
+            c = 1.0 / 12.0 + th * th / 720.0
+        else:
+            c = 1.0 / (th * th) - (1.0 + math.cos(th)) / (2.0 * th * math.sin(th))
+        for i in range(k):
+            b0, b1, b2 = w[i, j, 0], w[i, j, 1], w[i, j, 2]
+            p0 = a1 * b2 - a2 * b1
+            p1 = a2 * b0 - a0 * b2
+            p2 = a0 * b1 - a1 * b0
+            out[i, j, 0] = b0 + 0.5 * p0 + c * (a1 * p2 - a2 * p1)
+            out[i, j, 1] = b1 + 0.5 * p1 + c * (a2 * p0 - a0 * p2)
+            out[i, j, 2] = b2 + 0.5 * p2 + c * (a0 * p1 - a1 * p0)
+    return out

@@ -34,36 +34,34 @@ def _joint_rotation_translation(convention: str, g: np.ndarray, q: np.ndarray):
     """Rotation (..., 3, 3) and translation (..., 3) of one joint transform.
 
     g: (..., 5) geometry of the joint with a trailing singleton inserted by the
-    caller so that it broadcasts against q (..., m).
+    caller so that it broadcasts against q (..., m).  Entries are written into
+    preallocated arrays, which broadcast by themselves (cheap for small batches).
     """
     a, al, th, d, be = (g[..., k] for k in range(5))
     t = q + th
     ct, st = np.cos(t), np.sin(t)
     ca, sa = np.cos(al), np.sin(al)
-    ct, st, ca, sa = np.broadcast_arrays(ct, st, ca, sa)
-    zero = np.zeros_like(ct)
+    shape = np.broadcast_shapes(ct.shape, ca.shape, a.shape)
+    R = np.empty(shape + (3, 3))
+    p = np.empty(shape + (3,))
     if convention == "craig":
-        a_b, d_b = np.broadcast_arrays(a, d, ct)[:2]
-        R = np.stack(
-            [
-                np.stack([ct, -st, zero], -1),
-                np.stack([ca * st, ca * ct, -sa], -1),
-                np.stack([sa * st, sa * ct, ca], -1),
-            ],
-            -2,
-        )
-        p = np.stack([a_b, -sa * d_b, ca * d_b], -1)
+        # Rx(α) Rz(t); translation Rx(α) (a, 0, 0)ᵀ + Rx(α) Rz(t) (0, 0, d)ᵀ = (a, −sα d, cα d)
+        R[..., 0, 0], R[..., 0, 1], R[..., 0, 2] = ct, -st, 0.0
+        R[..., 1, 0], R[..., 1, 1], R[..., 1, 2] = ca * st, ca * ct, -sa
+        R[..., 2, 0], R[..., 2, 1], R[..., 2, 2] = sa * st, sa * ct, ca
+        p[..., 0], p[..., 1], p[..., 2] = a, -sa * d, ca * d
         return R, p
-    # Rz(t) · Rx(alpha)
-    c0 = np.stack([ct, st, zero], -1)
-    c1 = np.stack([-st * ca, ct * ca, sa], -1)
-    c2 = np.stack([st * sa, -ct * sa, ca], -1)
+    # Rz(t) Rx(α), columns c0 = (ct, st, 0), c1 = (−st cα, ct cα, sα), c2 = (st sα, −ct sα, cα)
     if convention == "hayati":
-        cb, sb = np.broadcast_arrays(np.cos(be), np.sin(be), ct)[:2]
-        c0, c2 = c0 * cb[..., None] - c2 * sb[..., None], c0 * sb[..., None] + c2 * cb[..., None]
-    R = np.stack([c0, c1, c2], -1)
-    a_b, d_b = np.broadcast_arrays(a, d, ct)[:2]
-    p = np.stack([a_b * ct, a_b * st, d_b], -1)
+        cb, sb = np.cos(be), np.sin(be)
+        # · Ry(β): c0' = c0 cβ − c2 sβ, c2' = c0 sβ + c2 cβ
+        R[..., 0, 0], R[..., 1, 0], R[..., 2, 0] = ct * cb - st * sa * sb, st * cb + ct * sa * sb, -ca * sb
+        R[..., 0, 2], R[..., 1, 2], R[..., 2, 2] = ct * sb + st * sa * cb, st * sb - ct * sa * cb, ca * cb
+    else:
+        R[..., 0, 0], R[..., 1, 0], R[..., 2, 0] = ct, st, 0.0
+        R[..., 0, 2], R[..., 1, 2], R[..., 2, 2] = st * sa, -ct * sa, ca
+    R[..., 0, 1], R[..., 1, 1], R[..., 2, 1] = -st * ca, ct * ca, sa
+    p[..., 0], p[..., 1], p[..., 2] = a * ct, a * st, d
     return R, p
 
 

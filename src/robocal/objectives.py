@@ -49,6 +49,7 @@ class Problem:
         kinds = len(joint_kinds(self.space.robot.convention))
         self._geom_cols = (self.active // kinds) * 5 + self.active % kinds  # into the flat (n, 5) geometry
         self._tiles: tuple | None = None
+        self._geom_cols64 = self._geom_cols.astype(np.int64)
         self._qtrig = _fast.joint_trig(self.meas.q)
         self._conv_code = _fast.CONVENTION_CODE[self.space.robot.convention]
         m = self.meas.n_poses
@@ -120,7 +121,26 @@ class Problem:
         return geom.reshape(P, -1, 5), base, tools
 
     def _fast_objective(self, X: np.ndarray, kind: str) -> np.ndarray:
-        geom, base, tools = self._expand(X)
+        kind_code = 0 if kind == "sum_squares" else 1
+        use_rot = self._Rm is not None
+        if not np.any(self.active >= self.space.n_joint_params):
+            base, tools = self._nominal_frames
+            return _fast.objective_joints(
+                self._conv_code,
+                self.space.robot.geometry,
+                self._geom_cols64,
+                X,
+                base,
+                tools,
+                self._qtrig,
+                self._tidx64,
+                self.meas.position,
+                self._Rm_kernel,
+                use_rot,
+                self.k,
+                kind_code,
+            )
+        geom, base, tools = self.space.expand(self.full(X))
         return _fast.objective(
             self._conv_code,
             geom,
@@ -130,9 +150,9 @@ class Problem:
             self._tidx64,
             self.meas.position,
             self._Rm_kernel,
-            self._Rm is not None,
+            use_rot,
             self.k,
-            0 if kind == "sum_squares" else 1,
+            kind_code,
         )
 
     def residuals(self, x: np.ndarray) -> np.ndarray:
@@ -152,6 +172,11 @@ class Problem:
         out[:, : 3 * m] = -Jc[:, :, :3].reshape(k, 3 * m)
         if self._Rm is not None:
             dr = log_so3(self._Rm @ np.swapaxes(R, -1, -2))
-            Jr = apply_right_jacobian_inv(dr, Jc[:, :, 3:])
+            w = Jc[:, :, 3:]
+            Jr = (
+                _fast.apply_right_jacobian_inv(dr, np.ascontiguousarray(w))
+                if _fast.AVAILABLE
+                else (apply_right_jacobian_inv(dr, w))
+            )
             out[:, 3 * m :] = -self._sqrt_k * Jr.reshape(k, 3 * m)
         return out.T

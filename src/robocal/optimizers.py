@@ -142,14 +142,16 @@ class _Swarm:
         self.x, self.v = x, v
         fx = self.f(x)
         self.nfev += len(x)
-        fx[~np.isfinite(fx)] = np.inf
-        better = fx < self.pbest_f
-        if better.any():
+        if _fast.AVAILABLE:
+            g = _fast.update_bests(x, fx, self.pbest, self.pbest_f)
+        else:
+            fx[~np.isfinite(fx)] = np.inf
+            better = fx < self.pbest_f
             self.pbest[better] = x[better]
             self.pbest_f[better] = fx[better]
             g = int(np.argmin(self.pbest_f))
-            if self.pbest_f[g] < self.gbest_f:
-                self.gbest, self.gbest_f = self.pbest[g].copy(), float(self.pbest_f[g])
+        if self.pbest_f[g] < self.gbest_f:
+            self.gbest, self.gbest_f = self.pbest[g].copy(), float(self.pbest_f[g])
         self.history.append(self.gbest_f)
         if self.callback is not None:
             self.callback(t, self.iterations, self.gbest_f)

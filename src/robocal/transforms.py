@@ -101,23 +101,22 @@ def apply_right_jacobian_inv(phi: np.ndarray, w: np.ndarray) -> np.ndarray:
     """J_r⁻¹(φ) applied to vectors: log(Exp(φ)·Exp(ε)) ≈ φ + J_r⁻¹(φ) ε.
 
     phi: (m, 3) rotation vectors; w: (..., m, 3) vectors, one batch per leading index.
-    Uses J_r⁻¹(φ) w = w + ½ φ×w + c(θ) φ×(φ×w), cross products instead of 3×3 products.
+    Uses J_r⁻¹(φ) w = w + ½ φ×w + c(θ) φ×(φ×w), component by component: cross products
+    on contiguous (…, m) arrays instead of 3×3 products or strided (…, m, 3) ones.
     """
     phi = np.asarray(phi, dtype=float)
     th = np.linalg.norm(phi, axis=-1)
     small = th < 1e-4
     ths = np.where(small, 1.0, th)
     c = np.where(small, 1.0 / 12.0 + th**2 / 720.0, 1.0 / ths**2 - (1.0 + np.cos(ths)) / (2.0 * ths * np.sin(ths)))
-    pxw = _cross_rows(phi, w)
-    return w + 0.5 * pxw + c[:, None] * _cross_rows(phi, pxw)
-
-
-def _cross_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """a × b for a (m, 3) against b (..., m, 3), componentwise (np.cross copies axes around)."""
-    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
-    out[..., 0] = a[:, 1] * b[..., 2] - a[:, 2] * b[..., 1]
-    out[..., 1] = a[:, 2] * b[..., 0] - a[:, 0] * b[..., 2]
-    out[..., 2] = a[:, 0] * b[..., 1] - a[:, 1] * b[..., 0]
+    a0, a1, a2 = phi[:, 0], phi[:, 1], phi[:, 2]
+    b0, b1, b2 = (np.ascontiguousarray(w[..., i]) for i in range(3))
+    p0, p1, p2 = a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0  # φ × w
+    q0, q1, q2 = a1 * p2 - a2 * p1, a2 * p0 - a0 * p2, a0 * p1 - a1 * p0  # φ × (φ × w)
+    out = np.empty(np.broadcast_shapes(phi.shape, w.shape))
+    out[..., 0] = b0 + 0.5 * p0 + c * q0
+    out[..., 1] = b1 + 0.5 * p1 + c * q1
+    out[..., 2] = b2 + 0.5 * p2 + c * q2
     return out
 
 
