@@ -47,9 +47,9 @@ class Problem:
         _, base, tools = self.space.expand(np.zeros(self.space.size))
         self._nominal_frames = (base, tools)
         kinds = len(joint_kinds(self.space.robot.convention))
-        self._geom_cols = (self.active // kinds) * 5 + self.active % kinds  # into the flat (n, 5) geometry
-        self._tiles: tuple | None = None
-        self._geom_cols64 = self._geom_cols.astype(np.int64)
+        # positions of the estimated joint parameters in the flat (n, 5) geometry
+        self._geom_cols = ((self.active // kinds) * 5 + self.active % kinds).astype(np.int64)
+        self._frames_active = bool(np.any(self.active >= self.space.n_joint_params))
         self._qtrig = _fast.joint_trig(self.meas.q)
         self._conv_code = _fast.CONVENTION_CODE[self.space.robot.convention]
         m = self.meas.n_poses
@@ -101,59 +101,16 @@ class Problem:
             f = f + self.k * np.sum(dr * dr, axis=(-1, -2))
         return f
 
-    def _expand(self, X: np.ndarray):
-        """space.expand(full(X)) without the frame algebra when no frame parameter is estimated.
-
-        Swarms call this every generation: the nominal frames and geometry are tiled once
-        per population size and only the estimated columns change.
-        """
-        space = self.space
-        if np.any(self.active >= space.n_joint_params):
-            return space.expand(self.full(X))
-        P = len(X)
-        if self._tiles is None or len(self._tiles[0]) < P:
-            r = space.robot
-            base, tools = self._nominal_frames
-            self._tiles = (np.tile(r.geometry.ravel(), (P, 1)), np.tile(base, (P, 1, 1)), np.tile(tools, (P, 1, 1, 1)))
-        geom0, base, tools = (a[:P] for a in self._tiles)  # a shrinking swarm reuses the leading rows
-        geom = geom0.copy()
-        geom[:, self._geom_cols] += X
-        return geom.reshape(P, -1, 5), base, tools
-
     def _fast_objective(self, X: np.ndarray, kind: str) -> np.ndarray:
-        kind_code = 0 if kind == "sum_squares" else 1
-        use_rot = self._Rm is not None
-        if not np.any(self.active >= self.space.n_joint_params):
+        common = (self._qtrig, self._tidx64, self.meas.position, self._Rm_kernel, self._Rm is not None, self.k,
+                  0 if kind == "sum_squares" else 1)  # fmt: skip
+        if not self._frames_active:
+            # each particle adds its joint errors to the nominal geometry inside the kernel
             base, tools = self._nominal_frames
-            return _fast.objective_joints(
-                self._conv_code,
-                self.space.robot.geometry,
-                self._geom_cols64,
-                X,
-                base,
-                tools,
-                self._qtrig,
-                self._tidx64,
-                self.meas.position,
-                self._Rm_kernel,
-                use_rot,
-                self.k,
-                kind_code,
-            )
+            return _fast.objective_joints(self._conv_code, self.space.robot.geometry, self._geom_cols, X, base,
+                                          tools, *common)  # fmt: skip
         geom, base, tools = self.space.expand(self.full(X))
-        return _fast.objective(
-            self._conv_code,
-            geom,
-            base,
-            tools,
-            self._qtrig,
-            self._tidx64,
-            self.meas.position,
-            self._Rm_kernel,
-            use_rot,
-            self.k,
-            kind_code,
-        )
+        return _fast.objective(self._conv_code, geom, base, tools, *common)
 
     def residuals(self, x: np.ndarray) -> np.ndarray:
         """Stacked residual vector [δp (3m), √k·δ (3m)] of one solution (k_active,)."""
@@ -164,8 +121,7 @@ class Problem:
 
     def residual_jacobian(self, x: np.ndarray) -> np.ndarray:
         """Exact ∂residuals/∂x, (n_residuals, k_active), Fortran-ordered as MINPACK wants."""
-        frames = bool(np.any(self.active >= self.space.n_joint_params))
-        Jc, R, _ = self.space.jacobian_columns(self.full(x), self.meas.q, self.target_idx, frames=frames)
+        Jc, R, _ = self.space.jacobian_columns(self.full(x), self.meas.q, self.target_idx, frames=self._frames_active)
         Jc = Jc[self.active]  # (k, m, 6)
         k, m = Jc.shape[0], Jc.shape[1]
         out = np.empty((k, self.n_residuals))
