@@ -1,15 +1,22 @@
+"""Fixtures shared by every test: a seeded generator, the in-process command line, quiet
+warnings, and the compute backends."""
+
 import os
+import warnings
 
 import numpy as np
 import pytest
 from hypothesis import settings
 
-from robocal.cli import main
+from robocal.backend import numba_installed
 
 # 300 examples per property in the suite; HYPOTHESIS_PROFILE=deep for a longer hunt
 settings.register_profile("suite", max_examples=300)
 settings.register_profile("deep", max_examples=5000)
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "suite"))
+
+#: the backends this machine can run: numpy always, numba with the fast extra
+BACKENDS = ["numpy"] + (["numba"] if numba_installed() else [])
 
 
 @pytest.fixture
@@ -20,6 +27,7 @@ def rng():
 @pytest.fixture
 def run_cli(capsys):
     """Run the command line in-process; returns (exit code, stdout, stderr)."""
+    from robocal.cli import main
 
     def run(*args):
         code = main([str(a) for a in args])
@@ -27,3 +35,17 @@ def run_cli(capsys):
         return code, out, err
 
     return run
+
+
+@pytest.fixture
+def quiet():
+    """Silence robocal's warnings where a test looks at results, not at what is said."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        yield
+
+
+@pytest.fixture(params=BACKENDS)
+def backend(request):
+    """Each available backend in turn: the numpy fallback runs in every suite."""
+    return request.param

@@ -1,0 +1,186 @@
+"""The workloads of robocal's speed targets.
+
+Every figure is a median of repeated runs on this machine; ratios come from runs
+interleaved in the same process.  Compiled kernels are warmed up before timing, so the
+figures are of the work, not of numba's one-off compilation.
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Callable
+
+import numpy as np
+
+from ..backend import resolve
+from ..calibration import calibrate
+from ..calibration.problem import Setup
+from ..io.robotfile import load_robot
+from ..model.kinematics import chain_points
+from ..model.parameters import ParameterSpace, is_angle
+from ..optimize.swarm import ipso, ldpso_bt, pso
+from ..papers import kou2022, wen2019
+from ..simulation import simulate
+from .timing import Row, median_time, run_measured
+
+
+def wen2019_problem():
+    """Wen 2019: ER10L-C10, 32 full poses, the paper's 24 parameters, and IPSO's search box."""
+    robot = load_robot("er10l-c10")
+    sim = simulate(robot, wen2019.POSES, deviations="paper", seed=1)
+    setup = Setup(ParameterSpace.of(robot), sim.measurements, k=1e4)
+    prob = setup.problem(wen2019.PARAMETERS)
+    box = np.array([wen2019.BOX[1] if is_angle(n) else wen2019.BOX[0] for n in prob.names])
+    return prob, box
+
+
+def kou2022_problem():
+    """Kou 2022: KR5 arc, 30 position-only poses, Δa, Δd, Δα, Δθ of all joints, and the swarm box."""
+    robot = load_robot("kr5-arc")
+    sim = simulate(robot, kou2022.POSES, deviations=kou2022.DEVIATIONS, seed=1, measure="position")
+    setup = Setup(ParameterSpace.of(robot), sim.measurements, k=1e4)
+    prob = setup.problem(kou2022.parameters())
+    box = np.array([kou2022.BOX[1] if is_angle(n) else kou2022.BOX[0] for n in prob.names])
+    return prob, box, sim
+
+
+def w1_ipso(repeats: int = 5) -> list[Row]:
+    """W1: IPSO 20 × 2000, 32 full poses, 24 parameters (Wen 2019)."""
+    prob, box = wen2019_problem()
+
+    def run(iterations=wen2019.IPSO["iterations"]):
+        return ipso(lambda X: prob.objective(X), -box, box, iterations=iterations, seed=0)
+
+    run(5)  # compile / warm caches outside the timing
+    t = median_time(run, repeats)
+    return [Row("W1 IPSO 20×2000, ER10L-C10 32 poses", t, "s", "≤ 0.3 s (paper: 220 s MATLAB)", t <= 0.3)]
+
+
+def w2_swarms(repeats: int = 5) -> list[Row]:
+    """W2: PSO 240 × 500 against LDPSO-BT 240 → 40 × 500, 30 poses (Kou 2022), interleaved."""
+    prob, box, _ = kou2022_problem()
+
+    def f(X):
+        return prob.objective(X, "sum_norms")
+
+    pso(f, -box, box, iterations=3)
+    ldpso_bt(f, -box, box, iterations=3)
+    tp, tl = [], []
+    for i in range(repeats):
+        tp.append(median_time(lambda i=i: pso(f, -box, box, seed=i), 1))
+        tl.append(median_time(lambda i=i: ldpso_bt(f, -box, box, seed=i), 1))
+    p, ld = float(np.median(tp)), float(np.median(tl))
+    ratio = float(np.median(np.array(tl) / np.array(tp)))
+    return [
+        Row("W2 PSO 240×500, KR5 arc 30 poses", p, "s", "", None),
+        Row("W2 LDPSO-BT 240→40×500", ld, "s", "≤ 1 s", ld <= 1.0),
+        Row("W2 ratio LDPSO-BT / PSO time (median of pairs)", ratio, "×", "≤ 0.62 (paper: 0.58)", ratio <= 0.62),
+    ]
+
+
+def _lm_calibration(robot, meas):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return calibrate(robot, meas, "lm")
+
+
+LARGE_LM = """
+import time, json, warnings
+import numpy as np
+from robocal.io.robotfile import load_robot
+from robocal.simulation import simulate
+from robocal.calibration import calibrate
+robot = load_robot("er10l-c10")
+sim = simulate(robot, {poses}, deviations="paper", seed=5, noise=0.02, angle_noise=np.radians(0.001))
+t = time.perf_counter()
+with warnings.catch_warnings():
+    warnings.simplefilter("ignore")
+    res = calibrate(robot, sim.measurements, "lm")
+print(json.dumps({{"time_s": time.perf_counter() - t, "status": res.optimisation.status,
+                  "rms": res.metrics["after"].position["rms"]}}))
+"""
+
+
+def w3_lm(repeats: int = 5, large: bool = True) -> list[Row]:
+    """W3: LM calibration (identifiability, LM, uncertainty, metrics) of 32, 1000 and 100 000 poses."""
+    robot = load_robot("er10l-c10")
+    rows = []
+    for m, target in ((32, 0.020), (1000, 0.150)):
+        sim = simulate(robot, m, deviations="paper", seed=1, noise=0.02, angle_noise=1e-5)
+        _lm_calibration(robot, sim.measurements)
+        t = median_time(lambda meas=sim.measurements: _lm_calibration(robot, meas), repeats)
+        rows.append(Row(f"W3 LM calibration, {m} poses", t, "s", f"≤ {target * 1000:g} ms", t <= target))
+    if large:
+        out, peak = run_measured(LARGE_LM.format(poses=100_000))
+        rows.append(Row("W3 LM calibration, 100000 poses", out["time_s"], "s", "≤ 10 s, < 2 GB",
+                        out["time_s"] <= 10.0 and peak < 2.0,
+                        note=f"peak resident memory {peak:.2f} GB (own process)"))
+    return rows
+
+
+def w4_fk(pairs: int = 1_000_000, repeats: int = 3) -> list[Row]:
+    """W4: positions of ``pairs`` (particle, pose) pairs for a 6-joint robot, one batched call."""
+    robot = load_robot("kr5-arc")
+    space = ParameterSpace.of(robot)
+    P = 1000
+    rng = np.random.default_rng(0)
+    geom, base, tools = space.expand(rng.normal(size=(P, space.size)) * 1e-3)
+    q = rng.uniform(-2, 2, (pairs // P, 6))
+    t_np = median_time(lambda: chain_points("dh", geom, q, base, tools[:, :1]), repeats)
+    rows = [Row(f"W4 FK positions, {pairs:,} pairs, numpy", pairs / t_np / 1e6, "M/s", "≥ 2 M/s",
+                pairs / t_np / 1e6 >= 2)]
+    if resolve("auto") == "numba":
+        from ..model import kernels
+
+        constants, qt = kernels.chain_constants(geom), kernels.joint_trig(q)
+
+        def compiled():
+            return kernels.points(0, constants, base, tools[0, 0], qt)
+
+        compiled()
+        t_c = median_time(compiled, repeats)
+        rows.append(Row(f"W4 FK positions, {pairs:,} pairs, numba", pairs / t_c / 1e6, "M/s", "≥ 10 M/s",
+                        pairs / t_c / 1e6 >= 10))
+    else:
+        rows.append(Row("W4 FK positions, numba", float("nan"), "M/s", "≥ 10 M/s", None, note="numba not in use"))
+    return rows
+
+
+def w5_pkm(repeats: int = 5) -> list[Row]:
+    """W5 (Chen 2023): the compensation PSO (100 × 200) for 30 targets at once, and FK of 10 000 rod sets."""
+    from ..pkm.compensation import compensate_paper, planted
+    from ..pkm.geometry import chen2023
+    from ..pkm.kinematics import forward, ik, workspace_targets
+
+    g = chen2023()
+    real = g.with_errors(planted(1))
+    q = workspace_targets(g, 30, seed=2)
+    compensate_paper(g, real, q)
+    t_pso = median_time(lambda: compensate_paper(g, real, q), repeats)
+    L = ik(g, workspace_targets(g, 10_000, seed=3, angle=0.2))
+    forward(g, L)
+    t_fk = median_time(lambda: forward(g, L), repeats)
+    return [
+        Row("W5 eq. 18 PSO 100×200, 30 targets in one batch", t_pso, "s", "≤ 0.5 s", t_pso <= 0.5,
+            note="includes driving and measuring the simulated machine"),
+        Row("W5 PKM forward kinematics, 10 000 rod sets", t_fk, "s", "≤ 0.2 s", t_fk <= 0.2),
+    ]
+
+
+WORKLOADS: dict[str, Callable[..., list[Row]]] = {"W1": w1_ipso, "W2": w2_swarms, "W3": w3_lm, "W4": w4_fk,
+                                                  "W5": w5_pkm}
+
+
+def run_all(quick: bool = False, say: Callable[[str], None] = lambda s: None) -> list[Row]:
+    """W1–W5; quick: fewer repeats and no 100 000-pose LM."""
+    reps = 3 if quick else 5
+    rows: list[Row] = []
+    for name, fn in WORKLOADS.items():
+        say(f"running {name}")
+        if name == "W3":
+            rows += fn(reps, large=not quick)
+        elif name == "W4":
+            rows += fn(repeats=3)
+        else:
+            rows += fn(reps)
+    return rows

@@ -1,0 +1,62 @@
+"""Checks of the data before a calibration: wrong units are errors, degenerate data warnings."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..exceptions import InputError
+from ..model.jointspace import condition_numbers
+from ..model.measurements import Measurements
+from ..model.robot import Robot
+
+#: joint Jacobian condition number above which a pose is called near-singular
+NEAR_SINGULAR = 1e4
+#: weight of rotation rows (mm per rad) when judging a pose's conditioning
+ROT_WEIGHT = 1000.0
+
+
+def check_units(robot: Robot, meas: Measurements, frames: str) -> None:
+    """Catch metres-for-millimetres and similar: compare the spread of the measured points with
+    the spread the nominal model predicts for the same joints."""
+    model = robot.positions(meas.q, meas.targets if meas.targets and frames == "none" else None)
+    spread_m = np.linalg.norm(meas.position - meas.position.mean(0), axis=1).max()
+    spread_n = np.linalg.norm(model - model.mean(0), axis=1).max()
+    if spread_n > 10 and spread_m < spread_n / 100:
+        raise InputError(f"measured points spread over {spread_m:.4g} but the robot predicts {spread_n:.4g} mm: "
+                         "positions look like metres; measurement files give mm", source=meas.source)
+    if spread_n > 10 and spread_m > spread_n * 100:
+        raise InputError(f"measured points spread over {spread_m:.4g} but the robot predicts {spread_n:.4g} mm: "
+                         "positions look like µm or wrong units; measurement files give mm",
+                         source=meas.source)
+
+
+def check_targets(robot: Robot, meas: Measurements, frames: str) -> None:
+    """Every target of the data needs a tool frame, from the robot file or identified."""
+    if frames == "base+tool":
+        return
+    missing = [t for t in meas.target_names if t and t not in robot.targets]
+    if missing:
+        raise InputError(f"target '{missing[0]}' has no tool frame in the robot; identify it with frames base+tool "
+                         "or add [targets.NAME] to the robot file", source=meas.source)
+
+
+def degeneracy_warnings(robot: Robot, meas: Measurements) -> list[str]:
+    """Degenerate but valid data: say what is off; identifiability then drops what it must."""
+    out = []
+    q = meas.q
+    if meas.n_poses > 1 and np.all(np.ptp(q, axis=0) < 1e-9):
+        out.append(f"all {meas.n_poses} poses command the same joints: only what a single pose shows can be "
+                   "identified")
+    else:
+        still = [i + 1 for i in range(q.shape[1]) if np.ptp(q[:, i]) < math.radians(0.05)]
+        if still:
+            many = len(still) > 1
+            out.append(f"joint{'s' if many else ''} {', '.join(map(str, still))} never move{'' if many else 's'} "
+                       f"in these data: parameters that need {'their' if many else 'its'} motion are dropped")
+    bad = np.flatnonzero(condition_numbers(robot, q, meas.full_pose, ROT_WEIGHT) > NEAR_SINGULAR)
+    if bad.size:
+        out.append(f"{meas.labels(bad)} are near-singular configurations (joint Jacobian condition > "
+                   f"{NEAR_SINGULAR:.0e}): they pin down little")
+    return out

@@ -1,0 +1,142 @@
+"""The options of a calibration, validated once, in one place, for the API and the CLI alike."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field, fields, replace
+
+from .. import options as opt
+from ..backend import BACKENDS
+from ..exceptions import InputError
+from ..model.candidates import FRAME_MODES
+from ..optimize.lm import LOSSES
+
+METHODS = ("lm", "pso", "ipso", "ldpso-bt", "hybrid")
+OBJECTIVES = ("sum_squares", "sum_norms")
+#: IPSO's start: a Halton sequence scrambled with the seed, or the plain sequence
+HALTON = ("scrambled", "plain")
+#: named candidate sets: every joint parameter of the convention, or a paper's 24
+PARAMETER_SETS = ("auto", "all", "wen2019", "kou2022")
+#: default objective of each method (its paper's)
+DEFAULT_OBJECTIVE = {"lm": "sum_squares", "hybrid": "sum_squares", "ipso": "sum_squares", "pso": "sum_norms",
+                     "ldpso-bt": "sum_norms"}
+#: swarm settings a user may override, per method (the papers' names)
+SWARM_SETTINGS = {"pso": ("w", "c1", "c2"), "ipso": ("c1", "c2"), "hybrid": ("c1", "c2"),
+                  "ldpso-bt": ("min_particles", "w1", "w2", "switch", "c1", "c2"), "lm": ()}
+
+#: default orientation weight k of the pose objective, mm²/rad²: 1 rad counts as 100 mm,
+#: so 0.01° weighs like 0.017 mm, about the ratio of a laser tracker's position noise to
+#: its 6-DOF probe's orientation noise.  Wen et al. (2019) do not give their k.
+DEFAULT_K = 1.0e4
+
+
+@dataclass(frozen=True)
+class CalibrationConfig:
+    """What a calibration is asked to do.  Units: mm, rad (k in mm²/rad²).
+
+    method: ``lm``, ``pso``, ``ipso``, ``ldpso-bt`` or ``hybrid`` (IPSO then LM).
+    frames: ``none`` (base and tool as in the robot), ``base`` (identify the measuring
+    frame), ``base+tool`` (also a tool offset per target: 3 for position data, 6 for full
+    pose).  params: candidate joint parameters: None/``auto``/``all`` for every parameter
+    of the convention, ``wen2019``/``kou2022`` for the papers' 24, or names (a sequence or
+    a comma list).  objective: ``sum_squares`` (Wen eq. 7 with weight k) or ``sum_norms``
+    (Kou eq. 4), default per method.  loss/f_scale: robust loss of LM with its scale (mm).
+    particles/iterations/box: override the swarm's paper settings; box = (± mm, ± rad)
+    around the initial estimate.  halton: IPSO's start, ``scrambled`` or ``plain``.  swarm:
+    further paper settings to override (``w``, ``c1``, …).  max_evaluations: cap on LM's
+    residual evaluations.  backend: ``auto``, ``numba`` or ``numpy`` for the swarm objectives.
+    """
+
+    method: str = "lm"
+    frames: str = "none"
+    params: str | tuple[str, ...] | None = None
+    seed: int | None = 0
+    objective: str | None = None
+    k: float = DEFAULT_K
+    use_orientation: bool = True
+    loss: str = "linear"
+    f_scale: float = 1.0
+    particles: int | None = None
+    iterations: int | None = None
+    box: tuple[float, float] | None = None
+    halton: str = "scrambled"
+    swarm: Mapping[str, float] = field(default_factory=dict)
+    max_evaluations: int | None = None
+    backend: str = "auto"
+
+    def __post_init__(self) -> None:
+        set_ = object.__setattr__
+        opt.choice(self.method, METHODS, "method", "method")
+        opt.choice(self.frames, FRAME_MODES, "frames", "frames mode")
+        set_(self, "params", _params(self.params))
+        if self.seed is not None:
+            set_(self, "seed", opt.integer(self.seed, "seed", minimum=0))
+        if self.objective is not None:
+            opt.choice(self.objective, OBJECTIVES, "objective", "objective")
+        set_(self, "k", opt.number(self.k, "k", minimum=0.0))
+        opt.choice(self.loss, LOSSES, "loss", "loss")
+        if self.loss != "linear" and self.method not in ("lm", "hybrid"):
+            raise InputError(f"a robust loss applies to lm and hybrid, not {self.method}", option="loss")
+        set_(self, "f_scale", opt.number(self.f_scale, "f_scale", minimum=0.0, strict=True))
+        set_(self, "particles", opt.optional_integer(self.particles, "particles", minimum=1))
+        set_(self, "iterations", opt.optional_integer(self.iterations, "iterations", minimum=1))
+        set_(self, "max_evaluations", opt.optional_integer(self.max_evaluations, "max_evaluations", minimum=1))
+        if self.box is not None:
+            box = opt.floats(self.box, "box", (2,))
+            if min(box) <= 0:
+                raise InputError(f"half-widths must be > 0, got {self.box!r}", option="box")
+            set_(self, "box", box)
+        allowed = SWARM_SETTINGS[self.method]
+        for key, value in dict(self.swarm).items():
+            if key not in allowed:
+                raise InputError(f"unknown setting {key!r} for {self.method} (allowed: {', '.join(allowed) or 'none'})",
+                                 option="swarm")
+            opt.number(value, f"swarm {key}", minimum=0.0)
+        set_(self, "swarm", dict(self.swarm))
+        opt.choice(self.halton, HALTON, "halton", "Halton start")
+        opt.choice(self.backend, BACKENDS, "backend", "backend")
+
+    @classmethod
+    def build(cls, config: CalibrationConfig | None = None, **options) -> CalibrationConfig:
+        """A config from keyword options, or ``config`` with some of them changed."""
+        names = {f.name for f in fields(cls)}
+        unknown = sorted(set(options) - names)
+        if unknown:
+            raise TypeError(f"unknown calibration option {unknown[0]!r}")
+        return cls(**options) if config is None else replace(config, **options)
+
+    @property
+    def objective_kind(self) -> str:
+        """The objective the swarms minimise: the given one or the method's paper's."""
+        return self.objective or DEFAULT_OBJECTIVE[self.method]
+
+    @property
+    def halton_scramble(self) -> bool:
+        return self.halton == "scrambled"
+
+    @property
+    def is_swarm(self) -> bool:
+        return self.method in ("pso", "ipso", "ldpso-bt")
+
+
+def _params(value) -> str | tuple[str, ...] | None:
+    if value is None or value in PARAMETER_SETS:
+        return None if value in (None, "auto", "all") else value
+    names = [p.strip() for p in value.split(",")] if isinstance(value, str) else [str(p) for p in value]
+    names = [n for n in names if n]
+    if not names:
+        raise InputError("no parameter names given", option="params")
+    return tuple(dict.fromkeys(names))
+
+
+def resolve_params(params: str | Sequence[str] | None, n_joints: int) -> list[str] | None:
+    """The candidate joint names a config asks for, or None for the convention's defaults."""
+    from ..papers import kou2022, wen2019
+
+    if params is None:
+        return None
+    if params == "wen2019":
+        return list(wen2019.PARAMETERS)
+    if params == "kou2022":
+        return list(kou2022.parameters(n_joints))
+    return list(params)

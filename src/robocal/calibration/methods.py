@@ -1,0 +1,132 @@
+"""The calibration methods: which optimiser runs, on which parameters, with which settings.
+
+- ``lm``: Levenberg–Marquardt on the identifiable set, from the initial robot.
+- ``pso``, ``ipso``, ``ldpso-bt``: a swarm searches every candidate, dependent ones
+  included, as the papers do (a swarm does not need full rank), in a box around the
+  initial robot; its model is then re-expressed in the identifiable parameters.
+- ``hybrid``: a short IPSO lands in the basin, LM finishes from there.
+
+Adding a method: a settings entry in :data:`SWARM_BOX` and a branch in :func:`optimise`
+(or a new optimiser in :mod:`robocal.optimize` called from it).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from ..model.parameters import is_angle, is_frame
+from ..optimize.lm import levenberg_marquardt
+from ..optimize.result import OptimizeResult, Progress
+from ..optimize.swarm import ipso, ldpso_bt, pso
+from ..papers import kou2022, wen2019
+from .config import CalibrationConfig
+from .problem import Problem
+
+#: default swarm search box per method: (± mm, ± rad) around the initial estimate
+SWARM_BOX = {"ipso": wen2019.BOX, "hybrid": wen2019.BOX, "pso": kou2022.BOX, "ldpso-bt": kou2022.BOX}
+#: swarms search frame parameters at least this far (mm, rad) around the registration
+FRAME_BOX = (5.0, 0.01)
+#: generations of the swarm stage of ``hybrid`` (IPSO, paper's 20 particles): enough to land
+#: in LM's basin, a fraction of the paper's 2000
+HYBRID_GENERATIONS = 300
+PAPER_SETTINGS = {"pso": kou2022.PSO, "ldpso-bt": kou2022.LDPSO_BT, "ipso": wen2019.IPSO,
+                  "hybrid": {**wen2019.IPSO, "iterations": HYBRID_GENERATIONS}}
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """The optimiser's outcome and what it says about the identifiable parameters.
+
+    optimisation: the optimiser's own result (for swarms, over the searched candidates);
+    x: estimates (mm, rad) of ``problem.names``; reexpression_gap_mm: for swarms, the
+    largest position difference between the swarm's model and its re-expression.
+    """
+
+    problem: Problem
+    optimisation: OptimizeResult
+    x: np.ndarray
+    reexpression_gap_mm: float | None = None
+
+    def replace(self, **changes) -> Estimate:
+        return replace(self, **changes)
+
+
+def settings(config: CalibrationConfig) -> dict:
+    """The swarm settings of a run: the paper's, overridden by the config."""
+    out = {**PAPER_SETTINGS[config.method], **config.swarm}
+    if config.particles is not None:
+        out["particles"] = config.particles
+    if config.iterations is not None:
+        out["iterations"] = config.iterations
+    return out
+
+
+def swarm_box(names: list[str], method: str, box: tuple[float, float] | None) -> tuple[np.ndarray, np.ndarray]:
+    """Lower and upper bounds of the search around the initial estimate (mm, rad)."""
+    length, angle = box or SWARM_BOX[method]
+    upper = np.array([
+        (max(angle, FRAME_BOX[1]) if is_angle(n) else max(length, FRAME_BOX[0])) if is_frame(n)
+        else (angle if is_angle(n) else length)
+        for n in names
+    ])
+    return -upper, upper
+
+
+def fit_lm(problem: Problem, x0: np.ndarray, config: CalibrationConfig, progress: Progress | None = None,
+           max_nfev: int | None = None) -> OptimizeResult:
+    return levenberg_marquardt(problem.residuals, problem.residual_jacobian, x0, loss=config.loss,
+                               f_scale=config.f_scale, max_nfev=max_nfev or config.max_evaluations,
+                               callback=progress)
+
+
+def reexpress(search: Problem, x_search: np.ndarray, problem: Problem) -> tuple[np.ndarray, float]:
+    """Express a swarm solution over the candidate set in the identifiable parameters.
+
+    The swarm's values for dependent parameters are arbitrary along the dependency.  The
+    model it found is re-expressed by fitting the identifiable parameters to that model's
+    own predictions at the measured joints (not to the data), so the swarm's accuracy is
+    reported as it is.  Returns the identifiable values and the largest position difference
+    (mm) between the two expressions.
+    """
+    R, p = search.space.pose(search.full(x_search), search.meas.q, search.target_idx)
+    synthetic = replace(search.meas, position=p, rotation=R if problem.uses_orientation else None)
+    fit = problem.setup.with_measurements(synthetic).problem(problem.names)
+    lm = levenberg_marquardt(fit.residuals, fit.residual_jacobian, search.full(x_search)[problem.active])
+    dp, _ = fit.errors(lm.x)
+    return lm.x, float(np.linalg.norm(dp, axis=-1).max())
+
+
+def run_swarm(search: Problem, config: CalibrationConfig, progress: Progress | None) -> OptimizeResult:
+    """The configured swarm over the searched candidates (hybrid: its IPSO stage)."""
+    lower, upper = swarm_box(search.names, config.method, config.box)
+    kw = {"seed": config.seed, "callback": progress, "backend": config.backend, **settings(config)}
+
+    def objective(X):
+        return search.objective(X, config.objective_kind)
+
+    if config.method == "pso":
+        return pso(objective, lower, upper, **kw)
+    if config.method == "ldpso-bt":
+        return ldpso_bt(objective, lower, upper, **kw)
+    return ipso(objective, lower, upper, halton_scramble=config.halton_scramble, **kw)
+
+
+def optimise(problem: Problem, search: Problem, config: CalibrationConfig,
+             progress: Progress | None = None) -> Estimate:
+    """Run the configured method: LM on ``problem`` (the identifiable set), swarms on ``search``."""
+    if config.method == "lm":
+        opt = fit_lm(problem, np.zeros(problem.n_params), config, progress)
+        return Estimate(problem, opt, opt.x)
+    swarm = run_swarm(search, config, progress)
+    x_id, gap = reexpress(search, swarm.x, problem)
+    swarm.extra.update({"searched": search.names})
+    if config.method != "hybrid":
+        return Estimate(problem, swarm, x_id, gap)
+    lm = fit_lm(problem, x_id, config)
+    history = np.concatenate([swarm.history, lm.history]) if config.objective_kind == "sum_squares" else lm.history
+    merged = swarm.then(lm, method=f"ipso+{lm.method}", history=history,
+                        message=f"IPSO {swarm.nit} generations (best {swarm.fun:.6g}), then LM: {lm.message}",
+                        extra={"swarm_generations": swarm.nit, "swarm_best": swarm.fun})
+    return Estimate(problem, merged, lm.x, gap)

@@ -1,0 +1,286 @@
+"""The calibration pipeline: nominal robot + measurements → calibrated robot and honest figures.
+
+:func:`calibrate` runs named steps, each a function below:
+
+1. :func:`load_inputs`: robot, data and validation data, checked against each other;
+2. :func:`register`: the measuring frame (and tool offsets) in closed form;
+3. :func:`choose_candidates`: the parameters offered, from the config;
+4. :func:`analyse_identifiability`: the identifiable subset, the rest dropped with reasons;
+5. :func:`robocal.calibration.methods.optimise`: the configured method;
+6. :func:`screen_outliers`: with a robust loss, outliers left out and the inliers refitted;
+7. :func:`refine_at_estimate`: identifiability re-checked at the estimate (F-test);
+8. :func:`uncertainties`, :func:`evaluate`: standard uncertainties and before/after metrics.
+
+"Before" figures use the nominal joint geometry with the registered frames, i.e. the best
+a rigid re-mounting of the nominal model can do, so that the improvement shown is the
+calibration's own and not that of finding the tracker frame.
+"""
+
+from __future__ import annotations
+
+import time
+import warnings
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..exceptions import InputError, RobocalWarning
+from ..io.measurements import load_measurements
+from ..io.robotfile import load_robot
+from ..model.candidates import frame_candidates, joint_candidates
+from ..model.measurements import Measurements
+from ..model.metrics import Metrics
+from ..model.parameters import ParameterSpace
+from ..model.robot import Robot
+from ..optimize.result import Progress
+from . import checks
+from .config import CalibrationConfig, resolve_params
+from .identifiability import NO_EFFECT, SECOND_ORDER, Identifiability, Reason, analyse
+from .methods import Estimate, fit_lm, optimise
+from .problem import Setup
+from .registration import register_frames
+from .result import CalibrationResult
+from .statistics import OUTLIER_SIGMAS, f_test, residual_variance, robust_outliers, standard_uncertainties
+
+#: significance level of the F-test that decides whether parameters that become
+#: identifiable at the estimate are worth adding
+ADD_SIGNIFICANCE = 0.01
+#: residual evaluations allowed to the refit with the added parameters
+REFIT_EVALUATIONS = 100
+
+
+@dataclass(frozen=True)
+class Inputs:
+    nominal: Robot
+    meas: Measurements
+    validation: Measurements | None
+
+
+@dataclass(frozen=True)
+class Candidates:
+    """The parameters offered: joint names (``explicit`` when the user chose them) and frames."""
+
+    joints: list[str]
+    names: list[str]
+    explicit: bool
+
+
+def _measurements(data, nominal: Robot, columns) -> Measurements:
+    if isinstance(data, Measurements):
+        if data.n_joints != nominal.n_joints:
+            raise InputError(f"data have {data.n_joints} joints, the robot has {nominal.n_joints}", source=data.source)
+        return data
+    return load_measurements(data, n_joints=nominal.n_joints, columns=columns, robot_label=nominal.source)
+
+
+def load_inputs(robot, data, validate, config: CalibrationConfig, columns=None) -> Inputs:
+    """Step 1: the nominal robot and the measurements, position-only when asked, checked."""
+    nominal = load_robot(robot)
+    meas = _measurements(data, nominal, columns)
+    val = None if validate is None else _measurements(validate, nominal, columns)
+    if not (meas.full_pose and config.use_orientation):
+        meas = meas.position_only()
+        val = None if val is None else val.position_only()
+    checks.check_targets(nominal, meas, config.frames)
+    checks.check_units(nominal, meas, config.frames)
+    return Inputs(nominal, meas, val)
+
+
+def register(inputs: Inputs, config: CalibrationConfig) -> Setup:
+    """Step 2: frames registered in closed form; the parameter space around the result."""
+    initial = register_frames(inputs.nominal, inputs.meas, config.frames)
+    space = ParameterSpace.of(initial, inputs.meas.target_names if config.frames == "base+tool" else None)
+    return Setup(space, inputs.meas, config.k, config.use_orientation, config.backend)
+
+
+def choose_candidates(setup: Setup, config: CalibrationConfig) -> Candidates:
+    """Step 3: joint candidates (the convention's or the config's) and the frames' parameters."""
+    robot = setup.space.robot
+    requested = resolve_params(config.params, robot.n_joints)
+    joints = joint_candidates(robot) if requested is None else requested
+    unknown = [n for n in joints if n not in setup.space.names]
+    if unknown:
+        raise InputError(f"unknown parameter '{unknown[0]}' for this {robot.convention} robot "
+                         f"(known: {', '.join(setup.space.names[:8])}, …)", option="params")
+    frames = frame_candidates(config.frames, setup.meas.target_names, setup.full_pose)
+    return Candidates(joints, joints + [n for n in frames if n not in joints], requested is not None)
+
+
+def analyse_identifiability(setup: Setup, candidates: Candidates, notes: list[str]) -> Identifiability:
+    """Step 4: the identifiable subset at the initial robot."""
+    probe = setup.problem(candidates.names)
+    ident = analyse(probe.residual_jacobian(np.zeros(probe.n_params)), candidates.names, probe.angle_mask,
+                    setup.meas.n_poses, setup.space.robot.reach())
+    notes += ident.warnings
+    if candidates.explicit:
+        bad = [n for n in candidates.joints if n in ident.reasons]
+        if bad:
+            notes.append(f"requested parameters not identifiable from these data, left at nominal: {', '.join(bad)}")
+    if not ident.kept:
+        raise InputError("no parameter is identifiable from these measurements", source=setup.meas.source)
+    if probe.n_residuals < probe.n_params:
+        notes.append(f"only {setup.meas.n_poses} poses ({probe.n_residuals} residuals) for {probe.n_params} "
+                     f"candidate parameters: {len(ident.dropped)} dropped; measure more poses")
+    return ident
+
+
+def searched_names(candidates: Candidates, ident: Identifiability) -> list[str]:
+    """What a swarm searches: every candidate that has any effect on the data."""
+    return [n for n in candidates.names if n not in ident.reasons or ident.reasons[n].kind != NO_EFFECT]
+
+
+def screen_outliers(est: Estimate, config: CalibrationConfig, notes: list[str]) -> tuple[Estimate, list[dict]]:
+    """Step 6: with a robust loss, poses beyond OUTLIER_SIGMAS robust σ are left out and the
+    inliers refitted by plain least squares (the answer as if the outliers were never measured);
+    with a plain fit, such poses are only named."""
+    problem = est.problem
+    if config.method not in ("lm", "hybrid") or est.optimisation.status != "converged":
+        return est, []
+    dp, _ = problem.errors(est.x)
+    flagged, sigma = robust_outliers(dp)
+    if not flagged.size:
+        return est, []
+    meas = problem.meas
+    if config.loss == "linear":
+        notes.append(f"{meas.labels(flagged)} look like outliers (residual > {OUTLIER_SIGMAS:g} σ̂, σ̂ = {sigma:.3g} "
+                     "mm); a robust fit (loss huber) would leave them out")
+        return est, []
+    outliers = [{"row": int(meas.rows[i]), "pose_id": None if meas.pose_ids is None else meas.pose_ids[i],
+                 "error_mm": float(np.linalg.norm(dp[i]))} for i in flagged]
+    inliers = problem.setup.with_measurements(meas.subset(np.setdiff1d(np.arange(meas.n_poses), flagged)))
+    refit_problem = inliers.problem(problem.names)
+    lm = fit_lm(refit_problem, est.x, CalibrationConfig.build(config, loss="linear"))
+    merged = est.optimisation.then(lm, method=est.optimisation.method,
+                                   message=f"{est.optimisation.message}; {len(flagged)} outliers removed, inliers "
+                                           f"refitted: {lm.message}", extra={"robust_scale_mm": sigma})
+    notes.append(f"{len(flagged)} outlier poses (residual > {OUTLIER_SIGMAS:g} σ̂, σ̂ = {sigma:.3g} mm) left out: "
+                 f"{meas.labels(flagged)}")
+    return est.replace(problem=refit_problem, optimisation=merged, x=lm.x), outliers
+
+
+def refine_at_estimate(est: Estimate, ident: Identifiability, candidates: Candidates,
+                       config: CalibrationConfig) -> tuple[Estimate, Identifiability]:
+    """Step 7: re-check identifiability at the estimate; add what the data determine there.
+
+    Identifiability is judged from the Jacobian at a linearisation point.  At the nominal
+    model some dependencies hold only to first order: with parallel axes 2 ∥ 3 in standard
+    DH, d2 and d3 have identical columns, but a robot whose α2 is off by δ separates them by
+    an angle ~δ; a tool point off axis 6 by the deviation of a6 makes θ6 act.  The analysis
+    is repeated at the estimate with the kept set offered first; parameters that became
+    independent are added and LM continues, and the addition is accepted only if a
+    nested-model F-test says the fit improved significantly (p < ADD_SIGNIFICANCE).
+    """
+    if config.method not in ("lm", "hybrid") or est.optimisation.status != "converged":
+        return est, ident
+    setup = est.problem.setup
+    probe = setup.problem(candidates.names)
+    deviation = est.problem.full(est.x)
+    again = analyse(probe.residual_jacobian(deviation[probe.active]), candidates.names, probe.angle_mask,
+                    setup.meas.n_poses, setup.space.robot.reach(), prefer=ident.kept)
+    added = [n for n in again.kept if n not in ident.kept]
+    if not added:
+        return est, ident
+    names = ident.kept + added
+    wider = setup.problem(names)
+    # A parameter that separates only weakly makes LM crawl along a valley; the refit is a
+    # test of whether the addition pays, so it gets a bounded budget.
+    lm = fit_lm(wider, deviation[wider.active], config, max_nfev=REFIT_EVALUATIONS)
+    p = f_test(est.optimisation.fun, lm.fun, len(added), wider.n_residuals - len(names))
+    if lm.status != "converged" or p >= ADD_SIGNIFICANCE:
+        reasons = {**ident.reasons, **{n: Reason(SECOND_ORDER, ident.reasons[n].related, p) for n in added}}
+        return est, ident.with_changes(reasons=reasons)
+    final = analyse(wider.residual_jacobian(lm.x), names, wider.angle_mask, setup.meas.n_poses,
+                    setup.space.robot.reach(), prefer=names)
+    kept = [n for n in candidates.names if n in set(names)]
+    refined = Identifiability(
+        kept=kept, dropped=[n for n in candidates.names if n not in set(names)],
+        reasons={n: r for n, r in ident.reasons.items() if n not in added},
+        singular_values=final.singular_values, condition=final.condition, observability=final.observability,
+        length_scale=final.length_scale, n_poses=final.n_poses,
+        warnings=final.warnings + [f"{', '.join(added)} identifiable only away from the nominal model (added after "
+                                   f"the first fit, F-test p={p:.2g}); expect large uncertainties"],
+    )
+    merged = est.optimisation.then(lm, method=est.optimisation.method, extra={"added_at_estimate": added},
+                                   message=f"{est.optimisation.message}; refit adding {', '.join(added)}: "
+                                           f"{lm.message}")
+    order = [names.index(n) for n in kept]
+    return Estimate(setup.problem(kept), merged, lm.x[order], est.reexpression_gap_mm), refined
+
+
+def uncertainties(est: Estimate, config: CalibrationConfig) -> np.ndarray | None:
+    """Step 8: standard uncertainties sqrt(diag(σ̂² (JᵀJ)⁻¹)), σ̂² = |r|²/(N − k), mm and rad."""
+    if config.method not in ("lm", "hybrid"):
+        return None
+    r = est.problem.residuals(est.x)
+    variance = residual_variance(r, est.problem.n_params)
+    if not np.isfinite(variance):
+        return np.full(est.problem.n_params, np.nan)
+    return standard_uncertainties(est.problem.residual_jacobian(est.x), variance=variance)
+
+
+def evaluate(initial: Robot, calibrated: Robot, meas: Measurements, all_rows: Measurements,
+             validation: Measurements | None) -> dict[str, Metrics]:
+    """Step 8: before/after metrics on the calibration data and, when given, on validation data."""
+    metrics = {"before": Metrics.of(initial, meas), "after": Metrics.of(calibrated, meas)}
+    if all_rows is not meas:
+        metrics["after_all_rows"] = Metrics.of(calibrated, all_rows)
+    if validation is not None:
+        metrics["validation_before"] = Metrics.of(initial, validation)
+        metrics["validation_after"] = Metrics.of(calibrated, validation)
+    return metrics
+
+
+def _status_notes(est: Estimate, config: CalibrationConfig) -> list[str]:
+    opt = est.optimisation
+    if opt.status in ("diverged", "failed"):
+        return [f"optimiser {opt.method} {opt.status}: {opt.message}"]
+    if config.method in ("lm", "hybrid") and opt.status != "converged":
+        return [f"Levenberg–Marquardt stopped before converging: {opt.message}"]
+    return []
+
+
+def calibrate(
+    robot: str | Path | Robot,
+    data: str | Path | Measurements,
+    method: str = "lm",
+    *,
+    config: CalibrationConfig | None = None,
+    validate: str | Path | Measurements | None = None,
+    columns: Mapping[str, str] | None = None,
+    progress: Progress | None = None,
+    **options,
+) -> CalibrationResult:
+    """Calibrate ``robot`` (file, built-in name or Robot) on ``data`` (file or Measurements).
+
+    Options are those of :class:`CalibrationConfig` (``frames``, ``params``, ``seed``, …),
+    given as keywords or as ``config``.  validate: poses not used to identify, for honest
+    figures.  columns: map of file column names to robocal's.  progress: called with
+    (iteration, total, best objective).  Warnings are issued as :class:`RobocalWarning` and
+    listed in the result.
+    """
+    start = time.perf_counter()
+    cfg = CalibrationConfig.build(config, **({"method": method} if config is None else {}), **options)
+    inputs = load_inputs(robot, data, validate, cfg, columns)
+    notes = checks.degeneracy_warnings(inputs.nominal, inputs.meas)
+    setup = register(inputs, cfg)
+    candidates = choose_candidates(setup, cfg)
+    ident = analyse_identifiability(setup, candidates, notes)
+    est = optimise(setup.problem(ident.kept), setup.problem(searched_names(candidates, ident)), cfg, progress)
+    est, outliers = screen_outliers(est, cfg, notes)
+    notes += _status_notes(est, cfg)
+    est, ident = refine_at_estimate(est, ident, candidates, cfg)
+    unc = uncertainties(est, cfg)
+    initial = setup.space.robot
+    calibrated = setup.space.apply(est.problem.full(est.x)).replace(name=f"{inputs.nominal.name} (calibrated)")
+    metrics = evaluate(initial, calibrated, est.problem.meas, inputs.meas, inputs.validation)
+    for note in notes:
+        warnings.warn(note, RobocalWarning, stacklevel=2)
+    return CalibrationResult(
+        config=cfg, robot=calibrated, initial=initial, nominal=inputs.nominal, names=est.problem.names, x=est.x,
+        uncertainty=unc, identifiability=ident, optimisation=est.optimisation, metrics=metrics,
+        data=inputs.meas.source, n_poses=est.problem.meas.n_poses, full_pose=setup.full_pose, warnings=notes,
+        time_s=time.perf_counter() - start, measurements=est.problem.meas, validation=inputs.validation,
+        outliers=outliers, reexpression_gap_mm=est.reexpression_gap_mm,
+    )

@@ -1,0 +1,170 @@
+"""Residuals and objectives of a calibration, batched over candidate solutions.
+
+A :class:`Setup` ties a parameter space (around the initial robot), the measurements and
+the weighting; :meth:`Setup.problem` gives the :class:`Problem` of one set of estimated
+parameters.  A problem's vector ``x`` holds the estimated deviations only (mm, rad);
+everything else stays at the initial robot.
+
+Objectives (SPEC §3), all evaluated for a whole swarm (P, k) in one batched call:
+
+- ``sum_squares``: Wen et al. (2019) eq. 7, Σ_j k·|δ_j|² + |δp_j|² (k in mm²/rad²;
+  position-only data reduce it to Σ|δp_j|²).  Also what least squares minimises.
+- ``sum_norms``: Kou et al. (2022) eq. 4, Σ_j |δp_j| (mm).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+from functools import cached_property
+
+import numpy as np
+
+from ..backend import resolve
+from ..math.so3 import apply_right_jacobian_inv, orientation_error
+from ..model.kinematics import joint_kinds
+from ..model.measurements import Measurements
+from ..model.parameters import ParameterSpace, is_angle
+
+
+@dataclass(frozen=True, eq=False)
+class Setup:
+    """What every problem of one calibration shares: space, measurements, weighting.
+
+    k: orientation weight (mm²/rad²); use_orientation: fit orientations when the data
+    have them; backend: ``auto``, ``numba`` or ``numpy`` for swarm objectives.
+    """
+
+    space: ParameterSpace
+    meas: Measurements
+    k: float
+    use_orientation: bool = True
+    backend: str = "auto"
+
+    @property
+    def full_pose(self) -> bool:
+        return self.use_orientation and self.meas.full_pose
+
+    def problem(self, names: Sequence[str]) -> Problem:
+        return Problem(self, self.space.index(list(names)))
+
+    def with_measurements(self, meas: Measurements) -> Setup:
+        return replace(self, meas=meas)
+
+
+class Problem:
+    """Residuals, Jacobian and swarm objectives of one set of estimated parameters."""
+
+    def __init__(self, setup: Setup, active: np.ndarray):
+        self.setup = setup
+        self.space = setup.space
+        self.meas = setup.meas
+        self.active = np.asarray(active, dtype=int)
+        self.k = setup.k
+        self.uses_orientation = setup.full_pose
+        self.target_idx = self.space.target_index(self.meas.targets)
+        self._Rm = self.meas.rotation if self.uses_orientation else None
+        self._sqrt_k = float(np.sqrt(self.k))
+        self._frames_active = bool(np.any(self.active >= self.space.n_joint_params))
+
+    @property
+    def names(self) -> list[str]:
+        return [self.space.names[i] for i in self.active]
+
+    @property
+    def angle_mask(self) -> np.ndarray:
+        return np.array([is_angle(n) for n in self.names])
+
+    @property
+    def n_params(self) -> int:
+        return len(self.active)
+
+    @property
+    def n_residuals(self) -> int:
+        return self.meas.n_poses * (6 if self.uses_orientation else 3)
+
+    def full(self, x: np.ndarray) -> np.ndarray:
+        """Estimated deviations (…, k_active) → full deviation vector (…, k_space)."""
+        x = np.asarray(x, dtype=float)
+        out = np.zeros(x.shape[:-1] + (self.space.size,))
+        out[..., self.active] = x
+        return out
+
+    def errors(self, X: np.ndarray):
+        """Position errors (…, m, 3) mm and orientation errors (…, m, 3) rad (or None)."""
+        if self._Rm is None:
+            return self.meas.position - self.space.points(self.full(X), self.meas.q, self.target_idx), None
+        R, p = self.space.pose(self.full(X), self.meas.q, self.target_idx)
+        return self.meas.position - p, orientation_error(self._Rm, R)
+
+    def objective(self, X: np.ndarray, kind: str = "sum_squares", *, backend: str | None = None) -> np.ndarray:
+        """Objective of each candidate in X (P, k_active) → (P,); mm² or mm.
+
+        backend: overrides the setup's; both backends give the same numbers.
+        """
+        if kind not in ("sum_squares", "sum_norms"):
+            raise ValueError(f"unknown objective {kind!r}")
+        X = np.asarray(X, dtype=float)
+        if X.ndim == 2 and resolve(backend or self.setup.backend) == "numba":
+            return self._compiled_objective(X, kind)
+        dp, dr = self.errors(X)
+        if kind == "sum_norms":
+            return np.sqrt(np.sum(dp * dp, axis=-1)).sum(-1)
+        f = np.sum(dp * dp, axis=(-1, -2))
+        if dr is not None:
+            f = f + self.k * np.sum(dr * dr, axis=(-1, -2))
+        return f
+
+    @cached_property
+    def _kernel_inputs(self):
+        from ..model import kernels
+
+        m = self.meas.n_poses
+        kinds = len(joint_kinds(self.space.robot.convention))
+        tidx = np.zeros(m, dtype=np.int64) if self.target_idx is None else self.target_idx.astype(np.int64)
+        return {
+            "kernels": kernels,
+            "conv": kernels.CONVENTION_CODE[self.space.robot.convention],
+            # positions of the estimated joint parameters in the flat (n, 5) geometry
+            "geom_cols": ((self.active // kinds) * 5 + self.active % kinds).astype(np.int64),
+            "qtrig": kernels.joint_trig(self.meas.q),
+            "tidx": tidx,
+            "Rm": self._Rm if self._Rm is not None else np.zeros((1, 3, 3)),
+        }
+
+    def _compiled_objective(self, X: np.ndarray, kind: str) -> np.ndarray:
+        c = self._kernel_inputs
+        kernels = c["kernels"]
+        common = (c["qtrig"], c["tidx"], self.meas.position, c["Rm"], self._Rm is not None, self.k,
+                  0 if kind == "sum_squares" else 1)
+        if not self._frames_active:
+            # each particle adds its joint deviations to the nominal geometry inside the kernel
+            _, base, tools = self.space.expand(np.zeros(self.space.size))
+            return kernels.objective_joints(c["conv"], self.space.robot.geometry, c["geom_cols"], X, base, tools,
+                                            *common)
+        geom, base, tools = self.space.expand(self.full(X))
+        return kernels.objective(c["conv"], geom, base, tools, *common)
+
+    def residuals(self, x: np.ndarray) -> np.ndarray:
+        """Stacked residual vector [δp (3m) mm, √k·δ (3m)] of one solution (k_active,)."""
+        dp, dr = self.errors(x)
+        if dr is None:
+            return dp.ravel()
+        return np.concatenate([dp.ravel(), self._sqrt_k * dr.ravel()])
+
+    def residual_jacobian(self, x: np.ndarray) -> np.ndarray:
+        """Exact ∂residuals/∂x, (n_residuals, k_active), Fortran-ordered as MINPACK wants."""
+        Jc, R, _ = self.space.jacobian_columns(self.full(x), self.meas.q, self.target_idx, frames=self._frames_active)
+        Jc = Jc[self.active]  # (k, m, 6)
+        k, m = Jc.shape[0], Jc.shape[1]
+        out = np.empty((k, self.n_residuals))
+        out[:, : 3 * m] = -Jc[:, :, :3].reshape(k, 3 * m)
+        if self._Rm is not None:
+            dr = orientation_error(self._Rm, R)
+            w = np.ascontiguousarray(Jc[:, :, 3:])
+            if resolve(self.setup.backend) == "numba":
+                Jr = self._kernel_inputs["kernels"].apply_right_jacobian_inv(dr, w)
+            else:
+                Jr = apply_right_jacobian_inv(dr, w)
+            out[:, 3 * m :] = -self._sqrt_k * Jr.reshape(k, 3 * m)
+        return out.T

@@ -1,0 +1,177 @@
+"""The result of a calibration, and its JSON (SPEC §6)."""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..io.atomic import atomic_write
+from ..math.se3 import transform_to_xyz_rpy
+from ..model.kinematics import joint_kinds
+from ..model.measurements import Measurements
+from ..model.metrics import Metrics
+from ..model.parameters import is_angle
+from ..model.robot import Robot
+from ..optimize.result import OptimizeResult
+from .config import CalibrationConfig
+from .identifiability import Identifiability
+
+#: version of the result JSON; 2 added ``schema_version``, the structured ``dropped`` reasons
+#: (kind, related), ``optimiser.method`` naming the solver that ran, and status ``completed``
+SCHEMA_VERSION = 2
+
+
+@dataclass
+class CalibrationResult:
+    """Everything a calibration produced.  :meth:`to_dict` gives the JSON of SPEC §6.
+
+    robot: the calibrated robot (frames included); initial: nominal geometry with the
+    registered frames; nominal: the robot as given; names/x/uncertainty: the identified
+    parameters, their deviations from ``initial`` (mm, rad) and standard uncertainties
+    (None where not computed); optimisation: the optimiser's own result.
+    """
+
+    config: CalibrationConfig
+    robot: Robot
+    initial: Robot
+    nominal: Robot
+    names: list[str]
+    x: np.ndarray
+    uncertainty: np.ndarray | None
+    identifiability: Identifiability
+    optimisation: OptimizeResult
+    metrics: dict[str, Metrics]
+    data: str = ""
+    n_poses: int = 0
+    full_pose: bool = False
+    warnings: list[str] = field(default_factory=list)
+    time_s: float = 0.0
+    measurements: Measurements | None = field(default=None, repr=False)
+    validation: Measurements | None = field(default=None, repr=False)
+    outliers: list[dict] = field(default_factory=list)
+    reexpression_gap_mm: float | None = None
+
+    @property
+    def method(self) -> str:
+        return self.config.method
+
+    @property
+    def seed(self) -> int | None:
+        return self.config.seed
+
+    @property
+    def objective(self) -> str:
+        return "sum_squares" if self.config.method == "lm" else self.config.objective_kind
+
+    def parameter(self, name: str) -> float:
+        """Identified deviation of one parameter (mm or rad)."""
+        return float(self.x[self.names.index(name)])
+
+    def deviations(self) -> dict[str, float]:
+        """Identified deviations {name: value} (mm, rad)."""
+        return dict(zip(self.names, map(float, self.x)))
+
+    def to_dict(self) -> dict:
+        ident = self.identifiability
+        initial_values = nominal_values(self.initial)
+        params = []
+        for i, n in enumerate(self.names):
+            nominal = initial_values.get(n, 0.0)
+            params.append({
+                "name": n, "unit": "rad" if is_angle(n) else "mm", "nominal": nominal, "error": float(self.x[i]),
+                "value": nominal + float(self.x[i]),
+                "uncertainty": None if self.uncertainty is None else _finite_or_none(self.uncertainty[i]),
+            })
+        opt = self.optimisation
+        cfg = self.config
+        return {
+            "schema_version": SCHEMA_VERSION,
+            "method": cfg.method,
+            "seed": cfg.seed,
+            "objective": self.objective,
+            "k_mm2_per_rad2": cfg.k,
+            "loss": cfg.loss,
+            "frames": cfg.frames,
+            "robot": self.nominal.name,
+            "data": self.data,
+            "n_poses": self.n_poses,
+            "measure": "pose" if self.full_pose else "position",
+            "parameters": params,
+            "dropped": [{"name": n, "reason": ident.reasons[n].text(), **ident.reasons[n].to_dict()}
+                        for n in ident.dropped],
+            "identifiability": ident.to_dict(),
+            "metrics": {k: v.to_dict() for k, v in self.metrics.items()},
+            "frames_identified": frames_dict(self.robot),
+            "status": opt.status,
+            "success": opt.success,
+            "message": opt.message,
+            "objective_value": opt.fun,
+            "iterations": opt.nit,
+            "evaluations": opt.nfev,
+            "optimiser": {"method": opt.method, "time_s": opt.time_s, **_plain(opt.extra),
+                          "reexpression_gap_mm": self.reexpression_gap_mm},
+            "history": [float(h) for h in opt.history],
+            "outliers": list(self.outliers),
+            "warnings": list(self.warnings),
+            "time_s": self.time_s,
+        }
+
+    def save(self, path: str | Path) -> None:
+        atomic_write(path, json.dumps(self.to_dict(), indent=2, allow_nan=False) + "\n")
+
+    def export(self, path: str | Path) -> None:
+        """Write the calibrated robot as a robot file (loadable again)."""
+        from ..io.robotfile import robot_to_toml
+
+        atomic_write(path, robot_to_toml(self.robot, comment=(
+            f"Calibrated by robocal ({self.method}, objective {self.objective}, seed {self.seed}) from "
+            f"{self.data or 'measurements'}; {len(self.names)} parameters identified, "
+            f"{len(self.identifiability.dropped)} left at nominal.")))
+
+
+def _finite_or_none(v: float):
+    return float(v) if math.isfinite(v) else None
+
+
+def _plain(d: dict) -> dict:
+    """JSON-safe copy of optimiser extras (numpy scalars and arrays become Python values)."""
+    out = {}
+    for k, v in d.items():
+        if isinstance(v, dict):
+            out[k] = _plain(v)
+        elif isinstance(v, np.ndarray):
+            out[k] = v.tolist()
+        elif isinstance(v, (np.floating, float)):
+            out[k] = _finite_or_none(float(v))
+        elif isinstance(v, np.integer):
+            out[k] = int(v)
+        else:
+            out[k] = v
+    return out
+
+
+def nominal_values(robot: Robot) -> dict[str, float]:
+    """Joint geometry of a robot by parameter name (mm, rad)."""
+    out: dict[str, float] = {}
+    col = {"a": 0, "alpha": 1, "theta": 2, "d": 3, "beta": 4}
+    for i in range(robot.n_joints):
+        for k in joint_kinds(robot.convention):
+            out[f"{k}{i + 1}"] = float(robot.geometry[i, col[k]])
+    return out
+
+
+def frames_dict(robot: Robot) -> dict:
+    """Base and tool frames as xyz (mm) and rpy (deg)."""
+
+    def one(T):
+        xyz, rpy = transform_to_xyz_rpy(T)
+        return {"xyz_mm": [float(v) for v in xyz], "rpy_deg": [float(v) for v in np.degrees(rpy)]}
+
+    out = {"base": one(robot.base), "tool": one(robot.tool)}
+    for name, T in robot.targets.items():
+        out[f"tool[{name}]"] = one(T)
+    return out

@@ -1,0 +1,85 @@
+"""Statistics of a least-squares fit: covariance and standard uncertainties, residual
+variance, the nested-model F-test and robust outlier screening.
+
+One covariance routine serves the serial arms, the parallel mechanism and pose planning:
+:func:`covariance` takes either the residual Jacobian J or an information matrix M = JᵀJ.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+#: a pose whose position residual exceeds this many robust σ is an outlier.  For isotropic
+#: Gaussian noise |δp| follows a Maxwell law; P(|δp| > 6σ) ≈ 1e-7.
+OUTLIER_SIGMAS = 6.0
+#: median of the Maxwell distribution in units of the per-axis σ
+MAXWELL_MEDIAN = 1.5382
+#: fewer poses than this give no robust scale worth screening with
+MIN_POSES_FOR_OUTLIERS = 8
+
+
+def covariance(J: np.ndarray | None = None, *, information: np.ndarray | None = None, variance: float = 1.0,
+               rcond: float = 1e-14) -> np.ndarray:
+    """variance · (JᵀJ)⁻¹ from J (rows, k) or from M = JᵀJ (k, k).
+
+    Works on a k×k factor (QR of a tall J, or the symmetric square root of M), so 10⁵
+    poses cost no more than a few.  Directions the data do not determine (singular values
+    below rcond·σmax) give infinite variances on the parameters they touch.
+    """
+    if J is not None:
+        J = np.asarray(J, dtype=float)
+        R = np.linalg.qr(J, mode="r") if J.shape[0] > J.shape[1] else J
+        _, s, Vt = np.linalg.svd(R, full_matrices=False)
+        ev = s**2
+    else:
+        ev, V = np.linalg.eigh(np.asarray(information, dtype=float))
+        ev, Vt = ev[::-1], V[:, ::-1].T
+    k = Vt.shape[1]
+    if ev.size < k:
+        return np.full((k, k), np.inf)
+    weak = ev <= (rcond**2) * max(float(ev[0]), 1e-300)
+    inv = np.where(weak, np.inf, 1.0 / np.where(weak, 1.0, ev))
+    if np.any(weak):
+        cov = (Vt[~weak].T * inv[~weak]) @ Vt[~weak]
+        touched = np.any(np.abs(Vt[weak]) > 1e-9, axis=0)
+        cov[touched, :] = np.inf
+        cov[:, touched] = np.inf
+        return variance * cov
+    return variance * ((Vt.T * inv) @ Vt)
+
+
+def standard_uncertainties(J: np.ndarray | None = None, *, information: np.ndarray | None = None,
+                           variance: float = 1.0) -> np.ndarray:
+    """sqrt(diag(:func:`covariance`)); inf where the data do not determine a parameter."""
+    return np.sqrt(np.diag(covariance(J, information=information, variance=variance)))
+
+
+def residual_variance(residuals: np.ndarray, n_params: int) -> float:
+    """σ̂² = |r|² / (N − k), or NaN without degrees of freedom."""
+    dof = residuals.size - n_params
+    return float(residuals @ residuals) / dof if dof > 0 else math.nan
+
+
+def f_test(rss_restricted: float, rss_full: float, n_added: int, dof_full: int) -> float:
+    """p-value that adding ``n_added`` parameters lowered the sum of squares only by chance."""
+    from scipy.stats import f as f_dist
+
+    if dof_full <= 0 or rss_full >= rss_restricted:
+        return 1.0
+    stat = ((rss_restricted - rss_full) / n_added) / max(rss_full / dof_full, 1e-300)
+    return float(f_dist.sf(stat, n_added, dof_full))
+
+
+def robust_outliers(position_errors: np.ndarray) -> tuple[np.ndarray, float]:
+    """Poses whose |δp| exceeds OUTLIER_SIGMAS robust σ, and that σ (mm per axis).
+
+    σ comes from the median |δp| through the Maxwell law, so a few gross errors do not
+    inflate it.
+    """
+    norm = np.linalg.norm(position_errors, axis=1)
+    sigma = float(np.median(norm)) / MAXWELL_MEDIAN
+    if len(norm) < MIN_POSES_FOR_OUTLIERS:
+        return np.zeros(0, dtype=int), sigma
+    return np.flatnonzero(norm > OUTLIER_SIGMAS * max(sigma, 1e-9)), sigma

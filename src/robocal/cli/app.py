@@ -1,0 +1,64 @@
+"""The typer application, its entry point, and the one place errors become exit codes."""
+
+from __future__ import annotations
+
+import sys
+
+import typer
+
+from ..exceptions import InputError
+from . import bench, calibrate, compensate, evaluate, pkm, plan, reproduce, robots, simulate
+from .common import one_line
+
+app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False,
+                  help="Geometric calibration and error compensation of robots.")
+
+
+def _version(value: bool) -> None:
+    if value:
+        from .. import __version__
+
+        print(f"robocal {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _root(version: bool = typer.Option(False, "--version", callback=_version, is_eager=True,
+                                       help="print the version and exit")) -> None:
+    """Geometric calibration and error compensation of robots."""
+
+
+for module in (robots, simulate, evaluate, calibrate, compensate, plan, reproduce, bench):
+    module.register(app)
+app.add_typer(pkm.app, name="pkm")
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point: runs the app and turns input errors into one line and exit code 2."""
+    try:
+        result = app(args=argv, prog_name="robocal", standalone_mode=False)
+    except InputError as exc:
+        print(f"robocal: error: {one_line(exc.render(cli=True))}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("robocal: interrupted", file=sys.stderr)
+        return 130
+    except Exception as exc:
+        # Command-line misuse, raised by typer's click (vendored or not): duck-typed so that
+        # either generation of typer gives the same one-line message.
+        kind = type(exc).__name__
+        if kind == "Abort":
+            print("robocal: aborted", file=sys.stderr)
+            return 130
+        if kind == "Exit":
+            return int(getattr(exc, "exit_code", 0) or 0)
+        if not hasattr(exc, "format_message"):
+            raise
+        if kind == "NoArgsIsHelpError":
+            print(exc.format_message())
+            return 0
+        ctx = getattr(exc, "ctx", None)
+        where = f" ({ctx.command_path})" if ctx is not None and ctx.command_path != "robocal" else ""
+        print(f"robocal: usage error{where}: {one_line(exc.format_message())}", file=sys.stderr)
+        return 2
+    return result if isinstance(result, int) else 0

@@ -1,0 +1,85 @@
+"""``robocal calibrate``: identify a robot's parameters from measured poses."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+
+
+def _print_summary(result, robot_name: str, data: Path) -> None:
+    from .common import console, metrics_table
+
+    m = result.metrics
+    cols = {"before": m["before"], "after": m["after"]}
+    if "validation_before" in m:
+        cols["validation before"], cols["validation after"] = m["validation_before"], m["validation_after"]
+    out = console()
+    out.print(metrics_table(f"{robot_name}: {result.method} on {data} ({result.n_poses} poses)", cols))
+    ident, opt = result.identifiability, result.optimisation
+    out.print(f"{len(result.names)} parameters identified, {len(ident.dropped)} dropped"
+              + (f" ({', '.join(ident.dropped)})" if ident.dropped else "")
+              + f"; condition number {ident.condition:.3g}; {opt.status} ({opt.method}) after {opt.nit} iterations, "
+              f"{opt.nfev} evaluations, {result.time_s:.2f} s")
+
+
+def calibrate_cmd(
+    robot: str = typer.Argument(..., help="nominal robot: file or built-in name"),
+    data: Path = typer.Argument(..., help="measurement CSV"),
+    method: str = typer.Option("lm", "--method", help="lm | pso | ipso | ldpso-bt | hybrid"),
+    validate: Path | None = typer.Option(None, "--validate", help="validation CSV (poses not used to identify)"),
+    frames: str = typer.Option("none", "--frames", help="none | base | base+tool"),
+    seed: int = typer.Option(0, "--seed"),
+    params: str | None = typer.Option(
+        None, "--params", help="candidate joint parameters: comma list, or wen2019 | kou2022 (default: all)"
+    ),
+    objective: str | None = typer.Option(None, "--objective", help="sum_squares | sum_norms (default: method's)"),
+    k: float | None = typer.Option(None, "--k", help="orientation weight of the pose objective, mm²/rad²"),
+    position_only: bool = typer.Option(False, "--position-only", help="ignore rx, ry, rz columns"),
+    loss: str = typer.Option("linear", "--loss", help="LM loss: linear | huber | soft_l1 | cauchy | arctan"),
+    f_scale: float = typer.Option(1.0, "--f-scale", help="robust loss scale, mm"),
+    particles: int | None = typer.Option(None, "--particles", help="swarm size (default: the paper's)"),
+    iterations: int | None = typer.Option(None, "--iterations", help="swarm generations (default: the paper's)"),
+    box: str | None = typer.Option(None, "--box", help="swarm search half-widths LEN_MM,ANGLE_RAD"),
+    halton: str = typer.Option("scrambled", "--halton", help="IPSO start: scrambled | plain"),
+    backend: str = typer.Option("auto", "--backend", help="swarm objectives: auto | numba | numpy"),
+    out: Path | None = typer.Option(None, "--out", help="result JSON to write"),
+    export: Path | None = typer.Option(None, "--export", help="calibrated robot TOML to write"),
+    report: Path | None = typer.Option(None, "--report", help="self-contained HTML report to write"),
+    column: list[str] | None = typer.Option(None, "--column", help="map file columns: FILE=ROBOCAL[,FILE=ROBOCAL…]"),
+    quiet: bool = typer.Option(False, "--quiet", "-q", help="no table, no progress bar"),
+) -> None:
+    """Identify a robot's geometric parameters from measured poses."""
+    import warnings
+
+    from .. import options as opt
+    from ..calibration import CalibrationConfig, calibrate
+    from ..calibration.methods import settings
+    from ..io.robotfile import load_robot
+    from .common import print_warnings, progress_bar
+
+    cfg = CalibrationConfig(method=method, frames=frames, params=params, seed=seed, objective=objective,
+                            use_orientation=not position_only, loss=loss, f_scale=f_scale, particles=particles,
+                            iterations=iterations, box=box, halton=halton, backend=backend,
+                            **({} if k is None else {"k": k}))
+    nominal = load_robot(robot)
+    total = None if method == "lm" else settings(cfg)["iterations"]
+    with progress_bar(not quiet and method != "lm", method, total) as callback, warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        result = calibrate(nominal, data, config=cfg, validate=validate, columns=opt.column_map(column),
+                           progress=callback)
+    if out is not None:
+        result.save(out)
+    if export is not None:
+        result.export(export)
+    if report is not None:
+        from ..report.html import write_report
+
+        write_report(result, report)
+    print_warnings(result.warnings)
+    if not quiet:
+        _print_summary(result, nominal.name, data)
+
+
+def register(app: typer.Typer) -> None:
+    app.command("calibrate")(calibrate_cmd)

@@ -1,0 +1,78 @@
+"""What the commands share: consoles, tables, the progress bar, warnings on stderr."""
+
+from __future__ import annotations
+
+import contextlib
+import sys
+
+
+def one_line(text: str) -> str:
+    return " ".join(str(text).split())
+
+
+def console():
+    """The stdout console; tables stay readable when the output goes to a file or a pipe."""
+    from rich.console import Console
+
+    return Console(width=None if sys.stdout.isatty() else 140)
+
+
+def print_warnings(messages) -> None:
+    for m in messages:
+        print(f"robocal: warning: {one_line(m)}", file=sys.stderr)
+
+
+def metrics_table(title: str, columns: dict):
+    """A before/after style table: one column per Metrics."""
+    from rich.table import Table
+
+    table = Table(title=title)
+    table.add_column("error")
+    for name in columns:
+        table.add_column(name, justify="right")
+    rows = [m.rows() for m in columns.values()]
+    for i, (label, _) in enumerate(rows[0]):
+        table.add_row(label, *(f"{r[i][1]:.4f}" for r in rows))
+    return table
+
+
+def table(title: str, columns, rows, justify: str = "right"):
+    from rich.table import Table
+
+    t = Table(title=title)
+    for c in columns:
+        t.add_column(c, justify=justify)
+    for r in rows:
+        t.add_row(*r)
+    return t
+
+
+@contextlib.contextmanager
+def progress_bar(enabled: bool, label: str, total: int | None):
+    """Yields a progress callback (iteration, total, best) drawing a bar on a TTY, or None."""
+    if not enabled or not sys.stderr.isatty():
+        yield None
+        return
+    from rich.console import Console
+    from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
+
+    bar = Progress(TextColumn(f"[bold]{label}"), BarColumn(), TextColumn("{task.completed}/{task.total}"),
+                   TextColumn("best {task.fields[best]:.6g}"), TimeRemainingColumn(), console=Console(stderr=True),
+                   transient=True)
+    with bar:
+        task = bar.add_task(label, total=total, best=float("nan"))
+
+        def callback(t, n, best):
+            bar.update(task, completed=t, total=n or total, best=best)
+
+        yield callback
+
+
+def say_on_stderr(quiet: bool):
+    """A ``say`` callback printing dim progress lines on stderr, or nothing when quiet."""
+    if quiet:
+        return lambda message: None
+    from rich.console import Console
+
+    err = Console(stderr=True)
+    return lambda message: err.print(f"[dim]{message}[/dim]")

@@ -1,0 +1,54 @@
+"""``robocal compensate``: corrected joint commands and Cartesian goals."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+
+
+def compensate_cmd(
+    nominal: str = typer.Argument(..., help="nominal robot (what the controller runs): file or built-in name"),
+    calibrated: str = typer.Argument(..., help="calibrated robot file"),
+    goals: Path = typer.Argument(
+        ..., metavar="TARGETS", help="goals CSV: q1..qn and/or x, y, z[, rx, ry, rz] (deg, mm)"
+    ),
+    out: Path = typer.Option(..., "--out", help="commands CSV to write"),
+    truth: str | None = typer.Option(None, "--truth", help="simulated true robot: report its errors"),
+    position_only: bool = typer.Option(
+        False, "--position-only", help="match positions only (use for models calibrated from position data)"
+    ),
+    as_json: Path | None = typer.Option(None, "--json", help="write the summary as JSON too"),
+    column: list[str] | None = typer.Option(None, "--column", help="map file columns: FILE=ROBOCAL[,FILE=ROBOCAL…]"),
+    quiet: bool = typer.Option(False, "--quiet", "-q"),
+) -> None:
+    """Corrected joint commands and Cartesian goals that make the calibrated robot reach its goals."""
+    import json
+
+    from .. import options as opt
+    from ..compensation import compensate
+    from ..io.atomic import atomic_write
+    from ..io.goals import load_goals
+    from ..io.robotfile import load_robot
+    from .common import console, metrics_table
+
+    nom, cal = load_robot(nominal), load_robot(calibrated)
+    tru = None if truth is None else load_robot(truth)
+    g = load_goals(goals, n_joints=nom.n_joints, columns=opt.column_map(column))
+    result = compensate(nom, cal, g, truth=tru, position_only=position_only or None)
+    result.save(out)
+    summary = result.summary()
+    if as_json is not None:
+        atomic_write(as_json, json.dumps(summary, indent=2) + "\n")
+    if not quiet:
+        c = console()
+        c.print(f"{g.n} goals: " + ", ".join(f"{v} {k}" for k, v in summary["status"].items()) + f"; wrote {out}")
+        val = result.validation()
+        if val is not None and "nominal_commands" in val:
+            c.print(metrics_table("true robot at the goals (rows with status ok)",
+                                  {"nominal commands": val["nominal_commands"],
+                                   "compensated commands": val["compensated_commands"]}))
+
+
+def register(app: typer.Typer) -> None:
+    app.command("compensate")(compensate_cmd)

@@ -1,0 +1,78 @@
+"""``robocal plan``: choose the poses worth measuring."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+
+
+def _print_plan(p, r, poses: int, candidates: int, criterion: str, measure: str, noise: float, angle_noise: float):
+    import math
+
+    import numpy as np
+
+    from ..model.parameters import is_angle
+    from .common import console, table
+
+    c = console()
+    c.print(table(f"{r.name}: {poses} of {candidates} candidates, criterion {criterion}, {measure}",
+                  ("", "criterion", "predicted validation RMS (mm)"),
+                  [("plan", f"{p.value:.6g}", f"{p.predicted_rms:.5f}"),
+                   (f"median of {len(p.random_rms)} random sets", f"{np.median(p.random_values):.6g}",
+                    f"{np.median(p.random_rms):.5f}")]))
+    worst = np.argsort(-p.predicted_std / np.where([is_angle(n) for n in p.names], 1 / r.reach(), 1.0))[:3]
+    advice = ""
+    if measure == "pose":
+        advice = (f"; calibrate with --k {(noise / math.radians(angle_noise)) ** 2:.3g} to weigh orientation as "
+                  f"planned ({noise} mm, {angle_noise}°)")
+    c.print("least determined: " + ", ".join(f"{p.names[i]} ± {p.predicted_std[i]:.3g} "
+                                             f"{'rad' if is_angle(p.names[i]) else 'mm'}" for i in worst) + advice)
+
+
+def plan_cmd(
+    robot: str = typer.Argument(..., help="robot file or built-in name"),
+    poses: int = typer.Option(30, "--poses", help="number of poses to measure"),
+    candidates: int = typer.Option(2000, "--candidates", help="random joint sets to choose from"),
+    criterion: str = typer.Option("O1", "--criterion", help="O1 | O2 | O3 | O4 | D"),
+    measure: str = typer.Option("pose", "--measure", help="pose | position"),
+    frames: str = typer.Option("none", "--frames", help="none | base | base+tool"),
+    joint_range: str | None = typer.Option(None, "--range", help="LO,HI deg for every joint"),
+    limits: str | None = typer.Option(None, "--limits", help="per joint lo:hi deg, comma-separated (work cell)"),
+    noise: float = typer.Option(0.02, "--noise", help="position noise σ, mm"),
+    angle_noise: float = typer.Option(0.001, "--angle-noise", help="orientation noise σ, deg"),
+    seed: int = typer.Option(0, "--seed"),
+    out: Path = typer.Option(..., "--out", help="measurement-file skeleton to write (pose_id, q1..qn)"),
+    report: Path | None = typer.Option(None, "--json", help="write the plan report as JSON"),
+    quiet: bool = typer.Option(False, "--quiet", "-q"),
+) -> None:
+    """Choose the joint sets worth measuring (greedy + exchange on an observability criterion)."""
+    import json
+    import math
+
+    import numpy as np
+
+    from .. import options as opt
+    from ..io.atomic import atomic_write
+    from ..io.robotfile import load_robot
+    from ..plan import plan_poses
+    from .common import console
+
+    r = load_robot(robot)
+    jr = opt.joint_limits(limits, r.n_joints)
+    if jr is None and joint_range is not None:
+        jr = tuple(math.radians(v) for v in opt.floats(joint_range, "range", (2,)))
+    p = plan_poses(r, poses, candidates=candidates, criterion=criterion, measure=measure, frames=frames,
+                   joint_range=jr, noise=noise, angle_noise=math.radians(angle_noise), seed=seed)
+    lines = ["pose_id," + ",".join(f"q{i + 1}" for i in range(r.n_joints))]
+    lines += [f"P{j + 1:03d}," + ",".join(f"{v:.6f}" for v in np.degrees(q)) for j, q in enumerate(p.q)]
+    atomic_write(out, "\n".join(lines) + "\n")
+    if report is not None:
+        atomic_write(report, json.dumps(p.to_dict(), indent=1) + "\n")
+    if not quiet:
+        _print_plan(p, r, poses, candidates, criterion, measure, noise, angle_noise)
+        console().print(f"wrote {out}")
+
+
+def register(app: typer.Typer) -> None:
+    app.command("plan")(plan_cmd)

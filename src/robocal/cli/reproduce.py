@@ -1,0 +1,28 @@
+"""``robocal reproduce``: re-run a paper's experiment."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+
+
+def reproduce_cmd(
+    scenario: str = typer.Argument(..., help="wen2019 | kou2022 | chen2023 | all"),
+    out: Path = typer.Option(..., "--out", help="folder for summary.md, results.json and figures"),
+    quick: bool = typer.Option(False, "--quick", help="shortened settings (a smoke test, not the paper's)"),
+    runs: int = typer.Option(10, "--runs", help="runs per swarm method (kou2022)"),
+    seed: int = typer.Option(0, "--seed"),
+    quiet: bool = typer.Option(False, "--quiet", "-q"),
+) -> None:
+    """Re-run a paper's experiment and write what it published beside what robocal measures."""
+    from ..papers.reproduce import reproduce
+    from .common import console, say_on_stderr
+
+    reproduce(scenario, out, quick=quick, runs=runs, seed=seed, say=say_on_stderr(quiet))
+    if not quiet:
+        console().print(f"wrote {out}")
+
+
+def register(app: typer.Typer) -> None:
+    app.command("reproduce")(reproduce_cmd)

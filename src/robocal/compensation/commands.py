@@ -1,0 +1,158 @@
+"""Compensated commands: joints and Cartesian goals that make the real robot land on its goals.
+
+The controller still runs its nominal model.  For each goal robocal finds joints q_c with
+``FK_calibrated(q_c) = goal`` by damped least squares (batched over all goals), started
+from the nominal solution so the arm stays on the same configuration branch, inside the
+joint limits.  It returns q_c and, for controllers that take Cartesian goals, the pose the
+*nominal* model gives for q_c: sending that pose makes the controller's own inverse
+kinematics produce q_c.
+
+Goals are joint sets (go where the nominal model says these joints go) or poses in the
+robot base frame (see :mod:`robocal.io.goals`).  A calibrated model with an identified base
+is in the measuring frame; goals are moved there with ``base_calibrated · base_nominal⁻¹``.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..exceptions import InputError
+from ..io.atomic import atomic_write
+from ..io.goals import Goals
+from ..math.se3 import homogeneous, invert
+from ..math.so3 import matrix_to_rpy, orientation_error
+from ..model.metrics import Metrics
+from ..model.robot import Robot
+from .ik import ROT_WEIGHT, STATUSES, solve_ik
+
+
+@dataclass
+class CompensationResult:
+    """Per goal: nominal commands, compensated joints and Cartesian goal, residual, status.
+
+    q_nominal, q: (m, n) rad; cartesian: (m, 4, 4) the nominal FK of q, in the nominal base
+    frame (mm); residual_mm / residual_deg: how far the calibrated model's pose at q is from
+    the goal.  With a simulated true robot: its position errors (m, 3) mm and orientation
+    errors (m, 3) rad at the nominal and at the compensated commands.
+    """
+
+    goals: Goals
+    q_nominal: np.ndarray
+    q: np.ndarray
+    cartesian: np.ndarray
+    residual_mm: np.ndarray
+    residual_deg: np.ndarray
+    status: list[str]
+    full_pose: bool
+    true_before: np.ndarray | None = None
+    true_after: np.ndarray | None = None
+    true_rot_before: np.ndarray | None = None
+    true_rot_after: np.ndarray | None = None
+
+    def counts(self) -> dict[str, int]:
+        return {s: self.status.count(s) for s in STATUSES if s in self.status}
+
+    def validation(self) -> dict[str, Metrics] | None:
+        """True-robot errors at the nominal and at the compensated commands.
+
+        ``nominal_commands`` and ``compensated_commands`` cover the rows with status ok;
+        ``compensated_commands_all_rows`` covers every row, whatever its status.
+        """
+        if self.true_before is None:
+            return None
+        rows = np.array([s == "ok" for s in self.status])
+
+        def rot(a, sel):
+            return None if a is None else a[sel]
+
+        out = {}
+        if rows.any():
+            out["nominal_commands"] = Metrics.from_errors(self.true_before[rows], rot(self.true_rot_before, rows))
+            out["compensated_commands"] = Metrics.from_errors(self.true_after[rows], rot(self.true_rot_after, rows))
+        out["compensated_commands_all_rows"] = Metrics.from_errors(self.true_after, self.true_rot_after)
+        return out
+
+    def summary(self) -> dict:
+        """Counts per status and, with a true robot, its metrics: the JSON summary."""
+        out = {"goals": self.goals.n, "status": self.counts(), "full_pose": self.full_pose}
+        val = self.validation()
+        if val is not None:
+            out["validation"] = {k: v.to_dict() for k, v in val.items()}
+        return out
+
+    def to_csv(self) -> str:
+        n = self.q.shape[1]
+        header = ["pose_id"] + [f"q{i + 1}" for i in range(n)] + ["cx", "cy", "cz", "crx", "cry", "crz"]
+        header += ["residual_mm", "residual_deg", "dq_max_deg", "status"]
+        if self.true_before is not None:
+            header += ["true_error_before_mm", "true_error_after_mm"]
+        out = io.StringIO()
+        w = csv.writer(out, lineterminator="\n")
+        w.writerow(header)
+        qd = np.degrees(self.q)
+        rpy = np.degrees(matrix_to_rpy(self.cartesian[:, :3, :3]))
+        dq = np.degrees(np.abs(self.q - self.q_nominal).max(axis=1))
+        for j in range(len(qd)):
+            row = [self.goals.ids[j]] + [repr(float(v)) for v in qd[j]]
+            row += [repr(float(v)) for v in self.cartesian[j, :3, 3]] + [repr(float(v)) for v in rpy[j]]
+            row += [f"{self.residual_mm[j]:.3e}", f"{self.residual_deg[j]:.3e}", f"{dq[j]:.6f}", self.status[j]]
+            if self.true_before is not None:
+                row += [f"{np.linalg.norm(self.true_before[j]):.6f}", f"{np.linalg.norm(self.true_after[j]):.6f}"]
+            w.writerow(row)
+        return out.getvalue()
+
+    def save(self, path: str | Path) -> None:
+        atomic_write(path, self.to_csv())
+
+
+def _mid_range(robot: Robot, m: int) -> np.ndarray:
+    lim = robot.limits
+    return np.tile(np.where(np.isfinite(lim).all(axis=1), lim.mean(axis=1), 0.0), (m, 1))
+
+
+def _nominal_commands(nominal: Robot, goals: Goals, position_only: bool | None, rot_weight: float):
+    """Desired poses (m, 4, 4) in the nominal base frame, the nominal joints, and whether full pose."""
+    m = goals.n
+    if goals.position is None:
+        return nominal.fk(goals.q), goals.q, True
+    R = goals.rotation if goals.rotation is not None else np.broadcast_to(np.eye(3), (m, 3, 3))
+    T_des = homogeneous(R, goals.position)
+    full = goals.rotation is not None
+    start = goals.q if goals.q is not None else _mid_range(nominal, m)
+    sol = solve_ik(nominal, T_des[:, :3, 3], T_des[:, :3, :3] if full and not position_only else None, start,
+                   rot_weight=rot_weight)
+    return T_des, sol.q, full
+
+
+def compensate(nominal: Robot, calibrated: Robot, goals: Goals, *, truth: Robot | None = None,
+               position_only: bool | None = None, rot_weight: float = ROT_WEIGHT) -> CompensationResult:
+    """Compensated commands for every goal (see the module docstring).
+
+    position_only: solve for the position alone (default: for pose goals without
+    orientation columns; joint goals use the full nominal pose).  truth: a simulated true
+    robot; its errors at the nominal and the compensated commands are returned.
+    """
+    if nominal.n_joints != calibrated.n_joints or (truth is not None and truth.n_joints != nominal.n_joints):
+        raise InputError("nominal, calibrated and true robots must have the same number of joints",
+                         source=calibrated.source or "compensate")
+    T_des, q_nom, full = _nominal_commands(nominal, goals, position_only, rot_weight)
+    full = full and not position_only
+    T_cal = calibrated.base @ invert(nominal.base) @ T_des
+    sol = solve_ik(calibrated, T_cal[:, :3, 3], T_cal[:, :3, :3] if full else None, q_nom, rot_weight=rot_weight)
+    result = CompensationResult(
+        goals=goals, q_nominal=q_nom, q=sol.q, cartesian=nominal.fk(sol.q), residual_mm=sol.position_error,
+        residual_deg=np.degrees(sol.rotation_error), status=sol.status, full_pose=full,
+    )
+    if truth is not None:
+        T_true = truth.base @ invert(nominal.base) @ T_des
+        for attr, q in (("before", q_nom), ("after", sol.q)):
+            Tq = truth.fk(q)
+            setattr(result, f"true_{attr}", T_true[:, :3, 3] - Tq[:, :3, 3])
+            if full:
+                setattr(result, f"true_rot_{attr}", orientation_error(T_true[:, :3, :3], Tq[:, :3, :3]))
+    return result

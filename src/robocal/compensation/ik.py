@@ -1,0 +1,137 @@
+"""Batched inverse kinematics by damped least squares on the joints, with a status per goal."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..math.so3 import orientation_error
+from ..model.jointspace import condition_numbers, joint_jacobian
+from ..model.robot import Robot
+
+STATUSES = ("ok", "unreachable", "limit", "singular", "no_convergence")
+
+#: weight of orientation against position in the joint-space solve, mm per rad
+ROT_WEIGHT = 1000.0
+#: convergence: position residual (mm) and orientation residual (rad)
+TOL_MM, TOL_RAD = 1e-6, 1e-9
+#: condition number of the weighted joint Jacobian above which a goal is called singular:
+#: about 0.2 % of random poses of a 6R arm, those within a degree or so of a wrist or
+#: elbow singularity, where a millimetre of correction can need tens of degrees of joints
+SINGULAR_CONDITION = 1e4
+#: largest joint step of one iteration (rad): corrections are small, so the solve walks
+#: rather than jumps, and cannot leave the configuration branch it started on
+MAX_STEP = 0.05
+#: a reached solution further than this (rad) from its start changed branch or sat on a
+#: near-singular pose: it is reported as singular
+BRANCH_TOLERANCE = math.radians(20.0)
+
+
+@dataclass
+class IKSolution:
+    q: np.ndarray  # (m, n) rad
+    position_error: np.ndarray  # (m,) mm
+    rotation_error: np.ndarray  # (m,) rad, zeros for position-only goals
+    status: list[str]
+    iterations: np.ndarray
+
+
+class _Residual:
+    """Pose error of a robot against the goals, weighted: (position mm, rot_weight × rotation)."""
+
+    def __init__(self, robot: Robot, position, rotation, rot_weight: float):
+        self.robot, self.position, self.rotation, self.w = robot, position, rotation, rot_weight
+
+    def __call__(self, q, rows=slice(None)):
+        T = self.robot.fk(q)
+        dp = self.position[rows] - T[:, :3, 3]
+        dr = None if self.rotation is None else orientation_error(self.rotation[rows], T[:, :3, :3])
+        e = dp if dr is None else np.concatenate([dp, self.w * dr], axis=1)
+        return dp, dr, np.sum(e * e, axis=1), e
+
+
+def _step(robot, q, e, start, full, rot_weight, lam):
+    """Damped Gauss–Newton step of each active goal, at most MAX_STEP per joint."""
+    n = q.shape[1]
+    J = joint_jacobian(robot, q, full, rot_weight)
+    A = np.swapaxes(J, 1, 2) @ J
+    g = (np.swapaxes(J, 1, 2) @ e[..., None])[..., 0]
+    # Levenberg's λ·I (not Marquardt's λ·diag): every joint pays alike for moving, so a joint
+    # with a tiny lever (q6 with the point near its axis) does not take the step
+    mu = lam * np.einsum("aii->ai", A).max(axis=1)
+    step = np.linalg.solve(A + mu[:, None, None] * np.eye(n), g[..., None])[..., 0]
+    if J.shape[1] < n:
+        # Redundant (position only): the goal leaves joint directions free.  Pull the joints
+        # back toward the start inside the null space of J, so the answer is the nearest
+        # solution and does not drift from one linearisation to the next.
+        back = start - q
+        step += back - (np.linalg.pinv(J) @ (J @ back[..., None]))[..., 0]
+    return step * np.minimum(1.0, MAX_STEP / np.maximum(np.abs(step).max(axis=1), 1e-300))[:, None]
+
+
+def _statuses(reached, moved, cond, at_limit, stalled) -> list[str]:
+    status = []
+    for i in range(len(reached)):
+        if cond[i] > SINGULAR_CONDITION or (reached[i] and moved[i] > BRANCH_TOLERANCE):
+            status.append("singular")
+        elif reached[i]:
+            status.append("ok")
+        elif at_limit[i]:
+            status.append("limit")
+        elif stalled[i]:
+            status.append("unreachable")
+        else:
+            status.append("no_convergence")
+    return status
+
+
+def solve_ik(robot: Robot, position: np.ndarray, rotation: np.ndarray | None, q0: np.ndarray, *,
+             rot_weight: float = ROT_WEIGHT, max_iter: int = 100, limits: bool = True) -> IKSolution:
+    """Joints reaching each goal pose (or position when rotation is None), batched.
+
+    Positions in mm and rotations in the robot's measuring frame; q0 (m, n) rad starts each
+    goal and keeps it on its configuration branch; joints stay inside the robot's limits.
+    Statuses: ``ok``; ``singular`` (reached, but the joint Jacobian's condition number
+    exceeds SINGULAR_CONDITION, or the solution moved beyond BRANCH_TOLERANCE); ``limit``
+    (not reached, a joint held at its limit); ``unreachable`` (not reached, stalled away
+    from the goal); ``no_convergence``.
+    """
+    full = rotation is not None
+    q = np.array(q0, dtype=float, copy=True)
+    m = len(q)
+    lo, hi = (robot.limits[:, 0], robot.limits[:, 1]) if limits else (-np.inf, np.inf)
+    q = np.clip(q, lo, hi)
+    start = q.copy()
+    lam = np.full(m, 1e-6)
+    iters = np.zeros(m, dtype=int)
+    residual = _Residual(robot, position, rotation, rot_weight)
+    dp, dr, cost, e = residual(q)
+    done = np.zeros(m, bool)
+    stalled = np.zeros(m, bool)
+    cond_start = condition_numbers(robot, q, full, rot_weight)
+    for _ in range(max_iter):
+        re = np.zeros(m) if dr is None else np.linalg.norm(dr, axis=1)
+        done |= (np.linalg.norm(dp, axis=1) < TOL_MM) & (re < TOL_RAD)
+        act = np.flatnonzero(~done & ~stalled)
+        if act.size == 0:
+            break
+        iters[act] += 1
+        q_try = np.clip(q[act] + _step(robot, q[act], e[act], start[act], full, rot_weight, lam[act]), lo, hi)
+        dp_t, dr_t, c_try, e_t = residual(q_try, act)
+        better = c_try < cost[act]
+        ok = act[better]
+        q[ok], dp[ok], cost[ok], e[ok] = q_try[better], dp_t[better], c_try[better], e_t[better]
+        if dr is not None:
+            dr[ok] = dr_t[better]
+        lam[ok] = np.maximum(lam[ok] / 3.0, 1e-9)
+        lam[act[~better]] *= 4.0
+        stalled |= lam > 1e8
+    pe = np.linalg.norm(dp, axis=1)
+    re = np.zeros(m) if dr is None else np.linalg.norm(dr, axis=1)
+    reached = (pe < TOL_MM * 10) & (re < TOL_RAD * 10)
+    at_limit = np.any((q <= lo + 1e-9) | (q >= hi - 1e-9), axis=1) if limits else np.zeros(m, bool)
+    cond = np.maximum(cond_start, condition_numbers(robot, q, full, rot_weight))
+    status = _statuses(reached, np.abs(q - start).max(axis=1), cond, at_limit, stalled)
+    return IKSolution(q, pe, re, status, iters)

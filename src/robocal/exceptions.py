@@ -1,0 +1,46 @@
+"""robocal's own exception and warning types.
+
+Every problem with user input (a file, an option value, data that cannot determine
+what was asked) is raised as :class:`InputError`.  The command line turns it into one
+line on stderr and exit code 2; the Python API lets it propagate, so a notebook user
+sees the same message.
+"""
+
+from __future__ import annotations
+
+import os
+
+
+class InputError(ValueError):
+    """Bad input: the message names the file (or option), the row/column or key, and what is wrong.
+
+    ``option`` is set when the culprit is an option value (``"loss"``, ``"box"``): the
+    command line names it ``--loss``, the Python API ``loss``.
+    """
+
+    def __init__(
+        self,
+        what: str,
+        *,
+        source: str | os.PathLike | None = None,
+        where: str | None = None,
+        option: str | None = None,
+    ):
+        self.what = what
+        self.source = None if source is None else str(source)
+        self.where = where
+        self.option = option
+        super().__init__(self.render())
+
+    def render(self, cli: bool = False) -> str:
+        """The one-line message; ``cli=True`` names an option as its command-line flag."""
+        label = None
+        if self.option is not None:
+            label = f"--{self.option.replace('_', '-')}" if cli else f"option '{self.option}'"
+        parts = [p for p in (self.source, label, self.where) if p]
+        prefix = ": ".join(parts)
+        return f"{prefix}: {self.what}" if prefix else self.what
+
+
+class RobocalWarning(UserWarning):
+    """A degenerate-but-valid situation: robocal still answers, and says what is off."""

@@ -1,0 +1,51 @@
+"""Goal files of a compensation: where the robot should go (CSV).
+
+Columns ``q1..qn`` (deg: go where the nominal model says these joints go) and/or
+``x, y, z[, rx, ry, rz]`` (mm, deg: a pose in the robot base frame, with the optional
+joints as starting guess and configuration branch); optional ``pose_id`` names the rows.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..math.so3 import rpy_to_matrix
+from .atomic import read_text
+from .measurements import read_pose_table
+
+
+@dataclass
+class Goals:
+    """Goals of a compensation: q (m, n) rad and/or poses (position mm, rotation) in the base frame."""
+
+    q: np.ndarray | None
+    position: np.ndarray | None
+    rotation: np.ndarray | None
+    ids: list[str]
+    source: str = "<goals>"
+
+    @property
+    def n(self) -> int:
+        return len(self.ids)
+
+
+def parse_goals(text: str, *, source: str = "<goals>", n_joints: int | None = None,
+                columns: Mapping[str, str] | None = None) -> Goals:
+    t = read_pose_table(text, source=source, n_joints=n_joints, columns=columns, require_joints=False,
+                        require_position=False)
+    ids = t.pose_ids if t.pose_ids is not None else [str(r) for r in t.rows]
+    return Goals(
+        q=None if t.q is None else np.radians(t.q),
+        position=t.position,
+        rotation=None if t.rpy is None else rpy_to_matrix(np.radians(t.rpy)),
+        ids=list(ids),
+        source=source,
+    )
+
+
+def load_goals(path: str | Path, *, n_joints: int | None = None, columns: Mapping[str, str] | None = None) -> Goals:
+    return parse_goals(read_text(path, "goals file"), source=str(path), n_joints=n_joints, columns=columns)

@@ -1,0 +1,231 @@
+"""Measurement files (CSV, SPEC §6): joint values and measured poses.
+
+Columns: ``q1 … qn`` (deg), ``x, y, z`` (mm), optionally ``rx, ry, rz`` (deg, rpy with
+``R = Rz(rz) Ry(ry) Rx(rx)``) for full-pose data, ``pose_id`` (rows sharing one are
+repeated measurements of one pose and are averaged) and ``target`` (which point on the
+flange).  Positions and orientations are in the measuring device's frame.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+import re
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+from ..exceptions import InputError
+from ..math.so3 import matrix_to_rpy, project_to_so3, rpy_to_matrix
+from ..model.measurements import Measurements
+from .atomic import atomic_write, read_text
+from .table import CsvTable, numbers, read_csv, strings
+
+POSITION = ("x", "y", "z")
+ORIENTATION = ("rx", "ry", "rz")
+OPTIONAL = ("pose_id", "target")
+_JOINT = re.compile(r"^q(\d+)$")
+
+#: repeated rows of one pose_id that spread further than this (mm) are an error
+REPEAT_TOLERANCE_MM = 1.0
+
+
+@dataclass
+class PoseTable:
+    """The validated numeric content of a measurement-style CSV (deg and mm as in the file)."""
+
+    q: np.ndarray | None
+    position: np.ndarray | None
+    rpy: np.ndarray | None
+    pose_ids: list[str] | None
+    targets: list[str] | None
+    rows: np.ndarray
+
+
+def _joint_columns(table: CsvTable, n_joints: int | None, required: bool, robot_label: str) -> list[str]:
+    joints = sorted((int(m.group(1)), h) for h in table.header if (m := _JOINT.match(h)))
+    if not joints and required:
+        raise InputError("no joint columns (q1, q2, …)", source=table.source)
+    numbers_ = [k for k, _ in joints]
+    if numbers_ and numbers_ != list(range(1, len(numbers_) + 1)):
+        missing = sorted(set(range(1, max(numbers_) + 1)) - set(numbers_))
+        raise InputError(f"joint column 'q{missing[0]}' is missing", source=table.source)
+    if numbers_ and n_joints is not None and len(numbers_) != n_joints:
+        robot = f" ({Path(robot_label).name})" if robot_label else ""
+        raise InputError(f"file has {len(numbers_)} joint columns (q1..q{len(numbers_)}) but the robot{robot} "
+                         f"has {n_joints} joints", source=table.source)
+    return [h for _, h in joints]
+
+
+def _pose_columns(table: CsvTable, has_joints: bool, require_position: bool) -> tuple[bool, bool]:
+    """Whether the file has a position and an orientation; checks they come complete."""
+    have_pos = [c in table for c in POSITION]
+    if require_position or any(have_pos):
+        table.require(POSITION)
+    elif not has_joints:
+        raise InputError("needs joint columns (q1..qn) or a position (x, y, z)", source=table.source)
+    have_rot = [c in table for c in ORIENTATION]
+    if any(have_rot) and not all(have_rot):
+        missing = [c for c, h in zip(ORIENTATION, have_rot) if not h]
+        raise InputError(f"orientation columns rx, ry, rz come together; '{missing[0]}' is missing",
+                         source=table.source)
+    if all(have_rot) and not all(have_pos):
+        raise InputError("orientation columns rx, ry, rz need x, y, z too", source=table.source)
+    return all(have_pos), all(have_rot)
+
+
+def read_pose_table(
+    text: str,
+    *,
+    source: str,
+    n_joints: int | None = None,
+    columns: Mapping[str, str] | None = None,
+    require_joints: bool = True,
+    require_position: bool = True,
+    robot_label: str = "",
+) -> PoseTable:
+    """Read and validate a CSV with columns q1..qn, x, y, z, rx, ry, rz, pose_id, target."""
+    table = read_csv(text, source=source, columns=columns)
+    known = set(POSITION) | set(ORIENTATION) | set(OPTIONAL)
+    for h in table.header:
+        if h not in known and not _JOINT.match(h):
+            raise InputError(f"unknown column '{h}' (expected q1..qn, x, y, z, optional rx, ry, rz, pose_id, "
+                             "target; map other names with a column mapping)", source=source)
+    qcols = _joint_columns(table, n_joints, require_joints, robot_label)
+    has_pos, has_rot = _pose_columns(table, bool(qcols), require_position)
+    q = numbers(table, qcols) if qcols else None
+    if q is not None and len(q) >= 3 and 0 < np.abs(q).max() <= math.pi + 1e-9:
+        raise InputError("all joint values lie within ±π: they look like radians; files give joints in degrees",
+                         source=source)
+    return PoseTable(
+        q=q,
+        position=numbers(table, POSITION) if has_pos else None,
+        rpy=numbers(table, ORIENTATION) if has_rot else None,
+        pose_ids=strings(table, "pose_id", required=True) if "pose_id" in table else None,
+        targets=strings(table, "target") if "target" in table else None,
+        rows=table.lines,
+    )
+
+
+def parse_measurements(
+    text: str,
+    *,
+    source: str = "<data>",
+    n_joints: int | None = None,
+    columns: Mapping[str, str] | None = None,
+    average: bool = True,
+    repeat_tolerance: float = REPEAT_TOLERANCE_MM,
+    robot_label: str = "",
+) -> Measurements:
+    """Parse CSV text; see :func:`load_measurements`."""
+    t = read_pose_table(text, source=source, n_joints=n_joints, columns=columns, robot_label=robot_label)
+    meas = Measurements(
+        q=np.radians(t.q),
+        position=t.position,
+        rotation=None if t.rpy is None else rpy_to_matrix(np.radians(t.rpy)),
+        targets=None if t.targets is None else tuple(t.targets),
+        pose_ids=None if t.pose_ids is None else tuple(t.pose_ids),
+        rows=t.rows,
+        source=source,
+        n_raw=len(t.rows),
+    )
+    if average and t.pose_ids is not None:
+        meas = average_repeats(meas, repeat_tolerance)
+    return meas
+
+
+def _check_group(meas: Measurements, key: tuple[str, str], group: list[int], tolerance: float) -> np.ndarray:
+    """Mean position of one group of repeated rows, after checking they agree."""
+    rows = [int(meas.rows[i]) for i in group]
+    dq = np.abs(meas.q[group] - meas.q[group[0]]).max()
+    if dq > 1e-9:
+        raise InputError(f"pose_id {key[0]!r}: repeated rows {rows} command different joint values "
+                         f"(differ by {math.degrees(dq):.4g} deg)", source=meas.source)
+    mean = meas.position[group].mean(0)
+    spread = np.linalg.norm(meas.position[group] - mean, axis=1)
+    if spread.max() > tolerance:
+        bad = rows[int(np.argmax(spread))]
+        raise InputError(f"pose_id {key[0]!r}: repeated rows {rows} disagree by {spread.max():.4g} mm "
+                         f"(row {bad} furthest from their mean; tolerance {tolerance:g} mm)",
+                         source=meas.source)
+    return mean
+
+
+def average_repeats(meas: Measurements, tolerance: float = REPEAT_TOLERANCE_MM) -> Measurements:
+    """Average rows sharing (pose_id, target): mean position, chordal mean rotation.
+
+    Rows of one group must command the same joints, and their positions must agree within
+    ``tolerance`` mm of the group mean (a gross disagreement is a mislabelled row or a lost
+    beam, not noise).
+    """
+    keys = list(zip(meas.pose_ids, meas.targets or ("",) * meas.n_poses))
+    groups: dict[tuple[str, str], list[int]] = {}
+    for i, k in enumerate(keys):
+        groups.setdefault(k, []).append(i)
+    if all(len(g) == 1 for g in groups.values()):
+        return meas
+    order = list(groups.values())
+    first = np.array([g[0] for g in order])
+    pos = np.array([_check_group(meas, keys[g[0]], g, tolerance) for g in order])
+    rot = None if meas.rotation is None else project_to_so3(np.stack([meas.rotation[g].sum(0) for g in order]))
+    return replace(
+        meas,
+        q=meas.q[first].copy(),
+        position=pos,
+        rotation=rot,
+        targets=None if meas.targets is None else tuple(keys[g[0]][1] for g in order),
+        pose_ids=tuple(keys[g[0]][0] for g in order),
+        rows=meas.rows[first],
+    )
+
+
+def load_measurements(
+    path: str | Path,
+    *,
+    n_joints: int | None = None,
+    columns: Mapping[str, str] | None = None,
+    average: bool = True,
+    repeat_tolerance: float = REPEAT_TOLERANCE_MM,
+    robot_label: str = "",
+) -> Measurements:
+    """Load and validate a measurement CSV.
+
+    n_joints: the robot's joint count, checked against the q-columns.  columns: map of
+    file column name → robocal column name (e.g. ``{"A1": "q1"}``).  average: average
+    repeated rows by pose_id.
+    """
+    return parse_measurements(read_text(path, "measurement file"), source=str(path), n_joints=n_joints,
+                              columns=columns, average=average, repeat_tolerance=repeat_tolerance,
+                              robot_label=robot_label)
+
+
+def measurements_to_csv(meas: Measurements, *, extra: Mapping[str, Sequence] | None = None) -> str:
+    """CSV text of measurements (deg and mm, shortest round-trip decimals)."""
+    header = (["pose_id"] if meas.pose_ids is not None else []) + (["target"] if meas.targets is not None else [])
+    header += [f"q{i + 1}" for i in range(meas.n_joints)] + list(POSITION)
+    if meas.rotation is not None:
+        header += list(ORIENTATION)
+    extra = dict(extra or {})
+    header += list(extra)
+    qdeg = np.degrees(meas.q)
+    rpy = None if meas.rotation is None else np.degrees(matrix_to_rpy(meas.rotation))
+    out = io.StringIO()
+    w = csv.writer(out, lineterminator="\n")
+    w.writerow(header)
+    for j in range(meas.n_poses):
+        row = [] if meas.pose_ids is None else [meas.pose_ids[j]]
+        if meas.targets is not None:
+            row.append(meas.targets[j])
+        row += [repr(float(v)) for v in qdeg[j]] + [repr(float(v)) for v in meas.position[j]]
+        if rpy is not None:
+            row += [repr(float(v)) for v in rpy[j]]
+        row += [extra[k][j] for k in extra]
+        w.writerow(row)
+    return out.getvalue()
+
+
+def save_measurements(meas: Measurements, path: str | Path) -> None:
+    atomic_write(path, measurements_to_csv(meas))

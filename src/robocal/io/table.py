@@ -1,0 +1,136 @@
+"""The one CSV table reader of robocal: header, column mapping, numeric cells, one-line errors.
+
+Measurement files, compensation goal files and the parallel mechanism's files are all
+read through :func:`read_csv` and then take their columns with :func:`numbers` and
+:func:`strings`; what columns a file must have is checked by each file's own module.
+Rows are named by their line number in the file (header = line 1).
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+import re
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..exceptions import InputError
+
+
+@dataclass(frozen=True)
+class CsvTable:
+    """A comma-separated table: header (after the column mapping), data rows, their line numbers."""
+
+    header: tuple[str, ...]
+    rows: tuple[tuple[str, ...], ...]
+    lines: np.ndarray
+    header_line: int
+    source: str
+
+    @property
+    def index(self) -> dict[str, int]:
+        return {h: i for i, h in enumerate(self.header)}
+
+    def __contains__(self, column: str) -> bool:
+        return column in self.header
+
+    def require(self, names: Sequence[str]) -> None:
+        for name in names:
+            if name not in self.header:
+                raise InputError(f"missing column '{name}'", source=self.source)
+
+
+def _looks_numeric(text: str) -> bool:
+    try:
+        float(text)
+        return True
+    except ValueError:
+        return False
+
+
+def read_csv(text: str, *, source: str, columns: Mapping[str, str] | None = None) -> CsvTable:
+    """Parse CSV text with a header row; blank lines are skipped, a byte-order mark ignored.
+
+    columns maps file column names to robocal's (``{"A1": "q1"}``).
+    """
+    if not text.strip():
+        raise InputError("file is empty", source=source)
+    reader = csv.reader(io.StringIO(text.lstrip("\ufeff")))
+    try:
+        rows = [(reader.line_num, r) for r in reader]
+    except csv.Error as exc:
+        raise InputError(f"not a valid CSV file ({exc})", source=source) from None
+    rows = [(ln, r) for ln, r in rows if any(c.strip() for c in r)]
+    if not rows:
+        raise InputError("file has no header row (only empty cells)", source=source)
+    header_line, raw = rows[0]
+    header = [h.strip() for h in raw]
+    if len(header) == 1 and (";" in header[0] or "\t" in header[0]):
+        sep = ";" if ";" in header[0] else "tab"
+        raise InputError(f"header is separated by {sep}; robocal reads comma-separated files",
+                         source=source, where=f"row {header_line}")
+    if all(_looks_numeric(h) for h in header) or (len(header) == 1 and len(header[0].split()) > 1):
+        raise InputError("no header row, or not comma-separated: the first row must name the columns "
+                         "(q1, …, x, y, z) and cells are separated by commas", source=source,
+                         where=f"row {header_line}")
+    mapping = dict(columns or {})
+    for old in mapping:
+        if old not in header:
+            raise InputError(f"column '{old}' named in the column mapping is not in the file", source=source)
+    header = [mapping.get(h, h) for h in header]
+    seen: set[str] = set()
+    for i, h in enumerate(header):
+        if h == "":
+            raise InputError(f"column {i + 1} has an empty name", source=source, where=f"row {header_line}")
+        if h in seen:
+            raise InputError(f"column '{h}' appears twice", source=source, where=f"row {header_line}")
+        seen.add(h)
+    data = rows[1:]
+    if not data:
+        raise InputError("file has a header but no data rows", source=source)
+    for ln, cells in data:
+        if len(cells) != len(header):
+            extra = " (decimal commas? use '.' for decimals)" if len(cells) > len(header) else ""
+            raise InputError(f"has {len(cells)} cells, the header has {len(header)}{extra}", source=source,
+                             where=f"row {ln}")
+    return CsvTable(tuple(header), tuple(tuple(r) for _, r in data), np.array([ln for ln, _ in data], dtype=int),
+                    header_line, source)
+
+
+def _number(cell: str, source: str, line: int, column: str) -> float:
+    text = cell.strip()
+    try:
+        value = float(text)
+    except ValueError:
+        hint = " (decimal comma? use '.' for decimals)" if re.fullmatch(r"[-+]?\d+,\d+", text) else ""
+        raise InputError(f"{cell!r} is not a number{hint}", source=source,
+                         where=f"row {line}, column '{column}'") from None
+    if not math.isfinite(value):
+        raise InputError(f"value is not finite ({text})", source=source, where=f"row {line}, column '{column}'")
+    return value
+
+
+def numbers(table: CsvTable, names: Sequence[str]) -> np.ndarray:
+    """The named columns as finite floats, (rows, len(names))."""
+    idx = table.index
+    cols = [idx[n] for n in names]
+    out = np.empty((len(table.rows), len(cols)))
+    for r, (ln, cells) in enumerate(zip(table.lines, table.rows)):
+        for j, (c, name) in enumerate(zip(cols, names)):
+            out[r, j] = _number(cells[c], table.source, int(ln), name)
+    return out
+
+
+def strings(table: CsvTable, name: str, *, required: bool = False) -> list[str]:
+    """The named column as stripped text; ``required`` makes an empty cell an error."""
+    c = table.index[name]
+    out = []
+    for ln, cells in zip(table.lines, table.rows):
+        value = cells[c].strip()
+        if required and not value:
+            raise InputError(f"empty {name}", source=table.source, where=f"row {ln}, column '{name}'")
+        out.append(value)
+    return out

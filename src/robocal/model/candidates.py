@@ -1,0 +1,43 @@
+"""Which deviation parameters a calibration offers by default (before identifiability)."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+from .kinematics import joint_kinds
+from .parameters import FRAME_AXES, tool_prefix
+from .robot import Robot
+
+#: what a calibration estimates besides the joints: nothing, the measuring frame, or it and the tools
+FRAME_MODES = ("none", "base", "base+tool")
+
+
+def parallel_pairs(robot: Robot) -> list[int]:
+    """0-based joints whose axis is nominally parallel to the next one (α ≡ 0 mod π, dh/hayati)."""
+    if robot.convention == "craig":
+        # row i+1 holds α_i, the twist between axes i and i+1
+        return [i for i in range(robot.n_joints - 1) if abs(math.remainder(robot.alpha[i + 1], math.pi)) < 1e-9]
+    return [i for i, a in enumerate(robot.alpha[:-1]) if abs(math.remainder(a, math.pi)) < 1e-9]
+
+
+def joint_candidates(robot: Robot) -> list[str]:
+    """Default candidate joint parameters: a, α, θ, d of every joint, plus β of hayati joints
+    whose axis is parallel to the next one (where β replaces the ill-defined d)."""
+    kinds = [k for k in joint_kinds(robot.convention) if k != "beta"]
+    names = [f"{k}{i + 1}" for i in range(robot.n_joints) for k in kinds]
+    if robot.convention == "hayati":
+        names += [f"beta{i + 1}" for i in parallel_pairs(robot)]
+    return names
+
+
+def frame_candidates(mode: str, targets: Sequence[str], full_pose: bool) -> list[str]:
+    """Frame parameters of a frames mode: 6 for the base, 3 (position data) or 6 per tool."""
+    names = []
+    if mode in ("base", "base+tool"):
+        names += [f"base_{a}" for a in FRAME_AXES]
+    if mode == "base+tool":
+        axes = FRAME_AXES if full_pose else FRAME_AXES[:3]
+        for t in targets:
+            names += [f"{tool_prefix(t)}_{a}" for a in axes]
+    return names

@@ -1,0 +1,176 @@
+"""The DH family of conventions: batched forward kinematics and the twist Jacobian.
+
+Conventions (SPEC §2); lengths in mm, angles in rad, joint value ``q_i`` adds to the
+joint offset ``theta_i``:
+
+- ``dh``     ``A_i = Rz(q_i+θ_i) · Tz(d_i) · Tx(a_i) · Rx(α_i)``
+- ``hayati`` ``A_i = Rz(q_i+θ_i) · Tz(d_i) · Tx(a_i) · Rx(α_i) · Ry(β_i)``
+- ``craig``  ``A_i = Rx(α_{i-1}) · Tx(a_{i-1}) · Rz(q_i+θ_i) · Tz(d_i)``; row i holds
+  ``(a_{i-1}, α_{i-1}, θ_i, d_i)``.
+
+The geometry of a chain is one array ``geom`` of shape (..., n, 5) whose last axis holds
+:data:`KINDS` = (a, alpha, theta, d, beta).  Leading axes are free: a swarm passes
+(particles, n, 5) with joint values (poses, n) and gets (particles, poses, …) in one
+call; the only Python loop is over the joints.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+KINDS: tuple[str, ...] = ("a", "alpha", "theta", "d", "beta")
+CONVENTIONS: tuple[str, ...] = ("dh", "hayati", "craig")
+A, ALPHA, THETA, D, BETA = range(5)
+
+
+def joint_kinds(convention: str) -> tuple[str, ...]:
+    """Geometric parameter kinds of one joint: β only in the hayati convention."""
+    return KINDS if convention == "hayati" else KINDS[:4]
+
+
+def _joint_rotation_translation(convention: str, g: np.ndarray, q: np.ndarray):
+    """Rotation (..., 3, 3) and translation (..., 3) of one joint transform.
+
+    g: (..., 5) geometry of the joint with a trailing singleton inserted by the caller
+    so that it broadcasts against q (..., m).  Entries are written into preallocated
+    arrays, which broadcast by themselves (cheap for small batches).
+    """
+    a, al, th, d, be = (g[..., k] for k in range(5))
+    t = q + th
+    ct, st = np.cos(t), np.sin(t)
+    ca, sa = np.cos(al), np.sin(al)
+    shape = np.broadcast_shapes(ct.shape, ca.shape, a.shape)
+    R = np.empty(shape + (3, 3))
+    p = np.empty(shape + (3,))
+    if convention == "craig":
+        # Rx(α) Rz(t); translation Rx(α) (a, 0, 0)ᵀ + Rx(α) Rz(t) (0, 0, d)ᵀ = (a, −sα d, cα d)
+        R[..., 0, 0], R[..., 0, 1], R[..., 0, 2] = ct, -st, 0.0
+        R[..., 1, 0], R[..., 1, 1], R[..., 1, 2] = ca * st, ca * ct, -sa
+        R[..., 2, 0], R[..., 2, 1], R[..., 2, 2] = sa * st, sa * ct, ca
+        p[..., 0], p[..., 1], p[..., 2] = a, -sa * d, ca * d
+        return R, p
+    # Rz(t) Rx(α), columns c0 = (ct, st, 0), c1 = (−st cα, ct cα, sα), c2 = (st sα, −ct sα, cα)
+    if convention == "hayati":
+        cb, sb = np.cos(be), np.sin(be)
+        # · Ry(β): c0' = c0 cβ − c2 sβ, c2' = c0 sβ + c2 cβ
+        R[..., 0, 0], R[..., 1, 0], R[..., 2, 0] = ct * cb - st * sa * sb, st * cb + ct * sa * sb, -ca * sb
+        R[..., 0, 2], R[..., 1, 2], R[..., 2, 2] = ct * sb + st * sa * cb, st * sb - ct * sa * cb, ca * cb
+    else:
+        R[..., 0, 0], R[..., 1, 0], R[..., 2, 0] = ct, st, 0.0
+        R[..., 0, 2], R[..., 1, 2], R[..., 2, 2] = st * sa, -ct * sa, ca
+    R[..., 0, 1], R[..., 1, 1], R[..., 2, 1] = -st * ca, ct * ca, sa
+    p[..., 0], p[..., 1], p[..., 2] = a * ct, a * st, d
+    return R, p
+
+
+def chain_frames(convention: str, geom: np.ndarray, q: np.ndarray, base: np.ndarray | None = None):
+    """Frames of the chain (rotation, origin) from the base frame to the flange.
+
+    geom: (..., n, 5); q: (..., m, n) rad; base: (..., 4, 4) or None.  Returns lists
+    ``Rs``, ``origins`` of length n+1 with shapes (..., m, 3, 3), (..., m, 3) mm: index 0
+    is the base frame, index i the frame after joint i.
+    """
+    n = geom.shape[-2]
+    if base is None:
+        R, o = np.eye(3), np.zeros(3)
+    else:
+        R, o = base[..., None, :3, :3], base[..., None, :3, 3]
+    Rs, origins = [R], [o]
+    for i in range(n):
+        Ri, pi = _joint_rotation_translation(convention, geom[..., None, i, :], q[..., i])
+        o = o + (R @ pi[..., None])[..., 0]
+        R = R @ Ri
+        Rs.append(R)
+        origins.append(o)
+    return Rs, origins
+
+
+def apply_chain(convention: str, geom: np.ndarray, q: np.ndarray, V: np.ndarray) -> np.ndarray:
+    """Apply A_1 ⋯ A_n to the column vectors of V, from the flange back to the base.
+
+    V: (..., m, 3, c) vectors in the flange frame; its last column is a point
+    (translations apply to it), the others are directions.  Working backwards on
+    vectors needs only elementwise rotations about x, y, z (no 3×3 products), and
+    for positions alone V is a single column.
+    """
+    n = geom.shape[-2]
+    x, y, z = V[..., 0, :], V[..., 1, :], V[..., 2, :]
+    e = np.zeros(V.shape[-1])
+    e[-1] = 1.0  # translations act on the last column only
+    for i in range(n - 1, -1, -1):
+        g = geom[..., i, :]
+        a, d = g[..., A, None], g[..., D, None]  # (..., 1): broadcast over poses
+        ca, sa = np.cos(g[..., ALPHA])[..., None, None], np.sin(g[..., ALPHA])[..., None, None]
+        t = q[..., i] + g[..., THETA, None]
+        ct, st = np.cos(t)[..., None], np.sin(t)[..., None]
+        if convention == "craig":
+            # Rx(α) · Tx(a) · Rz(t) · Tz(d)
+            z = z + d[..., None] * e
+            x, y = ct * x - st * y, st * x + ct * y
+            x = x + a[..., None] * e
+            y, z = ca * y - sa * z, sa * y + ca * z
+        else:
+            if convention == "hayati":
+                cb, sb = np.cos(g[..., BETA])[..., None, None], np.sin(g[..., BETA])[..., None, None]
+                x, z = cb * x + sb * z, cb * z - sb * x
+            # Rz(t) · Tz(d) · Tx(a) · Rx(α)
+            y, z = ca * y - sa * z, sa * y + ca * z
+            x = x + a[..., None] * e
+            z = z + d[..., None] * e
+            x, y = ct * x - st * y, st * x + ct * y
+    return np.stack(np.broadcast_arrays(x, y, z), axis=-2)
+
+
+def twist_jacobian(convention: str, geom: np.ndarray, q: np.ndarray, base=None, tool=None):
+    """Jacobian of the end pose with respect to each joint's geometric parameters.
+
+    Returns ``(J, R_e, p_e, R_flange)`` where J has shape (n, 5, ..., m, 6), one
+    contiguous block per parameter: the end-point velocity (mm per unit of the
+    parameter) and the angular velocity (rad per unit) in the measuring frame, so that
+    a small change ε of parameter k moves the point by ``J[:3] ε`` and rotates the end
+    frame by ``Exp(J[3:] ε)`` applied on the left.  Columns for ``beta`` are zero unless
+    the convention is hayati.  The ``theta`` column is also the column of the joint value.
+    """
+    Rs, origins = chain_frames(convention, geom, q, base)
+    R_f, o_f = Rs[-1], origins[-1]
+    if tool is not None:
+        p_e = o_f + (R_f @ tool[..., :3, 3:])[..., 0]
+        R_e = R_f @ tool[..., :3, :3]
+    else:
+        p_e, R_e = o_f, R_f
+    n = geom.shape[-2]
+    shape = np.broadcast_shapes(p_e.shape, R_f.shape[:-1])[:-1]
+    J = np.zeros((n, 5) + shape + (6,))
+
+    def rotation_column(i, kind, axis, point):
+        r = p_e - point
+        out = J[i, kind]
+        out[..., 0] = axis[..., 1] * r[..., 2] - axis[..., 2] * r[..., 1]
+        out[..., 1] = axis[..., 2] * r[..., 0] - axis[..., 0] * r[..., 2]
+        out[..., 2] = axis[..., 0] * r[..., 1] - axis[..., 1] * r[..., 0]
+        out[..., 3:] = axis
+
+    def translation_column(i, kind, axis):
+        J[i, kind, ..., :3] = axis
+
+    for i in range(n):
+        R0, o0, R1, o1 = Rs[i], origins[i], Rs[i + 1], origins[i + 1]
+        if convention == "craig":
+            x0 = R0[..., :, 0]
+            rotation_column(i, ALPHA, x0, o0)
+            translation_column(i, A, x0)
+            z1 = R1[..., :, 2]
+            rotation_column(i, THETA, z1, o1)
+            translation_column(i, D, z1)
+        else:
+            z0 = R0[..., :, 2]
+            rotation_column(i, THETA, z0, o0)
+            translation_column(i, D, z0)
+            t = q[..., i] + geom[..., None, i, THETA]
+            # x axis after Rz(q+θ): the direction of Tx(a) and the axis of Rx(α)
+            xp = R0[..., :, 0] * np.cos(t)[..., None] + R0[..., :, 1] * np.sin(t)[..., None]
+            translation_column(i, A, xp)
+            rotation_column(i, ALPHA, xp, o1)
+            if convention == "hayati":
+                rotation_column(i, BETA, R1[..., :, 1], o1)
+    return J, R_e, p_e, R_f

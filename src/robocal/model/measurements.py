@@ -1,0 +1,89 @@
+"""Measured poses: the data a calibration is given."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+
+@dataclass(frozen=True, eq=False)
+class Measurements:
+    """Measured poses.
+
+    q: (m, n) commanded joint values, rad.  position: (m, 3) measured point, mm, in the
+    measuring frame.  rotation: (m, 3, 3) measured orientation, or None for position-only
+    data.  targets: target (reflector) name per pose, or None.  pose_ids: the file's
+    pose_id per pose, or None.  rows: line number in the source file of each pose (first
+    line of an averaged group; header = line 1).  n_raw: rows before averaging.
+    """
+
+    q: np.ndarray
+    position: np.ndarray
+    rotation: np.ndarray | None = None
+    targets: tuple[str, ...] | None = None
+    pose_ids: tuple[str, ...] | None = None
+    rows: np.ndarray | None = None
+    source: str = "<data>"
+    n_raw: int = 0
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "q", np.atleast_2d(np.asarray(self.q, dtype=float)))
+        object.__setattr__(self, "position", np.atleast_2d(np.asarray(self.position, dtype=float)))
+        if self.rows is None:
+            object.__setattr__(self, "rows", np.arange(2, 2 + len(self.q)))
+        if not self.n_raw:
+            object.__setattr__(self, "n_raw", len(self.q))
+
+    @property
+    def n_poses(self) -> int:
+        return self.q.shape[0]
+
+    @property
+    def n_joints(self) -> int:
+        return self.q.shape[1]
+
+    @property
+    def full_pose(self) -> bool:
+        return self.rotation is not None
+
+    @property
+    def target_names(self) -> tuple[str, ...]:
+        return ("",) if self.targets is None else tuple(dict.fromkeys(self.targets))
+
+    def label(self, i: int) -> str:
+        """How messages name pose i: its pose_id where the file has them, else its file row."""
+        if self.pose_ids is not None:
+            return f"pose_id {self.pose_ids[i]}"
+        return f"row {int(self.rows[i])}"
+
+    def labels(self, index, limit: int = 10) -> str:
+        """Comma list of :meth:`label` for the poses in ``index`` (at most ``limit``, then …)."""
+        index = list(index)
+        if self.pose_ids is not None:
+            text = "pose_ids " + ", ".join(self.pose_ids[i] for i in index[:limit])
+        else:
+            text = "rows " + ", ".join(str(int(self.rows[i])) for i in index[:limit])
+        return text + (" …" if len(index) > limit else "")
+
+    def subset(self, index) -> Measurements:
+        index = np.asarray(index)
+        if index.dtype == bool:
+            index = np.flatnonzero(index)
+
+        def pick(seq):
+            return None if seq is None else tuple(seq[i] for i in index)
+
+        return replace(
+            self,
+            q=self.q[index],
+            position=self.position[index],
+            rotation=None if self.rotation is None else self.rotation[index],
+            targets=pick(self.targets),
+            pose_ids=pick(self.pose_ids),
+            rows=self.rows[index],
+            n_raw=len(index),
+        )
+
+    def position_only(self) -> Measurements:
+        return replace(self, rotation=None)

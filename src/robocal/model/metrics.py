@@ -1,0 +1,74 @@
+"""Pose errors of a model on measurements and their summary figures (SPEC §3, §8)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..math.so3 import orientation_error
+from .measurements import Measurements
+from .robot import Robot
+
+
+def pose_errors(robot: Robot, meas: Measurements) -> tuple[np.ndarray, np.ndarray | None]:
+    """Position errors δp = p_measured − p_model (m, 3) in mm, and for full-pose data the
+    orientation errors δ = log(R_measured · R_modelᵀ) (m, 3) in rad about the measuring
+    frame's axes (None for position-only data)."""
+    T = robot.fk(meas.q, meas.targets)
+    dp = meas.position - T[:, :3, 3]
+    if meas.rotation is None:
+        return dp, None
+    return dp, orientation_error(meas.rotation, T[:, :3, :3])
+
+
+def _stats(x: np.ndarray) -> dict[str, float]:
+    return {
+        "mean": float(np.mean(x)),
+        "std": float(np.std(x, ddof=1)) if x.size > 1 else 0.0,
+        "max": float(np.max(x)),
+    }
+
+
+@dataclass(frozen=True)
+class Metrics:
+    """Summary of pose errors over n poses.
+
+    position: rms, mean, std (n−1), max of |δp| in mm; axis_max: max |δp_x|, |δp_y|,
+    |δp_z| in mm; orientation: per axis mean, std, max of |δ| in deg (full pose only).
+    """
+
+    n: int
+    position: dict[str, float]
+    axis_max: dict[str, float]
+    orientation: dict[str, dict[str, float]] | None = None
+
+    @classmethod
+    def from_errors(cls, dp: np.ndarray, drot: np.ndarray | None = None) -> Metrics:
+        norm = np.linalg.norm(dp, axis=1)
+        position = {"rms": float(np.sqrt(np.mean(norm**2))), **_stats(norm)}
+        axis_max = {ax: float(np.abs(dp[:, k]).max()) for k, ax in enumerate("xyz")}
+        orientation = None
+        if drot is not None:
+            deg = np.degrees(np.abs(drot))
+            orientation = {ax: _stats(deg[:, k]) for k, ax in enumerate("xyz")}
+        return cls(len(dp), position, axis_max, orientation)
+
+    @classmethod
+    def of(cls, robot: Robot, meas: Measurements) -> Metrics:
+        return cls.from_errors(*pose_errors(robot, meas))
+
+    def rows(self) -> list[tuple[str, float]]:
+        """(label, value) pairs in the order tables show them (mm, deg)."""
+        out = [(f"position {k} (mm)", self.position[k]) for k in ("rms", "mean", "std", "max")]
+        out += [(f"max |δp{ax}| (mm)", self.axis_max[ax]) for ax in "xyz"]
+        if self.orientation is not None:
+            out += [(f"orientation {ax} {k} (deg)", self.orientation[ax][k]) for ax in "xyz"
+                    for k in ("mean", "std", "max")]
+        return out
+
+    def to_dict(self) -> dict:
+        out = {"n": self.n, "position": dict(self.position), "axis_max": dict(self.axis_max)}
+        if self.orientation is not None:
+            out["orientation"] = {k: dict(v) for k, v in self.orientation.items()}
+        return out

@@ -1,0 +1,225 @@
+"""Named deviation parameters and the map between a flat deviation vector and a robot.
+
+A *deviation* is a parameter's departure from its nominal value (real = nominal +
+deviation).  Names (1-based joints): ``a1``, ``alpha1``, ``theta1``, ``d1`` for every
+joint, ``beta1``… for hayati robots; ``base_x, base_y, base_z`` (mm) and ``base_rx,
+base_ry, base_rz`` (rad); ``tool_x … tool_rz`` for the default measured point and
+``tool[NAME]_x …`` for a named target (reflector).  For craig robots ``a{i}``/``alpha{i}``
+name the values held in row i (a_{i-1}, α_{i-1} of Craig's notation).
+
+Every deviation is additive, except the frame rotations: the base rotates about the
+measuring-frame axes through the base origin, ``R_base = Exp(δ) · R_base°``, and a tool
+rotates about its own axes, ``R_tool = R_tool° · Exp(δ)``; both are rotation vectors,
+so no Euler singularity can hide in them.  Units: mm for lengths, rad for angles.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..math.se3 import homogeneous
+from ..math.so3 import exp_so3, left_jacobian
+from .kinematics import chain_points, chain_pose, chain_twist_jacobian, joint_kinds
+from .robot import Robot
+
+FRAME_AXES = ("x", "y", "z", "rx", "ry", "rz")
+_ANGLE_KINDS = frozenset(("alpha", "theta", "beta", "rx", "ry", "rz"))
+
+
+def tool_prefix(target: str) -> str:
+    """Parameter-name prefix of a target's tool frame: ``tool`` or ``tool[NAME]``."""
+    return "tool" if target == "" else f"tool[{target}]"
+
+
+def is_frame(name: str) -> bool:
+    return name.startswith(("base_", "tool"))
+
+
+def is_angle(name: str) -> bool:
+    """True for parameters in rad, False for mm."""
+    kind = name.rsplit("_", 1)[-1] if is_frame(name) else name.rstrip("0123456789")
+    return kind in _ANGLE_KINDS
+
+
+@dataclass(frozen=True, eq=False)
+class ParameterSpace:
+    """All geometric deviation parameters of a robot, in a fixed order.
+
+    A zero deviation vector is the reference robot itself.  Vectors may carry leading
+    axes (a swarm's particles): every method maps (..., k) to (..., …).
+    """
+
+    robot: Robot
+    names: tuple[str, ...]
+    targets: tuple[str, ...]
+
+    @classmethod
+    def of(cls, robot: Robot, targets: Sequence[str] | None = None) -> ParameterSpace:
+        """The full space of ``robot``: joints, base, and a tool for each target
+        (default: the robot's own targets)."""
+        targets = tuple(robot.target_names if targets is None else dict.fromkeys(targets))
+        kinds = joint_kinds(robot.convention)
+        names = [f"{k}{i + 1}" for i in range(robot.n_joints) for k in kinds]
+        names += [f"base_{ax}" for ax in FRAME_AXES]
+        for t in targets:
+            names += [f"{tool_prefix(t)}_{ax}" for ax in FRAME_AXES]
+        return cls(robot, tuple(names), targets)
+
+    # --- indexing --------------------------------------------------------------
+    @property
+    def size(self) -> int:
+        return len(self.names)
+
+    @property
+    def n_joint_params(self) -> int:
+        return self.robot.n_joints * len(joint_kinds(self.robot.convention))
+
+    def index(self, names: Sequence[str]) -> np.ndarray:
+        lookup = {n: i for i, n in enumerate(self.names)}
+        missing = [n for n in names if n not in lookup]
+        if missing:
+            raise KeyError(", ".join(missing))
+        return np.array([lookup[n] for n in names], dtype=int)
+
+    def vector(self, values: dict[str, float]) -> np.ndarray:
+        """Flat deviation vector from a {name: value} mapping (others zero)."""
+        x = np.zeros(self.size)
+        if values:
+            x[self.index(list(values))] = list(values.values())
+        return x
+
+    def as_dict(self, deviation: np.ndarray) -> dict[str, float]:
+        return {n: float(v) for n, v in zip(self.names, deviation)}
+
+    def angle_mask(self) -> np.ndarray:
+        return np.array([is_angle(n) for n in self.names])
+
+    def target_index(self, targets: Sequence[str] | None) -> np.ndarray | None:
+        if targets is None:
+            return None
+        lookup = {t: i for i, t in enumerate(self.targets)}
+        try:
+            return np.array([lookup[t] for t in targets], dtype=int)
+        except KeyError as exc:
+            raise ValueError(f"no tool frame for target {exc.args[0]!r}") from None
+
+    # --- deviation → geometry --------------------------------------------------
+    def _split(self, deviation: np.ndarray):
+        deviation = np.asarray(deviation, dtype=float)
+        if deviation.shape[-1] != self.size:
+            raise ValueError(f"deviation vector has {deviation.shape[-1]} entries, the space has {self.size}")
+        nj = self.n_joint_params
+        kinds = joint_kinds(self.robot.convention)
+        joints = deviation[..., :nj].reshape(deviation.shape[:-1] + (self.robot.n_joints, len(kinds)))
+        base = deviation[..., nj : nj + 6]
+        tools = deviation[..., nj + 6 :].reshape(deviation.shape[:-1] + (len(self.targets), 6))
+        return joints, base, tools
+
+    def nominal_tools(self) -> np.ndarray:
+        """Tool frames of the reference robot, one per target of the space, (T, 4, 4)."""
+        return np.stack([self.robot.tool_frames([t])[0] for t in self.targets])
+
+    def expand(self, deviation: np.ndarray):
+        """(…, k) → geometry (…, n, 5), base (…, 4, 4), tools (…, T, 4, 4)."""
+        deviation = np.asarray(deviation, dtype=float)
+        joints, db, dt = self._split(deviation)
+        r = self.robot
+        geom = np.broadcast_to(r.geometry, joints.shape[:-2] + r.geometry.shape).copy()
+        geom[..., : joints.shape[-1]] += joints
+        tools0 = self.nominal_tools()
+        if not np.any(db) and not np.any(dt):  # the common case: frames as given, no SO(3) algebra
+            lead = deviation.shape[:-1]
+            return (
+                geom,
+                np.broadcast_to(r.base, lead + (4, 4)).copy(),
+                np.broadcast_to(tools0, lead + tools0.shape).copy(),
+            )
+        base = homogeneous(exp_so3(db[..., 3:]) @ r.base[:3, :3], r.base[:3, 3] + db[..., :3])
+        tools = homogeneous(tools0[:, :3, :3] @ exp_so3(dt[..., 3:]), tools0[:, :3, 3] + dt[..., :3])
+        return geom, base, tools
+
+    def apply(self, deviation: np.ndarray) -> Robot:
+        """The robot with deviations (k,) added: nominal + deviation = real."""
+        geom, base, tools = self.expand(np.asarray(deviation, dtype=float))
+        named = {t: tools[i] for i, t in enumerate(self.targets) if t != ""}
+        default = tools[self.targets.index("")] if "" in self.targets else self.robot.tool
+        extra = {t: v for t, v in self.robot.targets.items() if t not in named}
+        return self.robot.replace(geometry=geom, base=base, tool=default, targets={**extra, **named})
+
+    def _tools_for(self, tools: np.ndarray, target_idx: np.ndarray | None) -> np.ndarray:
+        return tools[..., :1, :, :] if target_idx is None else tools[..., target_idx, :, :]
+
+    def pose(self, deviation: np.ndarray, q: np.ndarray, target_idx: np.ndarray | None = None):
+        """End rotation (…, m, 3, 3) and position (…, m, 3) mm for deviation vectors (…, k).
+
+        One batched call over all leading axes of ``deviation`` and all poses of ``q``.
+        """
+        geom, base, tools = self.expand(deviation)
+        return chain_pose(self.robot.convention, geom, q, base, self._tools_for(tools, target_idx))
+
+    def points(self, deviation: np.ndarray, q: np.ndarray, target_idx: np.ndarray | None = None) -> np.ndarray:
+        """Measured-point positions (…, m, 3) mm only: the cheap path of position-only objectives."""
+        geom, base, tools = self.expand(deviation)
+        return chain_points(self.robot.convention, geom, q, base, self._tools_for(tools, target_idx))
+
+    def jacobian(self, deviation: np.ndarray, q: np.ndarray, target_idx: np.ndarray | None = None):
+        """Exact derivative of the end pose with respect to the deviation vector (k,).
+
+        Returns ``(J, R, p)``: J (m, 6, k) with rows (position mm, rotation rad about the
+        measuring-frame axes, left perturbation), R (m, 3, 3), p (m, 3).  J is a view of
+        a (k, m, 6) array: each parameter's column is contiguous.
+        """
+        Jc, R_e, p_e = self.jacobian_columns(deviation, q, target_idx)
+        return np.moveaxis(Jc, 0, -1), R_e, p_e
+
+    def jacobian_columns(
+        self, deviation: np.ndarray, q: np.ndarray, target_idx: np.ndarray | None = None, frames: bool = True
+    ):
+        """As :meth:`jacobian` with J laid out (k, m, 6); ``frames=False`` leaves the base and
+        tool columns zero (cheaper when none of them is estimated)."""
+        deviation = np.asarray(deviation, dtype=float)
+        geom, base, tools = self.expand(deviation)
+        tool = tools[:1] if target_idx is None else tools[target_idx]
+        Jj, R_e, p_e, R_f = chain_twist_jacobian(self.robot.convention, geom, q, base, tool)
+        m = p_e.shape[0]
+        kinds = len(joint_kinds(self.robot.convention))
+        J = np.zeros((self.size, m, 6))
+        nj = self.n_joint_params
+        J[:nj] = Jj[:, :kinds].reshape(nj, m, 6)
+        if frames:
+            _, db, dt = self._split(deviation)
+            self._base_columns(J[nj : nj + 6], db, p_e - base[:3, 3])
+            self._tool_columns(J, dt, R_e, R_f, target_idx)
+        return J, R_e, p_e
+
+    @staticmethod
+    def _base_columns(Jb: np.ndarray, db: np.ndarray, r: np.ndarray) -> None:
+        for k in range(3):
+            Jb[k, :, k] = 1.0
+        Wb = left_jacobian(db[3:])  # Exp(δ+ε) = Exp(J_l ε) Exp(δ)
+        for k in range(3):
+            w = Wb[:, k]
+            Jb[3 + k, :, :3] = np.cross(w, r)
+            Jb[3 + k, :, 3:] = w
+
+    def _tool_columns(self, J, dt, R_e, R_f, target_idx) -> None:
+        nj = self.n_joint_params
+        for t in range(len(self.targets)):
+            if target_idx is None:
+                if t > 0:
+                    break
+                rows = slice(None)
+            else:
+                rows = target_idx == t
+                if not np.any(rows):
+                    continue
+            # R_tool° Exp(δ+ε) = R_tool° Exp(δ) Exp(J_r(δ) ε), J_r(δ) = J_l(−δ)
+            Wt = R_e[rows] @ left_jacobian(-dt[t, 3:])
+            c = nj + 6 + 6 * t
+            Rf = R_f[rows]
+            for k in range(3):
+                J[c + k, rows, :3] = Rf[:, :, k]
+                J[c + 3 + k, rows, 3:] = Wt[:, :, k]

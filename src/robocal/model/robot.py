@@ -1,0 +1,91 @@
+"""The serial arm: geometry, joint limits, base and tool frames."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from ..math.se3 import homogeneous
+from .dh import ALPHA, BETA, THETA, A, D
+from .kinematics import chain_pose, check_convention
+
+
+@dataclass(frozen=True, eq=False)
+class Robot:
+    """A serial arm.
+
+    geometry: (n, 5) array of (a mm, alpha rad, theta rad, d mm, beta rad) per joint.
+    limits: (n, 2) rad, ±inf where a joint has none.  base: measuring frame → robot base
+    (4×4, mm).  tool: flange → measured point (4×4).  targets: further named tool frames,
+    one per reflector on the flange (the unnamed target "" is ``tool``).
+    """
+
+    convention: str
+    geometry: np.ndarray
+    limits: np.ndarray | None = None
+    base: np.ndarray = field(default_factory=lambda: np.eye(4))
+    tool: np.ndarray = field(default_factory=lambda: np.eye(4))
+    targets: Mapping[str, np.ndarray] = field(default_factory=dict)
+    name: str = ""
+    source: str = ""  # where it was loaded from (file path or "built-in NAME"), for messages
+
+    def __post_init__(self) -> None:
+        check_convention(self.convention)
+        g = np.array(self.geometry, dtype=float)
+        if g.ndim != 2 or g.shape[1] != 5:
+            raise ValueError("geometry must have shape (n, 5)")
+        object.__setattr__(self, "geometry", g)
+        lim = np.tile([-np.inf, np.inf], (g.shape[0], 1)) if self.limits is None else np.array(self.limits, float)
+        object.__setattr__(self, "limits", lim)
+        object.__setattr__(self, "base", np.array(self.base, dtype=float))
+        object.__setattr__(self, "tool", np.array(self.tool, dtype=float))
+        object.__setattr__(self, "targets", {k: np.array(v, float) for k, v in self.targets.items()})
+
+    @classmethod
+    def from_dh(cls, convention: str, a, alpha, theta, d, beta=None, **kw) -> Robot:
+        """Build from per-joint sequences (mm, rad)."""
+        beta = np.zeros(len(a)) if beta is None else beta
+        return cls(convention, np.column_stack([a, alpha, theta, d, beta]), **kw)
+
+    @property
+    def n_joints(self) -> int:
+        return self.geometry.shape[0]
+
+    a = property(lambda self: self.geometry[:, A])
+    alpha = property(lambda self: self.geometry[:, ALPHA])
+    theta = property(lambda self: self.geometry[:, THETA])
+    d = property(lambda self: self.geometry[:, D])
+    beta = property(lambda self: self.geometry[:, BETA])
+
+    @property
+    def target_names(self) -> tuple[str, ...]:
+        return ("",) + tuple(self.targets)
+
+    def tool_frames(self, targets: Sequence[str] | None = None) -> np.ndarray:
+        """Tool frame per pose, (m, 4, 4), or (1, 4, 4) when no targets are given."""
+        if targets is None:
+            return self.tool[None]
+        table = {"": self.tool, **self.targets}
+        try:
+            return np.stack([table[t] for t in targets])
+        except KeyError as exc:
+            raise ValueError(f"robot has no tool frame for target {exc.args[0]!r}") from None
+
+    def fk(self, q, targets: Sequence[str] | None = None) -> np.ndarray:
+        """End poses (m, 4, 4) in the measuring frame for joint values q (m, n) in rad."""
+        R, p = chain_pose(self.convention, self.geometry, np.atleast_2d(q), self.base, self.tool_frames(targets))
+        return homogeneous(R, p)
+
+    def positions(self, q, targets: Sequence[str] | None = None) -> np.ndarray:
+        """Measured-point positions (m, 3) mm in the measuring frame for joint values q (m, n) rad."""
+        _, p = chain_pose(self.convention, self.geometry, np.atleast_2d(q), self.base, self.tool_frames(targets))
+        return p
+
+    def replace(self, **changes) -> Robot:
+        return replace(self, **changes)
+
+    def reach(self) -> float:
+        """A length scale of the arm (mm): sum of |a| and |d|, at least 1."""
+        return float(max(1.0, np.abs(self.a).sum() + np.abs(self.d).sum()))

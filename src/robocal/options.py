@@ -1,0 +1,117 @@
+"""Checks of option values shared by every configuration: one place for the one-line errors.
+
+Each check returns the coerced value or raises :class:`InputError` naming the option.
+Strings are accepted where the command line passes text (``box="0.5,0.01"``), so the
+command line and the Python API go through the same checks.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+from .exceptions import InputError
+
+
+def choice(value, allowed: Sequence[str], option: str, what: str = "value") -> str:
+    if value not in allowed:
+        raise InputError(f"unknown {what} {value!r} (expected {' | '.join(allowed)})", option=option)
+    return value
+
+
+def number(value, option: str, *, minimum: float | None = None, strict: bool = False,
+           maximum: float | None = None) -> float:
+    """A finite float ≥ minimum (> minimum when strict) and ≤ maximum."""
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise InputError(f"expected a number, got {value!r}", option=option) from None
+    if not math.isfinite(v):
+        raise InputError(f"must be finite, got {value!r}", option=option)
+    if minimum is not None and (v <= minimum if strict else v < minimum):
+        raise InputError(f"must be a finite value {'>' if strict else '≥'} {minimum:g}, got {v:g}", option=option)
+    if maximum is not None and v > maximum:
+        raise InputError(f"must be ≤ {maximum:g}, got {v:g}", option=option)
+    return v
+
+
+def integer(value, option: str, *, minimum: int | None = None) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, float, str)):
+        raise InputError(f"expected an integer, got {value!r}", option=option)
+    try:
+        v = int(value)
+    except (TypeError, ValueError):
+        raise InputError(f"expected an integer, got {value!r}", option=option) from None
+    if isinstance(value, float) and value != v:
+        raise InputError(f"expected an integer, got {value!r}", option=option)
+    if minimum is not None and v < minimum:
+        raise InputError(f"must be ≥ {minimum}, got {v}", option=option)
+    return v
+
+
+def optional_integer(value, option: str, *, minimum: int | None = None) -> int | None:
+    return None if value is None else integer(value, option, minimum=minimum)
+
+
+def floats(value, option: str, sizes: tuple[int, ...]) -> tuple[float, ...]:
+    """A comma list (or sequence) of finite numbers whose count is one of ``sizes``."""
+    if isinstance(value, str):
+        try:
+            values = [float(v) for v in value.split(",")]
+        except ValueError:
+            raise InputError(f"expected {' or '.join(map(str, sizes))} comma-separated numbers, got {value!r}",
+                             option=option) from None
+    else:
+        try:
+            values = [float(v) for v in value]
+        except (TypeError, ValueError):
+            raise InputError(f"expected {' or '.join(map(str, sizes))} numbers, got {value!r}", option=option) from None
+    if len(values) not in sizes or not all(math.isfinite(v) for v in values):
+        raise InputError(f"expected {' or '.join(map(str, sizes))} finite comma-separated numbers, got {value!r}",
+                         option=option)
+    return tuple(values)
+
+
+def frame_values(value, option: str) -> tuple[float, ...] | None:
+    """x,y,z[,rx,ry,rz] with angles in deg (as typed) → (mm…, rad…), or None."""
+    if value is None:
+        return None
+    v = floats(value, option, (3, 6))
+    return v[:3] + tuple(math.radians(a) for a in v[3:])
+
+
+def column_map(items) -> dict[str, str] | None:
+    """``FILE=ROBOCAL`` pairs, each item possibly a comma list (``J1=q1,J2=q2``)."""
+    if not items:
+        return None
+    if isinstance(items, dict):
+        return {str(k): str(v) for k, v in items.items()}
+    out: dict[str, str] = {}
+    for item in items:
+        for pair in str(item).split(","):
+            if "=" not in pair:
+                raise InputError(f"expected FILE_COLUMN=ROBOCAL_COLUMN, got {pair!r}", option="column")
+            old, new = pair.split("=", 1)
+            out[old.strip()] = new.strip()
+    return out
+
+
+def joint_limits(text: str | None, n: int, option: str = "limits"):
+    """'lo:hi,lo:hi,…' (deg, one per joint) → (n, 2) rad, or None."""
+    if text is None:
+        return None
+    import numpy as np
+
+    parts = [p.strip() for p in text.split(",")]
+    if len(parts) != n:
+        raise InputError(f"expected {n} ranges lo:hi (deg), got {len(parts)}", option=option)
+    out = []
+    for j, p in enumerate(parts):
+        try:
+            lo, hi = (float(v) for v in p.split(":"))
+        except ValueError:
+            raise InputError(f"joint {j + 1}: expected lo:hi in degrees, got {p!r}", option=option) from None
+        if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
+            raise InputError(f"joint {j + 1}: need finite lo < hi, got {p!r}", option=option)
+        out.append((math.radians(lo), math.radians(hi)))
+    return np.array(out)

@@ -1,0 +1,41 @@
+"""``robocal reproduce``: run one paper's experiment, or all three, into a folder."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from .. import options as opt
+from ..exceptions import InputError
+from . import SCENARIOS
+from .common import Say, quiet
+
+
+def reproduce(name: str, out: str | Path, *, quick: bool = False, runs: int = 10, seed: int = 0,
+              say: Say = quiet) -> dict:
+    """Run one scenario (or ``all``) into folder ``out`` (subfolders per scenario for ``all``).
+
+    quick: shortened settings, a smoke test only.  runs: repeated runs per swarm (kou2022).
+    Each writes ``summary.md``, ``results.json`` and PNG figures.
+    """
+    names = SCENARIOS if name == "all" else (opt.choice(name, SCENARIOS + ("all",), "scenario", "scenario"),)
+    opt.integer(runs, "runs", minimum=1)
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise InputError("exists and is not a folder", source=out)
+    done = {}
+    for n in names:
+        folder = out / n if name == "all" else out
+        folder.mkdir(parents=True, exist_ok=True)
+        if n == "wen2019":
+            from .wen2019.reproduce import wen2019
+
+            done[n] = wen2019(folder, quick=quick, seed=seed, say=say)
+        elif n == "kou2022":
+            from .kou2022.reproduce import kou2022
+
+            done[n] = kou2022(folder, quick=quick, runs=runs, seed=seed, say=say)
+        else:
+            from .chen2023.reproduce import chen2023_study
+
+            done[n] = chen2023_study(folder, quick=quick, seed=seed, say=say)
+    return done

@@ -1,0 +1,1 @@
+"""What users see: figures (:mod:`.figures`) and the self-contained HTML report (:mod:`.html`)."""

@@ -1,0 +1,147 @@
+"""Simulated measurement campaigns: plant deviations in a robot, draw joint sets, measure with noise."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import options as opt
+from .exceptions import InputError
+from .math.se3 import frame_from_values
+from .math.so3 import exp_so3
+from .model.candidates import parallel_pairs
+from .model.measurements import Measurements
+from .model.parameters import ParameterSpace
+from .model.robot import Robot
+from .papers import wen2019
+
+MEASURES = ("pose", "position")
+
+
+def planted_deviations(robot: Robot, spec: str, rng: np.random.Generator) -> dict[str, float]:
+    """Joint-geometry deviations from a spec: ``none``, ``paper`` (Wen 2019 Table 2, ER10L-C10),
+    or ``uniform:LEN_MM,ANGLE_RAD`` (uniform in ±LEN on a, d and ±ANGLE on α, θ, and on β of
+    hayati joints whose axis is parallel to the next)."""
+    spec = spec.strip().lower()
+    if spec == "none":
+        return {}
+    if spec == "paper":
+        if robot.convention != "hayati" or robot.n_joints != 6:
+            raise InputError("errors 'paper' are Wen et al. Table 2, for the 6-joint hayati ER10L-C10",
+                             option="errors")
+        return dict(wen2019.TABLE2_DEVIATIONS)
+    if spec.startswith("uniform:"):
+        try:
+            length, angle = (float(v) for v in spec[len("uniform:") :].split(","))
+        except ValueError:
+            raise InputError("expected uniform:LEN_MM,ANGLE_RAD, e.g. uniform:0.25,0.05", option="errors") from None
+        if not (math.isfinite(length) and math.isfinite(angle)) or length < 0 or angle < 0:
+            raise InputError("uniform bounds must be finite and ≥ 0", option="errors")
+        out: dict[str, float] = {}
+        for i in range(robot.n_joints):
+            out[f"a{i + 1}"] = rng.uniform(-length, length)
+            out[f"alpha{i + 1}"] = rng.uniform(-angle, angle)
+            out[f"theta{i + 1}"] = rng.uniform(-angle, angle)
+            out[f"d{i + 1}"] = rng.uniform(-length, length)
+        if robot.convention == "hayati":
+            for i in parallel_pairs(robot):
+                out[f"beta{i + 1}"] = rng.uniform(-angle, angle)
+        return out
+    raise InputError(f"unknown error spec {spec!r} (none | paper | uniform:LEN_MM,ANGLE_RAD)", option="errors")
+
+
+def joint_ranges(robot: Robot, joint_range=None) -> np.ndarray:
+    """(n, 2) rad sampling ranges: the joint limits (±π where a joint has none), intersected
+    with ``joint_range``: (lo, hi) rad for every joint, or (n, 2) per joint."""
+    lim = robot.limits.copy()
+    lim[~np.isfinite(lim[:, 0]), 0] = -math.pi
+    lim[~np.isfinite(lim[:, 1]), 1] = math.pi
+    if joint_range is None:
+        return lim
+    rng = np.asarray(joint_range, dtype=float)
+    if rng.ndim == 2 and rng.shape != (robot.n_joints, 2):
+        raise InputError(f"expected {robot.n_joints} joint ranges, got {len(rng)}", option="limits")
+    lim = np.column_stack([np.maximum(lim[:, 0], rng[..., 0]), np.minimum(lim[:, 1], rng[..., 1])])
+    bad = np.flatnonzero(lim[:, 0] >= lim[:, 1])
+    if bad.size:
+        raise InputError(f"joint {bad[0] + 1} range does not overlap its limits",
+                         option="range" if rng.ndim == 1 else "limits")
+    return lim
+
+
+def random_joints(robot: Robot, n: int, rng: np.random.Generator, joint_range=None) -> np.ndarray:
+    """n joint sets (n, joints) in rad, uniform inside :func:`joint_ranges`."""
+    lim = joint_ranges(robot, joint_range)
+    return rng.uniform(lim[:, 0], lim[:, 1], size=(n, robot.n_joints))
+
+
+@dataclass(frozen=True)
+class Simulation:
+    """A simulated campaign: what was measured, the true robot, and the deviations planted in it (mm, rad)."""
+
+    measurements: Measurements
+    truth: Robot
+    deviations: dict[str, float]
+
+
+def simulate(
+    robot: Robot,
+    n_poses: int,
+    *,
+    deviations: str | dict[str, float] = "none",
+    noise: float = 0.0,
+    angle_noise: float = 0.0,
+    joint_noise: float = 0.0,
+    joint_noise_uniform: float = 0.0,
+    measure: str = "pose",
+    seed: int | None = 0,
+    joint_range=None,
+    q: np.ndarray | None = None,
+    base: Sequence[float] | None = None,
+    tool: Sequence[float] | None = None,
+) -> Simulation:
+    """Simulate a measurement campaign on a robot with planted deviations.
+
+    deviations: a spec for :func:`planted_deviations` or a {parameter: value} dict (mm, rad;
+    any name of :class:`ParameterSpace`).  noise: σ of the position noise per axis (mm).
+    angle_noise: σ of the orientation noise per axis (rad).  joint_noise: σ (rad) of
+    Gaussian differences between commanded and actual joints; joint_noise_uniform:
+    half-width (rad) of uniform ones (Wen 2019 adds U(−0.1, 0.1) rad).  The file records
+    the commanded joints.  base/tool: the true measuring frame → base and flange → point as
+    (x, y, z[, rx, ry, rz]) in mm and rad, replacing the robot's own.  q: joint sets to use
+    instead of random ones (rad); joint_range: see :func:`joint_ranges`.
+    """
+    opt.choice(measure, MEASURES, "measure", "measure")
+    for name, value in (("noise", noise), ("angle_noise", angle_noise), ("joint_noise", joint_noise),
+                        ("joint_noise_uniform", joint_noise_uniform)):
+        opt.number(value, name, minimum=0.0)
+    if q is None and opt.integer(n_poses, "poses") < 1:
+        raise InputError(f"need at least 1 pose, got {n_poses}", option="poses")
+    rng = np.random.default_rng(seed)
+    space = ParameterSpace.of(robot)
+    planted = planted_deviations(robot, deviations, rng) if isinstance(deviations, str) else dict(deviations)
+    try:
+        truth = space.apply(space.vector(planted))
+    except KeyError as exc:
+        raise InputError(f"unknown parameter {exc.args[0]}", option="errors") from None
+    if base is not None:
+        truth = truth.replace(base=frame_from_values(base))
+    if tool is not None:
+        truth = truth.replace(tool=frame_from_values(tool))
+    q_cmd = random_joints(robot, n_poses, rng, joint_range) if q is None else np.asarray(q, float)
+    q_act = q_cmd.copy()
+    if joint_noise > 0:
+        q_act = q_act + rng.normal(0.0, joint_noise, q_cmd.shape)
+    if joint_noise_uniform > 0:
+        q_act = q_act + rng.uniform(-joint_noise_uniform, joint_noise_uniform, q_cmd.shape)
+    T = truth.fk(q_act)
+    pos = T[:, :3, 3] + (rng.normal(0.0, noise, (len(q_cmd), 3)) if noise > 0 else 0.0)
+    rot = None
+    if measure == "pose":
+        rot = T[:, :3, :3]
+        if angle_noise > 0:
+            rot = exp_so3(rng.normal(0.0, angle_noise, (len(q_cmd), 3))) @ rot
+    return Simulation(Measurements(q=q_cmd, position=pos, rotation=rot, source="<simulated>"), truth, planted)

@@ -1,0 +1,147 @@
+"""Compensation: corrected joints and Cartesian goals from a calibrated model."""
+
+import csv
+import io
+
+import numpy as np
+import pytest
+
+from robocal.calibration import calibrate
+from robocal.compensation import compensate
+from robocal.compensation.ik import solve_ik
+from robocal.io.goals import Goals, parse_goals
+from robocal.io.robotfile import load_robot
+from robocal.model.jointspace import condition_numbers
+from robocal.model.parameters import ParameterSpace
+from robocal.simulation import joint_ranges, simulate
+
+pytestmark = pytest.mark.usefixtures("quiet")
+
+
+def _work_cell_targets(robot, n, seed):
+    """Joint targets as a work cell would be laid out: inside the limits with a 10° margin,
+    away from singular configurations (nominal joint-Jacobian condition number below 100),
+    and with the flange at least 300 mm from axis 1 (not folded over the robot's base)."""
+    lim = joint_ranges(robot) + np.radians([10.0, -10.0])
+    q = np.random.default_rng(seed).uniform(lim[:, 0], lim[:, 1], (8 * n, robot.n_joints))
+    p = robot.positions(q)
+    keep = (condition_numbers(robot, q, True, 1000.0) < 100) & (np.hypot(p[:, 0], p[:, 1]) > 300.0)
+    q = q[keep][:n]
+    assert len(q) == n
+    return q
+
+
+@pytest.mark.parametrize(
+    "name,measure,errors", [("er10l-c10", "pose", "paper"), ("kr5-arc", "position", "uniform:0.25,0.05")]
+)
+def test_compensation_brings_true_robot_to_calibration_accuracy(name, measure, errors):
+    robot = load_robot(name)
+    sim = simulate(robot, 50, deviations=errors, seed=3, measure=measure, noise=0.02)
+    val = simulate(sim.truth, 200, seed=4, measure=measure).measurements
+    cal = calibrate(robot, sim.measurements, "lm", validate=val)
+    q = _work_cell_targets(robot, 200, seed=5)
+    targets = Goals(q=q, position=None, rotation=None, ids=[str(i) for i in range(len(q))])
+    res = compensate(robot, cal.robot, targets, truth=sim.truth, position_only=measure == "position")
+    assert res.status == ["ok"] * 200
+    v = res.validation()
+    before = v["nominal_commands"].position["mean"]
+    after = v["compensated_commands"].position["mean"]
+    assert before > 5.0  # millimetres uncorrected
+    assert after <= 1.5 * cal.metrics["validation_after"].position["rms"]
+    lo, hi = robot.limits[:, 0], robot.limits[:, 1]
+    assert np.all(res.q >= lo - 1e-12) and np.all(res.q <= hi + 1e-12)
+    # same configuration branch: a few degrees from the nominal joints
+    moved = np.degrees(np.abs(res.q - q).max(axis=1))
+    assert np.median(moved) < 6.0 and np.percentile(moved, 95) < 10.0
+    # the Cartesian goal is the nominal model's pose of the compensated joints
+    np.testing.assert_allclose(res.cartesian, robot.fk(res.q), atol=1e-9)
+
+
+def test_ik_converges_to_a_planted_solution(rng):
+    robot = load_robot("er10l-c10")
+    q = np.radians([[31.8, 90.9, 70.4, 63.5, -99.5, -54.9], [10.0, 20.0, 30.0, 40.0, 50.0, 60.0]])
+    dq = np.radians([[0.5, -0.3, 0.2, 0.4, -0.2, 0.3]] * 2)
+    T = robot.fk(q + dq)
+    sol = solve_ik(robot, T[:, :3, 3], T[:, :3, :3], q)
+    assert sol.status == ["ok", "ok"]
+    np.testing.assert_allclose(sol.q, q + dq, atol=1e-9)
+
+
+def test_statuses_for_singular_unreachable_and_limit_targets():
+    robot = load_robot("kr5-arc")
+    space = ParameterSpace.of(robot)
+    calibrated = space.apply(space.vector({"theta1": -0.01, "a2": 0.3}))
+    q = np.radians([
+        [10.0, -60.0, 90.0, 20.0, 0.0, 10.0],   # q5 = 0: axes 4 and 6 aligned (wrist singularity)
+        [155.0, -60.0, 90.0, 20.0, 40.0, 10.0],  # joint 1 at its limit; θ1 error needs 0.57° more
+        [20.0, -50.0, 80.0, 10.0, 30.0, 5.0],    # an ordinary target
+    ])
+    res = compensate(robot, calibrated, Goals(q=q, position=None, rotation=None, ids=["s", "l", "o"]))
+    assert res.status == ["singular", "limit", "ok"]
+    far = Goals(
+        q=None, position=np.array([[5000.0, 0.0, 500.0], [600.0, 100.0, 900.0]]), rotation=None, ids=["far", "near"]
+    )
+    res = compensate(robot, calibrated, far)
+    assert res.status[0] in ("unreachable", "limit") and res.status[1] == "ok"
+    assert res.residual_mm[0] > 1000 and res.residual_mm[1] < 1e-5
+
+
+def test_pose_targets_with_and_without_start_joints():
+    robot = load_robot("er10l-c10")
+    space = ParameterSpace.of(robot)
+    calibrated = space.apply(space.vector({"theta2": 0.002, "d4": 0.3, "alpha3": -0.001}))
+    q = np.radians([[10.0, 20.0, 30.0, 40.0, 50.0, 60.0], [-30.0, 45.0, -20.0, 80.0, -60.0, 10.0]])
+    T = robot.fk(q)
+    from robocal.math.so3 import matrix_to_rpy
+
+    text = "q1,q2,q3,q4,q5,q6,x,y,z,rx,ry,rz\n" + "\n".join(
+        ",".join(str(float(v)) for v in [*np.degrees(q[i]), *T[i, :3, 3], *np.degrees(matrix_to_rpy(T[i, :3, :3]))])
+        for i in range(2)
+    )
+    res = compensate(robot, calibrated, parse_goals(text))
+    assert res.status == ["ok", "ok"]
+    np.testing.assert_allclose(calibrated.fk(res.q), T, atol=1e-6)
+    assert np.degrees(np.abs(res.q - q).max()) < 2
+    positions_only = compensate(
+        robot,
+        calibrated,
+        parse_goals("x,y,z\n" + "\n".join(",".join(str(float(v)) for v in T[i, :3, 3]) for i in range(2))),
+    )
+    assert positions_only.status == ["ok", "ok"] and not positions_only.full_pose
+    np.testing.assert_allclose(calibrated.positions(positions_only.q), T[:, :3, 3], atol=1e-5)
+
+
+def test_cli_compensate(tmp_path, run_cli):
+    d, t, cal = tmp_path / "d.csv", tmp_path / "t.toml", tmp_path / "cal.toml"
+    run_cli(
+        "simulate",
+        "er10l-c10",
+        "--errors",
+        "paper",
+        "--poses",
+        40,
+        "--noise",
+        0.02,
+        "--seed",
+        3,
+        "--out",
+        d,
+        "--truth",
+        t,
+    )
+    assert run_cli("calibrate", "er10l-c10", d, "--export", cal, "--quiet")[0] == 0
+    targets = tmp_path / "targets.csv"
+    targets.write_text("pose_id,q1,q2,q3,q4,q5,q6\nA,10,20,30,40,50,60\nB,-30,45,-20,80,-60,10\nC,0,0,0,0,0,0\n")
+    out = tmp_path / "cmd.csv"
+    code, stdout, err = run_cli(
+        "compensate", "er10l-c10", cal, targets, "--out", out, "--truth", t, "--json", tmp_path / "s.json"
+    )
+    assert code == 0, err
+    rows = list(csv.DictReader(io.StringIO(out.read_text())))
+    assert [r["pose_id"] for r in rows] == ["A", "B", "C"]
+    assert rows[0]["status"] == "ok" and float(rows[0]["true_error_after_mm"]) < 0.1
+    assert rows[2]["status"] == "singular"  # q5 = 0 on the ER10L-C10 aligns axes 4 and 6
+    bad = tmp_path / "bad.csv"
+    bad.write_text("q1,q2,q3\n1,2,3\n")
+    code, _, err = run_cli("compensate", "er10l-c10", cal, bad, "--out", tmp_path / "x.csv")
+    assert code == 2 and "robot has 6 joints" in err and not (tmp_path / "x.csv").exists()

@@ -1,0 +1,83 @@
+"""Backend choice is explicit, honours ROBOCAL_NO_NUMBA, and nothing heavy loads at import."""
+
+import json
+import os
+import subprocess
+import sys
+
+import pytest
+
+from robocal.backend import numba_installed, resolve
+from robocal.exceptions import InputError
+
+
+def _python(code: str, env_extra: dict | None = None) -> str:
+    """stdout of ``code`` in a fresh interpreter, with ROBOCAL_NO_NUMBA only as given."""
+    env = dict(os.environ)
+    env.pop("ROBOCAL_NO_NUMBA", None)
+    env.update(env_extra or {})
+    return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, env=env).stdout
+
+
+def test_explicit_choices_and_bad_values(monkeypatch):
+    assert resolve("numpy") == "numpy"
+    monkeypatch.setenv("ROBOCAL_NO_NUMBA", "1")
+    assert resolve("auto") == "numpy"
+    with pytest.raises(InputError, match="unknown backend"):
+        resolve("cuda")
+
+
+@pytest.mark.skipif(not numba_installed(), reason="numba (fast extra) not installed")
+def test_environment_variable_is_read_at_call_time_not_import_time(monkeypatch):
+    monkeypatch.delenv("ROBOCAL_NO_NUMBA", raising=False)
+    assert resolve("auto") == "numba"
+    monkeypatch.setenv("ROBOCAL_NO_NUMBA", "1")
+    assert resolve("auto") == "numpy"
+    assert resolve("numba") == "numba"  # an explicit request wins
+
+
+def test_swarm_under_no_numba_runs_the_numpy_path_and_loads_no_numba():
+    code = (
+        "import sys, json, numpy as np\n"
+        "from robocal.optimize.swarm import pso\n"
+        "r = pso(lambda X: np.sum(X**2, -1), -np.ones(4), np.ones(4), particles=20, iterations=30, seed=2)\n"
+        "print(json.dumps({'x': r.x.tolist(), 'numba': 'numba' in sys.modules}))\n"
+    )
+    out = json.loads(_python(code, {"ROBOCAL_NO_NUMBA": "1"}).splitlines()[-1])
+    assert out["numba"] is False
+    import numpy as np
+
+    from robocal.optimize.swarm import pso
+
+    ref = pso(lambda X: np.sum(X**2, -1), -np.ones(4), np.ones(4), particles=20, iterations=30, seed=2,
+              backend="numpy")
+    assert out["x"] == ref.x.tolist()
+
+
+def test_import_and_help_load_nothing_heavy():
+    code = (
+        "import sys, json, robocal, robocal.cli\n"
+        "from robocal.cli import main\n"
+        "import io, contextlib\n"
+        "with contextlib.redirect_stdout(io.StringIO()):\n"
+        "    main(['--help'])\n"
+        "print(json.dumps(sorted(m for m in ('numba', 'scipy', 'matplotlib', 'numpy') if m in sys.modules)))\n"
+    )
+    assert json.loads(_python(code).splitlines()[-1]) == []
+
+
+def test_no_process_wide_state_changes():
+    import numpy as np
+
+    before = np.geterr()
+    from robocal.cli import main
+
+    main(["robots"])
+    assert np.geterr() == before
+    import matplotlib
+
+    backend = matplotlib.get_backend()
+    from robocal.report import figures
+
+    figures.png_bytes(figures.convergence({"a": np.array([3.0, 2.0, 1.0])}, "t"))
+    assert matplotlib.get_backend() == backend

@@ -1,0 +1,46 @@
+"""Every calibration option is validated once, in CalibrationConfig, with the one-line contract."""
+
+import pytest
+
+from robocal.calibration.config import CalibrationConfig
+from robocal.exceptions import InputError
+
+BAD = [
+    ({"method": "sgd"}, "method", "unknown method"),
+    ({"frames": "tool"}, "frames", "unknown frames mode"),
+    ({"loss": "hubber"}, "loss", "unknown loss 'hubber'"),
+    ({"loss": "huber", "method": "pso"}, "loss", "applies to lm and hybrid"),
+    ({"f_scale": 0}, "f_scale", "> 0"),
+    ({"f_scale": float("nan")}, "f_scale", "finite"),
+    ({"particles": 0}, "particles", "≥ 1"),
+    ({"iterations": -3}, "iterations", "≥ 1"),
+    ({"box": "0,1"}, "box", "half-widths must be > 0"),
+    ({"box": "0.5"}, "box", "finite comma-separated numbers"),
+    ({"objective": "max"}, "objective", "unknown objective"),
+    ({"halton": "sobol"}, "halton", "unknown Halton start"),
+    ({"k": -1}, "k", "≥ 0"),
+    ({"seed": -1}, "seed", "≥ 0"),
+    ({"seed": "abc"}, "seed", "integer"),
+    ({"params": ""}, "params", "no parameter names"),
+    ({"swarm": {"omega": 0.5}, "method": "pso"}, "swarm", "unknown setting 'omega'"),
+    ({"backend": "gpu"}, "backend", "unknown backend"),
+    ({"max_evaluations": 0}, "max_evaluations", "≥ 1"),
+]
+
+
+@pytest.mark.parametrize("options,option,message", BAD)
+def test_bad_values_name_their_option(options, option, message):
+    with pytest.raises(InputError) as info:
+        CalibrationConfig(**options)
+    assert info.value.option == option and message in str(info.value)
+    assert info.value.render(cli=True).startswith(f"--{option.replace('_', '-')}: ")
+    assert str(info.value).startswith(f"option '{option}': ")
+
+
+def test_defaults_and_coercions():
+    c = CalibrationConfig(method="pso", box="0.5,0.01", params="a1, d2,a1", seed="4")
+    assert c.objective_kind == "sum_norms" and c.box == (0.5, 0.01) and c.params == ("a1", "d2") and c.seed == 4
+    assert CalibrationConfig(params="wen2019").params == "wen2019" and CalibrationConfig(params="all").params is None
+    assert CalibrationConfig.build(c, method="lm").method == "lm"
+    with pytest.raises(TypeError):
+        CalibrationConfig.build(None, speed=3)
