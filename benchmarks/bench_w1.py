@@ -1,6 +1,6 @@
 """Workload W1 of robocal's speed targets; prints its rows. Run: python benchmarks/bench_w1.py"""
 
-from robocal.bench import format_value, w1
+from robocal.bench.timing import print_rows
+from robocal.bench.workloads import w1_ipso
 
-for row in w1():
-    print(f"{row.workload:55s} {format_value(row):>12s}  target {row.target}  {row.peer} {row.note}")
+print_rows(w1_ipso())

@@ -1,6 +1,6 @@
 """Workload W2 of robocal's speed targets; prints its rows. Run: python benchmarks/bench_w2.py"""
 
-from robocal.bench import format_value, w2
+from robocal.bench.timing import print_rows
+from robocal.bench.workloads import w2_swarms
 
-for row in w2():
-    print(f"{row.workload:55s} {format_value(row):>12s}  target {row.target}  {row.peer} {row.note}")
+print_rows(w2_swarms())

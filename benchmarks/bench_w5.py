@@ -1,6 +1,6 @@
 """Workload W5 of robocal's speed targets; prints its rows. Run: python benchmarks/bench_w5.py"""
 
-from robocal.bench import format_value, w5
+from robocal.bench.timing import print_rows
+from robocal.bench.workloads import w5_pkm
 
-for row in w5():
-    print(f"{row.workload:55s} {format_value(row):>12s}  target {row.target}  {row.peer} {row.note}")
+print_rows(w5_pkm())

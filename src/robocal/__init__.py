@@ -30,7 +30,7 @@ _EXPORTS = {
     "Metrics": "robocal.model.metrics",
     "ParameterSpace": "robocal.model.parameters",
     "Robot": "robocal.model.robot",
-    "builtin_names": "robocal.io.robotfile",
+    "builtin_names": "robocal.io.builtins",
     "load_robot": "robocal.io.robotfile",
     "save_robot": "robocal.io.robotfile",
     "load_measurements": "robocal.io.measurements",

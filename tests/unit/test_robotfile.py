@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 
 from robocal.exceptions import InputError
-from robocal.io.robotfile import builtin_names, load_robot, parse_robot, robot_to_toml, save_robot
+from robocal.io.builtins import builtin_names, builtin_summaries
+from robocal.io.robotfile import load_robot, parse_robot, robot_to_toml, save_robot
 from robocal.math.se3 import xyz_rpy_to_transform
 
 GOOD = """
@@ -34,9 +35,11 @@ def test_builtins_load():
     names = builtin_names()
     for required in ("er10l-c10", "kr5-arc", "irb120", "ur10", "puma560"):
         assert required in names
-    for name in names:
+    for name, summary in zip(names, builtin_summaries()):
         r = load_robot(name)
-        assert r.n_joints == 6
+        assert r.n_joints == 6 == summary["joints"]
+        assert (summary["name"], summary["robot"], summary["convention"]) == (name, r.name, r.convention)
+        assert summary["source"]
 
 
 def test_robot_file_round_trip_is_exact(tmp_path, rng):

@@ -66,6 +66,7 @@ class Problem:
         self._Rm = self.meas.rotation if self.uses_orientation else None
         self._sqrt_k = float(np.sqrt(self.k))
         self._frames_active = bool(np.any(self.active >= self.space.n_joint_params))
+        self._backend = resolve(setup.backend)  # read once: ROBOCAL_NO_NUMBA as it is when the problem is set up
 
     @property
     def names(self) -> list[str]:
@@ -105,7 +106,7 @@ class Problem:
         if kind not in ("sum_squares", "sum_norms"):
             raise ValueError(f"unknown objective {kind!r}")
         X = np.asarray(X, dtype=float)
-        if X.ndim == 2 and resolve(backend or self.setup.backend) == "numba":
+        if X.ndim == 2 and (self._backend if backend is None else resolve(backend)) == "numba":
             return self._compiled_objective(X, kind)
         dp, dr = self.errors(X)
         if kind == "sum_norms":
@@ -122,7 +123,10 @@ class Problem:
         m = self.meas.n_poses
         kinds = len(joint_kinds(self.space.robot.convention))
         tidx = np.zeros(m, dtype=np.int64) if self.target_idx is None else self.target_idx.astype(np.int64)
+        _, base, tools = self.space.expand(np.zeros(self.space.size))
         return {
+            "base": base,
+            "tools": tools,
             "kernels": kernels,
             "conv": kernels.CONVENTION_CODE[self.space.robot.convention],
             # positions of the estimated joint parameters in the flat (n, 5) geometry
@@ -139,9 +143,8 @@ class Problem:
                   0 if kind == "sum_squares" else 1)
         if not self._frames_active:
             # each particle adds its joint deviations to the nominal geometry inside the kernel
-            _, base, tools = self.space.expand(np.zeros(self.space.size))
-            return kernels.objective_joints(c["conv"], self.space.robot.geometry, c["geom_cols"], X, base, tools,
-                                            *common)
+            return kernels.objective_joints(c["conv"], self.space.robot.geometry, c["geom_cols"], X, c["base"],
+                                            c["tools"], *common)
         geom, base, tools = self.space.expand(self.full(X))
         return kernels.objective(c["conv"], geom, base, tools, *common)
 
@@ -162,7 +165,7 @@ class Problem:
         if self._Rm is not None:
             dr = orientation_error(self._Rm, R)
             w = np.ascontiguousarray(Jc[:, :, 3:])
-            if resolve(self.setup.backend) == "numba":
+            if self._backend == "numba":
                 Jr = self._kernel_inputs["kernels"].apply_right_jacobian_inv(dr, w)
             else:
                 Jr = apply_right_jacobian_inv(dr, w)

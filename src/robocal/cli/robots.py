@@ -7,13 +7,10 @@ import typer
 
 def robots_cmd() -> None:
     """List the built-in robots and the published source of each table."""
-    from ..io.robotfile import builtin_names, builtin_source, load_robot
+    from ..io.builtins import builtin_summaries
     from .common import console, table
 
-    rows = []
-    for name in builtin_names():
-        r = load_robot(name)
-        rows.append((name, r.name, r.convention, str(r.n_joints), builtin_source(name)))
+    rows = [(r["name"], r["robot"], r["convention"], str(r["joints"]), r["source"]) for r in builtin_summaries()]
     console().print(table("built-in robots", ("name", "robot", "convention", "joints", "source"), rows, "left"))
 
 

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import math
 import tomllib
-from importlib import resources
 from pathlib import Path
 
 import numpy as np
@@ -21,30 +20,12 @@ from ..math.so3 import matrix_to_rpy
 from ..model.kinematics import CONVENTIONS
 from ..model.robot import Robot
 from .atomic import atomic_write, read_text
+from .builtins import builtin_names, builtin_text
 
 TOP_KEYS = {"name", "convention", "joint", "base", "tool", "targets", "source"}
 JOINT_KEYS = {"a", "alpha", "d", "theta", "beta", "limits"}
 FRAME_KEYS = {"xyz", "rpy"}
 _RADIAN_LOOKALIKES = (math.pi / 2, math.pi, math.pi / 4)
-
-
-def _builtin_dir():
-    return resources.files("robocal.io") / "robots"
-
-
-def builtin_names() -> list[str]:
-    return sorted(p.name[:-5] for p in _builtin_dir().iterdir() if p.name.endswith(".toml"))
-
-
-def _builtin_text(name: str) -> str | None:
-    f = _builtin_dir() / f"{name.lower()}.toml"
-    return f.read_text(encoding="utf-8") if f.is_file() else None
-
-
-def builtin_source(name: str) -> str:
-    """The published source a built-in robot's table comes from."""
-    text = _builtin_text(name)
-    return "" if text is None else str(tomllib.loads(text).get("source", ""))
 
 
 def load_robot(spec: str | Path | Robot) -> Robot:
@@ -56,7 +37,7 @@ def load_robot(spec: str | Path | Robot) -> Robot:
         if not path.is_file():
             raise InputError("no such robot file", source=path)
         return parse_robot(read_text(path, "robot file"), source=str(path), default_name=path.stem)
-    text = _builtin_text(str(spec))
+    text = builtin_text(str(spec))
     if text is None:
         raise InputError(f"no robot file and no built-in robot of that name (built-in: {', '.join(builtin_names())})",
                          source=str(spec))

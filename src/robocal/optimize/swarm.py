@@ -30,6 +30,7 @@ A swarm runs a fixed number of generations by design, so a finished run has stat
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 from collections.abc import Callable
@@ -94,10 +95,8 @@ class SwarmEngine:
         self.iterations = iterations
 
     def _evaluate(self, x: np.ndarray) -> np.ndarray:
-        # Particles far outside any sensible model may overflow; they simply lose.
-        with np.errstate(over="ignore", invalid="ignore"):
-            X = x.reshape(self.B, -1, self.k) if self.batched else x
-            fx = np.asarray(self.f(X), dtype=float).reshape(-1)
+        X = x.reshape(self.B, -1, self.k) if self.batched else x
+        fx = np.asarray(self.f(X), dtype=float).reshape(-1)
         self.nfev += len(x)
         return fx
 
@@ -106,6 +105,12 @@ class SwarmEngine:
         return np.argmin(self.pbest_f.reshape(self.B, P), axis=1) + np.arange(self.B) * P
 
     def _update_global(self, rows: np.ndarray) -> None:
+        if self.B == 1:  # the common case, without fancy indexing
+            r = int(rows[0])
+            if self.pbest_f[r] < self.gbest_f[0]:
+                self.gbest[0] = self.pbest[r]
+                self.gbest_f[0] = self.pbest_f[r]
+            return
         better = self.pbest_f[rows] < self.gbest_f
         self.gbest[better] = self.pbest[rows[better]]
         self.gbest_f[better] = self.pbest_f[rows[better]]
@@ -179,6 +184,18 @@ class SwarmEngine:
         )
 
 
+def _floats_may_overflow(method):
+    """Run a swarm method with overflow and invalid-value warnings off, for that call only:
+    particles far outside any sensible model may overflow, and they simply lose."""
+
+    @functools.wraps(method)
+    def run(*args, **kwargs):
+        with np.errstate(over="ignore", invalid="ignore"):
+            return method(*args, **kwargs)
+
+    return run
+
+
 def _uniform_start(rng, n, lower, upper, batch: int = 1):
     lower, upper = np.asarray(lower, float), np.asarray(upper, float)
     half = 0.5 * (upper - lower)
@@ -186,6 +203,7 @@ def _uniform_start(rng, n, lower, upper, batch: int = 1):
     return rng.uniform(lower, upper, shape), rng.uniform(-half, half, shape)
 
 
+@_floats_may_overflow
 def pso(objective: Objective, lower, upper, *, particles: int = kou2022.PSO["particles"],
         iterations: int = kou2022.PSO["iterations"], w: float = kou2022.PSO["w"], c1: float = kou2022.PSO["c1"],
         c2: float = kou2022.PSO["c2"], seed: int | None = 0, callback: Progress | None = None,
@@ -202,6 +220,7 @@ def pso(objective: Objective, lower, upper, *, particles: int = kou2022.PSO["par
     return s.result("pso", start, {"particles": particles, "w": w, "c1": c1, "c2": c2})
 
 
+@_floats_may_overflow
 def ipso(objective: Objective, lower, upper, *, particles: int = wen2019.IPSO["particles"],
          iterations: int = wen2019.IPSO["iterations"], c1: float = wen2019.IPSO["c1"],
          c2: float = wen2019.IPSO["c2"], seed: int | None = 0, halton_scramble: bool = True,
@@ -230,6 +249,7 @@ def ipso(objective: Objective, lower, upper, *, particles: int = wen2019.IPSO["p
                                     "halton_scramble": halton_scramble})
 
 
+@_floats_may_overflow
 def ldpso_bt(objective: Objective, lower, upper, *, particles: int = kou2022.LDPSO_BT["particles"],
              min_particles: int = kou2022.LDPSO_BT["min_particles"],
              iterations: int = kou2022.LDPSO_BT["iterations"], w1: float = kou2022.LDPSO_BT["w1"],
@@ -260,6 +280,7 @@ def ldpso_bt(objective: Objective, lower, upper, *, particles: int = kou2022.LDP
     })
 
 
+@_floats_may_overflow
 def pso_batch(objective: Objective, lower, upper, batch: int, *, particles: int = chen2023.PSO["particles"],
               iterations: int = chen2023.PSO["iterations"], w: float = chen2023.PSO["w"],
               c1: float = chen2023.PSO["c1"], c2: float = chen2023.PSO["c2"], seed: int | None = 0,
