@@ -64,18 +64,29 @@ def matrix_to_rpy(R: np.ndarray) -> np.ndarray:
     return np.stack([roll, pitch, yaw], -1)
 
 
-def exp_so3(w: np.ndarray) -> np.ndarray:
-    """Rotation vectors (..., 3) in rad → rotation matrices (..., 3, 3) (Rodrigues)."""
-    w = np.asarray(w, dtype=float)
+def _rodrigues_coefficients(w: np.ndarray):
+    """sin θ/θ, (1 − cos θ)/θ², (θ − sin θ)/θ³ of rotation vectors (..., 3), θ = |w|, each (...)."""
     th2 = np.sum(w * w, -1)
     th = np.sqrt(th2)
     small = th < SERIES_ANGLE
     ths = np.where(small, 1.0, th)
     a = np.where(small, 1.0 - th2 / 6.0, np.sin(ths) / ths)
     b = np.where(small, 0.5 - th2 / 24.0, (1.0 - np.cos(ths)) / ths**2)
+    c = np.where(small, 1.0 / 6.0 - th2 / 120.0, (ths - np.sin(ths)) / ths**3)
+    return a, b, c
+
+
+def _quadratic_in_skew(w: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """I + b [w]× + c [w]×², batched."""
     K = skew(w)
-    eye = np.broadcast_to(np.eye(3), K.shape)
-    return eye + a[..., None, None] * K + b[..., None, None] * (K @ K)
+    return np.broadcast_to(np.eye(3), K.shape) + b[..., None, None] * K + c[..., None, None] * (K @ K)
+
+
+def exp_so3(w: np.ndarray) -> np.ndarray:
+    """Rotation vectors (..., 3) in rad → rotation matrices (..., 3, 3) (Rodrigues)."""
+    w = np.asarray(w, dtype=float)
+    a, b, _ = _rodrigues_coefficients(w)
+    return _quadratic_in_skew(w, a, b)
 
 
 def log_so3(R: np.ndarray) -> np.ndarray:
@@ -133,15 +144,8 @@ def apply_right_jacobian_inv(phi: np.ndarray, w: np.ndarray) -> np.ndarray:
 def left_jacobian(phi: np.ndarray) -> np.ndarray:
     """J_l(φ): Exp(φ + ε) ≈ Exp(J_l(φ) ε) · Exp(φ).  (..., 3) → (..., 3, 3)."""
     phi = np.asarray(phi, dtype=float)
-    th2 = np.sum(phi * phi, -1)
-    th = np.sqrt(th2)
-    small = th < SERIES_ANGLE
-    ths = np.where(small, 1.0, th)
-    b = np.where(small, 0.5 - th2 / 24.0, (1.0 - np.cos(ths)) / ths**2)
-    c = np.where(small, 1.0 / 6.0 - th2 / 120.0, (ths - np.sin(ths)) / ths**3)
-    K = skew(phi)
-    eye = np.broadcast_to(np.eye(3), K.shape)
-    return eye + b[..., None, None] * K + c[..., None, None] * (K @ K)
+    _, b, c = _rodrigues_coefficients(phi)
+    return _quadratic_in_skew(phi, b, c)
 
 
 def project_to_so3(M: np.ndarray) -> np.ndarray:
