@@ -78,3 +78,16 @@ def test_limits_and_reproducibility(run_cli, tmp_path):
         code, _, err = run_cli("plan", "kr5-arc", *bad, "--out", tmp_path / "x.csv")
         assert code == 2 and err.count("\n") == 1, (bad, err)
         assert not (tmp_path / "x.csv").exists()
+
+
+def test_plan_and_calibration_weigh_alike(quiet):
+    """Stating the plan's noise to the calibration gives the uncertainties the plan predicted."""
+    robot = load_robot("er10l-c10")
+    plan = plan_poses(robot, 30, candidates=300, measure="pose", noise=0.02, angle_noise=math.radians(0.002),
+                      seed=2, random_sets=2)
+    sim = simulate(robot, len(plan.q), q=plan.q, measure="pose")  # the nominal robot, no noise
+    res = calibrate(robot, sim.measurements, "lm", noise=0.02, angle_noise=math.radians(0.002))
+    assert res.k == pytest.approx((0.02 / math.radians(0.002)) ** 2)
+    predicted = dict(zip(plan.names, plan.predicted_std))
+    for name, u in zip(res.names, res.uncertainty):
+        assert u == pytest.approx(predicted[name], rel=1e-6), name

@@ -35,3 +35,13 @@ def test_prefer_changes_which_of_two_equal_columns_stays(rng):
     names = ["d2", "a1", "a2", "d3"]
     assert "d2" in analyse(J, names, np.zeros(4, bool), 5, 1.0).dropped
     assert "d3" in analyse(J, names, np.zeros(4, bool), 5, 1.0, prefer=["d2"]).dropped
+
+
+def test_regrouped_parameters_carry_what_they_absorb(rng):
+    """d2 and d3 of parallel axes have one column: d3 keeps it and estimates d3 + d2."""
+    J = rng.normal(size=(40, 3)) * [1.0, 2.0, 0.5]
+    J = np.column_stack([J[:, 0], 3.0 * J[:, 1], J[:, 1], J[:, 2]])  # d2 moves the data 3× as d3 does
+    ident = analyse(J, ["a1", "d2", "d3", "a3"], np.zeros(4, bool), 10, 1.0)
+    assert ident.dropped == ["d2"] and ident.reasons["d2"].related == ("d3",)
+    assert ident.absorbed_by("d3") == [("d2", pytest.approx(3.0))]
+    assert ident.absorbed_by("a1") == []

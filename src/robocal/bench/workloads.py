@@ -28,7 +28,7 @@ def wen2019_problem():
     """Wen 2019: ER10L-C10, 32 full poses, the paper's 24 parameters, and IPSO's search box."""
     robot = load_robot("er10l-c10")
     sim = simulate(robot, wen2019.POSES, deviations="paper", seed=1)
-    setup = Setup(ParameterSpace.of(robot), sim.measurements, k=1e4)
+    setup = Setup(ParameterSpace.of(robot), sim.measurements)
     prob = setup.problem(wen2019.PARAMETERS)
     box = np.array([wen2019.BOX[1] if is_angle(n) else wen2019.BOX[0] for n in prob.names])
     return prob, box
@@ -38,7 +38,7 @@ def kou2022_problem():
     """Kou 2022: KR5 arc, 30 position-only poses, Δa, Δd, Δα, Δθ of all joints, and the swarm box."""
     robot = load_robot("kr5-arc")
     sim = simulate(robot, kou2022.POSES, deviations=kou2022.DEVIATIONS, seed=1, measure="position")
-    setup = Setup(ParameterSpace.of(robot), sim.measurements, k=1e4)
+    setup = Setup(ParameterSpace.of(robot), sim.measurements)
     prob = setup.problem(kou2022.parameters())
     box = np.array([kou2022.BOX[1] if is_angle(n) else kou2022.BOX[0] for n in prob.names])
     return prob, box, sim

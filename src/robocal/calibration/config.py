@@ -24,15 +24,15 @@ DEFAULT_OBJECTIVE = {"lm": "sum_squares", "hybrid": "sum_squares", "ipso": "sum_
 SWARM_SETTINGS = {"pso": ("w", "c1", "c2"), "ipso": ("c1", "c2"), "hybrid": ("c1", "c2"),
                   "ldpso-bt": ("min_particles", "w1", "w2", "switch", "c1", "c2"), "lm": ()}
 
-#: default orientation weight k of the pose objective, mm²/rad²: 1 rad counts as 100 mm,
-#: so 0.01° weighs like 0.017 mm, about the ratio of a laser tracker's position noise to
-#: its 6-DOF probe's orientation noise.  Wen et al. (2019) do not give their k.
-DEFAULT_K = 1.0e4
-
 
 @dataclass(frozen=True)
 class CalibrationConfig:
     """What a calibration is asked to do.  Units: mm, rad (k in mm²/rad²).
+
+    noise / angle_noise: the measuring device's standard deviation per axis, position (mm)
+    and orientation (rad, as a rotation vector); residuals are whitened by them.  A value
+    not stated is estimated from the fit (see :mod:`robocal.calibration.noise`).  k: the
+    older way to weigh orientation, a fixed (σp/σr)² in mm²/rad² instead of angle_noise.
 
     method: ``lm``, ``pso``, ``ipso``, ``ldpso-bt`` or ``hybrid`` (IPSO then LM).
     frames: ``none`` (base and tool as in the robot), ``base`` (identify the measuring
@@ -52,7 +52,9 @@ class CalibrationConfig:
     params: str | tuple[str, ...] | None = None
     seed: int | None = 0
     objective: str | None = None
-    k: float = DEFAULT_K
+    noise: float | None = None
+    angle_noise: float | None = None
+    k: float | None = None
     use_orientation: bool = True
     loss: str = "linear"
     f_scale: float = 1.0
@@ -73,7 +75,13 @@ class CalibrationConfig:
             set_(self, "seed", opt.integer(self.seed, "seed", minimum=0))
         if self.objective is not None:
             opt.choice(self.objective, OBJECTIVES, "objective", "objective")
-        set_(self, "k", opt.number(self.k, "k", minimum=0.0))
+        for name in ("noise", "angle_noise"):
+            if getattr(self, name) is not None:
+                set_(self, name, opt.number(getattr(self, name), name, minimum=0.0, strict=True))
+        if self.k is not None:
+            set_(self, "k", opt.number(self.k, "k", minimum=0.0, strict=True))
+            if self.angle_noise is not None:
+                raise InputError("give the orientation noise or the weight k, not both", option="k")
         opt.choice(self.loss, LOSSES, "loss", "loss")
         if self.loss != "linear" and self.method not in ("lm", "hybrid"):
             raise InputError(f"a robust loss applies to lm and hybrid, not {self.method}", option="loss")
@@ -104,6 +112,12 @@ class CalibrationConfig:
         if unknown:
             raise TypeError(f"unknown calibration option {unknown[0]!r}")
         return cls(**options) if config is None else replace(config, **options)
+
+    @property
+    def noise_model(self):
+        from .noise import NoiseModel
+
+        return NoiseModel(self.noise, self.angle_noise, self.k)
 
     @property
     def objective_kind(self) -> str:

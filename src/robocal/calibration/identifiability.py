@@ -44,12 +44,15 @@ class Reason:
 
     kind: ``no_effect`` (zero Jacobian column), ``dependent`` (in the span of ``related``),
     or ``second_order`` (dependent at the nominal model, separable only at the estimate,
-    which did not improve the fit significantly: ``p_value`` of the F-test).
+    which did not improve the fit significantly: ``p_value`` of the F-test).  For a
+    dependent parameter D, ``coefficients`` c_j (one per related K_j) say that a deviation
+    δD moves the data as δK_j = c_j δD would: the estimate of K_j absorbs c_j·δD.
     """
 
     kind: str
     related: tuple[str, ...] = ()
     p_value: float | None = None
+    coefficients: tuple[float, ...] = ()
 
     def text(self) -> str:
         if self.kind == NO_EFFECT:
@@ -62,6 +65,8 @@ class Reason:
 
     def to_dict(self) -> dict:
         out = {"kind": self.kind, "related": list(self.related)}
+        if self.coefficients:
+            out["coefficients"] = list(self.coefficients)
         if self.p_value is not None:
             out["p_value"] = self.p_value
         return out
@@ -113,6 +118,12 @@ class Identifiability:
     def rank(self) -> int:
         return len(self.kept)
 
+    def absorbed_by(self, name: str) -> list[tuple[str, float]]:
+        """Dropped parameters whose deviation the kept ``name`` estimates too, with coefficients:
+        its value estimates δname + Σ c·δdropped."""
+        return [(d, r.coefficients[r.related.index(name)]) for d, r in self.reasons.items()
+                if r.kind != NO_EFFECT and name in r.related and r.coefficients]
+
     def with_changes(self, **changes) -> Identifiability:
         return replace(self, **changes)
 
@@ -141,8 +152,10 @@ def observability(J_scaled: np.ndarray, n_poses: int) -> dict[str, float]:
     }
 
 
-def _scan(R: np.ndarray, order: list[int], zero: np.ndarray, names: Sequence[str], tol: float):
-    """Greedy Gram–Schmidt scan over the columns of R in ``order``: kept indices and reasons."""
+def _scan(R: np.ndarray, order: list[int], zero: np.ndarray, names: Sequence[str], tol: float,
+          norms: np.ndarray):
+    """Greedy Gram–Schmidt scan over the columns of R (equilibrated: column j of the Jacobian
+    divided by norms[j]) in ``order``: kept indices and reasons."""
     basis: list[np.ndarray] = []
     kept: list[int] = []
     reasons: dict[str, Reason] = {names[i]: Reason(NO_EFFECT) for i in np.flatnonzero(zero)}
@@ -160,9 +173,10 @@ def _scan(R: np.ndarray, order: list[int], zero: np.ndarray, names: Sequence[str
             kept.append(i)
             continue
         coef, *_ = np.linalg.lstsq(R[:, kept], v, rcond=None)
-        biggest = np.argsort(-np.abs(coef))
-        related = [kept[j] for j in biggest if abs(coef[j]) > 1e-3 * np.abs(coef).max()][:5]
-        reasons[names[i]] = Reason(DEPENDENT, tuple(names[j] for j in related))
+        biggest = [j for j in np.argsort(-np.abs(coef)) if abs(coef[j]) > 1e-3 * np.abs(coef).max()][:5]
+        # equilibrated columns: J_i/n_i = Σ c_j J_kj/n_kj, so δ_i acts as δ_kj = c_j n_i/n_kj · δ_i
+        reasons[names[i]] = Reason(DEPENDENT, tuple(names[kept[j]] for j in biggest),
+                                   coefficients=tuple(float(coef[j] * norms[i] / norms[kept[j]]) for j in biggest))
     return sorted(kept), reasons
 
 
@@ -187,7 +201,7 @@ def analyse(J: np.ndarray, names: Sequence[str], angle_mask: np.ndarray, n_poses
     first = set(prefer)
     order = priority(names)
     order = [i for i in order if names[i] in first] + [i for i in order if names[i] not in first]
-    kidx, reasons = _scan(R, order, zero, names, tol)
+    kidx, reasons = _scan(R, order, zero, names, tol, raw_norms)
     # Jn = Q R with orthonormal Q: singular values of column subsets (and of their
     # rescalings) come from the small R instead of the tall Jacobian.
     col_scale = np.where(zero, 0.0, raw_norms) * scale

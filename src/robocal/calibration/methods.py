@@ -76,9 +76,10 @@ def swarm_box(names: list[str], method: str, box: tuple[float, float] | None) ->
 
 def fit_lm(problem: Problem, x0: np.ndarray, config: CalibrationConfig, progress: Progress | None = None,
            max_nfev: int | None = None) -> OptimizeResult:
+    # residuals are whitened: the loss scale, given in mm, is counted in units of σp
     return levenberg_marquardt(problem.residuals, problem.residual_jacobian, x0, loss=config.loss,
-                               f_scale=config.f_scale, max_nfev=max_nfev or config.max_evaluations,
-                               callback=progress)
+                               f_scale=config.f_scale / problem.setup.sigma_position,
+                               max_nfev=max_nfev or config.max_evaluations, callback=progress)
 
 
 def reexpress(search: Problem, x_search: np.ndarray, problem: Problem) -> tuple[np.ndarray, float]:

@@ -3,13 +3,16 @@
 :func:`calibrate` runs named steps, each a function below:
 
 1. :func:`load_inputs`: robot, data and validation data, checked against each other;
-2. :func:`register`: the measuring frame (and tool offsets) in closed form;
+2. :func:`register`: a complete model (DH + β on parallel axes), the measuring frame (and
+   tool offsets) in closed form, the noise weighting to start with;
 3. :func:`choose_candidates`: the parameters offered, from the config;
 4. :func:`analyse_identifiability`: the identifiable subset, the rest dropped with reasons;
 5. :func:`robocal.calibration.methods.optimise`: the configured method;
 6. :func:`screen_outliers`: with a robust loss, outliers left out and the inliers refitted;
-7. :func:`refine_at_estimate`: identifiability re-checked at the estimate (F-test);
-8. :func:`uncertainties`, :func:`evaluate`: standard uncertainties and before/after metrics.
+7. :func:`reweigh`: σ estimated per residual block where not stated, and the fit repeated;
+8. :func:`refine_at_estimate`: identifiability re-checked at the estimate (F-test);
+9. :func:`judge`: goodness of fit, standard uncertainties, misfit and plausibility warnings;
+10. :func:`evaluate`: before/after metrics.
 
 "Before" figures use the nominal joint geometry with the registered frames, i.e. the best
 a rigid re-mounting of the nominal model can do, so that the improvement shown is the
@@ -29,7 +32,7 @@ import numpy as np
 from ..exceptions import InputError, RobocalWarning
 from ..io.measurements import load_measurements
 from ..io.robotfile import load_robot
-from ..model.candidates import frame_candidates, joint_candidates
+from ..model.candidates import complete, frame_candidates, joint_candidates
 from ..model.measurements import Measurements
 from ..model.metrics import Metrics
 from ..model.parameters import ParameterSpace
@@ -37,12 +40,14 @@ from ..model.robot import Robot
 from ..optimize.result import Progress
 from . import checks
 from .config import CalibrationConfig, resolve_params
+from .diagnostics import GoodnessOfFit, goodness_of_fit, implausible_deviations, joint_patterns, misfit_message
 from .identifiability import NO_EFFECT, SECOND_ORDER, Identifiability, Reason, analyse
 from .methods import Estimate, fit_lm, optimise
+from .noise import MAX_REWEIGHTS, NoiseEstimate, block_sigmas, settled
 from .problem import Setup
 from .registration import register_frames
 from .result import CalibrationResult
-from .statistics import OUTLIER_SIGMAS, f_test, residual_variance, robust_outliers, standard_uncertainties
+from .statistics import OUTLIER_SIGMAS, covariance, f_test, robust_outliers
 
 #: significance level of the F-test that decides whether parameters that become
 #: identifiable at the estimate are worth adding
@@ -88,11 +93,22 @@ def load_inputs(robot, data, validate, config: CalibrationConfig, columns=None) 
     return Inputs(nominal, meas, val)
 
 
+def complete_model(robot: Robot, config: CalibrationConfig) -> Robot:
+    """The robot with β offered on DH parallel axes (:func:`robocal.model.candidates.complete`),
+    unless the user's parameter list leaves β out (the papers' 24, for instance)."""
+    requested = resolve_params(config.params, robot.n_joints)
+    if requested is not None and not any(n.startswith("beta") for n in requested):
+        return robot
+    return complete(robot)
+
+
 def register(inputs: Inputs, config: CalibrationConfig) -> Setup:
-    """Step 2: frames registered in closed form; the parameter space around the result."""
-    initial = register_frames(inputs.nominal, inputs.meas, config.frames)
+    """Step 2: the complete model, frames registered in closed form, the parameter space
+    around the result, and the noise weighting to start with."""
+    initial = register_frames(complete_model(inputs.nominal, config), inputs.meas, config.frames)
     space = ParameterSpace.of(initial, inputs.meas.target_names if config.frames == "base+tool" else None)
-    return Setup(space, inputs.meas, config.k, config.use_orientation, config.backend)
+    sigma_p, sigma_r = config.noise_model.initial()
+    return Setup(space, inputs.meas, sigma_p, sigma_r, config.use_orientation, config.backend)
 
 
 def choose_candidates(setup: Setup, config: CalibrationConfig) -> Candidates:
@@ -189,7 +205,8 @@ def refine_at_estimate(est: Estimate, ident: Identifiability, candidates: Candid
     lm = fit_lm(wider, deviation[wider.active], config, max_nfev=REFIT_EVALUATIONS)
     p = f_test(est.optimisation.fun, lm.fun, len(added), wider.n_residuals - len(names))
     if lm.status != "converged" or p >= ADD_SIGNIFICANCE:
-        reasons = {**ident.reasons, **{n: Reason(SECOND_ORDER, ident.reasons[n].related, p) for n in added}}
+        second = {n: Reason(SECOND_ORDER, ident.reasons[n].related, p, ident.reasons[n].coefficients) for n in added}
+        reasons = {**ident.reasons, **second}
         return est, ident.with_changes(reasons=reasons)
     final = analyse(wider.residual_jacobian(lm.x), names, wider.angle_mask, setup.meas.n_poses,
                     setup.space.robot.reach(), prefer=names)
@@ -209,15 +226,60 @@ def refine_at_estimate(est: Estimate, ident: Identifiability, candidates: Candid
     return Estimate(setup.problem(kept), merged, lm.x[order], est.reexpression_gap_mm), refined
 
 
-def uncertainties(est: Estimate, config: CalibrationConfig) -> np.ndarray | None:
-    """Step 8: standard uncertainties sqrt(diag(σ̂² (JᵀJ)⁻¹)), σ̂² = |r|²/(N − k), mm and rad."""
-    if config.method not in ("lm", "hybrid"):
-        return None
-    r = est.problem.residuals(est.x)
-    variance = residual_variance(r, est.problem.n_params)
-    if not np.isfinite(variance):
-        return np.full(est.problem.n_params, np.nan)
-    return standard_uncertainties(est.problem.residual_jacobian(est.x), variance=variance)
+def reweigh(est: Estimate, config: CalibrationConfig) -> tuple[Estimate, NoiseEstimate]:
+    """Step 7: estimate σ per residual block where it is not stated, and refit with it until
+    the weights settle (see :mod:`robocal.calibration.noise`).  Swarms keep their answer; their
+    σ is estimated once, for the report."""
+    model, problem = config.noise_model, est.problem
+    full = problem.uses_orientation
+    source = "stated" if model.stated(full) else "estimated"
+    sigmas = (problem.setup.sigma_position, problem.setup.sigma_orientation)
+    refits = 0
+    refit = config.method in ("lm", "hybrid") and est.optimisation.status == "converged"
+    if source == "estimated" and problem.n_residuals > problem.n_params:
+        for _ in range(MAX_REWEIGHTS if refit else 1):
+            new = block_sigmas(problem, est.x, model)
+            if settled(sigmas, new):
+                break
+            sigmas, problem = new, problem.setup.with_noise(*new).problem(problem.names)
+            if not refit:
+                est = est.replace(problem=problem)
+                break
+            lm = fit_lm(problem, est.x, config)
+            refits += 1
+            est = Estimate(problem, est.optimisation.then(lm, method=est.optimisation.method, message=(
+                f"{est.optimisation.message}; reweighted (σp {sigmas[0]:.3g} mm): {lm.message}")),
+                lm.x, est.reexpression_gap_mm)
+    return est, NoiseEstimate(sigmas[0], sigmas[1] if full else None, source, refits)
+
+
+def judge(est: Estimate, config: CalibrationConfig, noise: NoiseEstimate,
+          notes: list[str]) -> tuple[GoodnessOfFit, np.ndarray | None, np.ndarray | None]:
+    """Step 9: goodness of fit, covariance and standard uncertainties, and the warnings they call for.
+
+    Uncertainties come from the whitened Jacobian at the solution, (JᵀJ)⁻¹.  With stated
+    noise and a fit worse than it (reduced χ² > 1) they are scaled by the reduced χ², which
+    is then said; with estimated noise the reduced χ² is 1 by construction.
+    """
+    gof = goodness_of_fit(est.problem, est.x, noise.source)
+    cov = None
+    if config.method in ("lm", "hybrid") and gof.dof > 0:
+        scale = gof.reduced_chi2 if noise.source == "estimated" else max(1.0, gof.reduced_chi2)
+        cov = covariance(est.problem.residual_jacobian(est.x), variance=scale)
+    if gof.misfit():
+        notes.append(misfit_message(gof, joint_patterns(est.problem, est.x))
+                     + (f"; uncertainties scaled by √χ²ᵣ = {np.sqrt(gof.reduced_chi2):.3g}" if cov is not None else ""))
+    unc = None if cov is None else np.sqrt(np.diag(cov))
+    corr = None
+    if cov is not None:
+        with np.errstate(invalid="ignore", divide="ignore"):
+            corr = cov / np.outer(unc, unc)
+    warning = implausible_deviations(est.problem.names, est.x, unc, corr)
+    if warning:
+        notes.append(warning)
+    if config.method in ("lm", "hybrid") and gof.dof <= 0:
+        unc = np.full(est.problem.n_params, np.nan)
+    return gof, unc, cov
 
 
 def evaluate(initial: Robot, calibrated: Robot, meas: Measurements, all_rows: Measurements,
@@ -270,8 +332,11 @@ def calibrate(
     est = optimise(setup.problem(ident.kept), setup.problem(searched_names(candidates, ident)), cfg, progress)
     est, outliers = screen_outliers(est, cfg, notes)
     notes += _status_notes(est, cfg)
-    est, ident = refine_at_estimate(est, ident, candidates, cfg)
-    unc = uncertainties(est, cfg)
+    est, noise = reweigh(est, cfg)
+    refined, ident = refine_at_estimate(est, ident, candidates, cfg)
+    if refined is not est:  # parameters were added: their weights are settled again
+        est, noise = reweigh(refined, cfg)
+    gof, unc, cov = judge(est, cfg, noise, notes)
     initial = setup.space.robot
     calibrated = setup.space.apply(est.problem.full(est.x)).replace(name=f"{inputs.nominal.name} (calibrated)")
     metrics = evaluate(initial, calibrated, est.problem.meas, inputs.meas, inputs.validation)
@@ -282,5 +347,6 @@ def calibrate(
         uncertainty=unc, identifiability=ident, optimisation=est.optimisation, metrics=metrics,
         data=inputs.meas.source, n_poses=est.problem.meas.n_poses, full_pose=setup.full_pose, warnings=notes,
         time_s=time.perf_counter() - start, measurements=est.problem.meas, validation=inputs.validation,
-        outliers=outliers, reexpression_gap_mm=est.reexpression_gap_mm,
+        outliers=outliers, reexpression_gap_mm=est.reexpression_gap_mm, noise=noise, goodness_of_fit=gof,
+        covariance=cov,
     )

@@ -1,14 +1,19 @@
 """Residuals and objectives of a calibration, batched over candidate solutions.
 
 A :class:`Setup` ties a parameter space (around the initial robot), the measurements and
-the weighting; :meth:`Setup.problem` gives the :class:`Problem` of one set of estimated
-parameters.  A problem's vector ``x`` holds the estimated deviations only (mm, rad);
-everything else stays at the initial robot.
+the noise weighting; :meth:`Setup.problem` gives the :class:`Problem` of one set of
+estimated parameters.  A problem's vector ``x`` holds the estimated deviations only (mm,
+rad); everything else stays at the initial robot.
 
-Objectives (SPEC §3), all evaluated for a whole swarm (P, k) in one batched call:
+Least squares works on whitened residuals: every position component divided by the
+position noise σp (mm), every orientation component by the orientation noise σr (rad),
+so that the sum of squares is χ² and the Jacobian gives the covariance directly.
 
-- ``sum_squares``: Wen et al. (2019) eq. 7, Σ_j k·|δ_j|² + |δp_j|² (k in mm²/rad²;
-  position-only data reduce it to Σ|δp_j|²).  Also what least squares minimises.
+Swarm objectives (SPEC §3), all evaluated for a whole swarm (P, k) in one batched call:
+
+- ``sum_squares``: Wen et al. (2019) eq. 7, Σ_j k·|δ_j|² + |δp_j|² in mm², with the
+  orientation weight k = (σp/σr)² mm²/rad² (position-only data reduce it to Σ|δp_j|²):
+  σp² χ², so the swarms and least squares minimise the same thing.
 - ``sum_norms``: Kou et al. (2022) eq. 4, Σ_j |δp_j| (mm).
 """
 
@@ -26,18 +31,25 @@ from ..model.kinematics import joint_kinds
 from ..model.measurements import Measurements
 from ..model.parameters import ParameterSpace, is_angle
 
+#: default orientation weight k of the pose objective, mm²/rad², when no noise is stated: 1 rad
+#: counts as 100 mm, so 0.01° weighs like 0.017 mm, about the ratio of a laser tracker's
+#: position noise to its 6-DOF probe's orientation noise.  Wen et al. (2019) do not give k.
+DEFAULT_K = 1.0e4
+
 
 @dataclass(frozen=True, eq=False)
 class Setup:
-    """What every problem of one calibration shares: space, measurements, weighting.
+    """What every problem of one calibration shares: space, measurements, noise weighting.
 
-    k: orientation weight (mm²/rad²); use_orientation: fit orientations when the data
-    have them; backend: ``auto``, ``numba`` or ``numpy`` for swarm objectives.
+    sigma_position (mm) and sigma_orientation (rad): the standard deviation per axis that
+    whitens each residual block; use_orientation: fit orientations when the data have them;
+    backend: ``auto``, ``numba`` or ``numpy`` for swarm objectives.
     """
 
     space: ParameterSpace
     meas: Measurements
-    k: float
+    sigma_position: float = 1.0
+    sigma_orientation: float = 1.0 / DEFAULT_K**0.5
     use_orientation: bool = True
     backend: str = "auto"
 
@@ -45,11 +57,23 @@ class Setup:
     def full_pose(self) -> bool:
         return self.use_orientation and self.meas.full_pose
 
+    @property
+    def k(self) -> float:
+        """Orientation weight of the pose objective, (σp/σr)² mm²/rad²."""
+        return (self.sigma_position / self.sigma_orientation) ** 2
+
     def problem(self, names: Sequence[str]) -> Problem:
         return Problem(self, self.space.index(list(names)))
 
     def with_measurements(self, meas: Measurements) -> Setup:
         return replace(self, meas=meas)
+
+    def with_noise(self, sigma_position: float, sigma_orientation: float) -> Setup:
+        return replace(self, sigma_position=sigma_position, sigma_orientation=sigma_orientation)
+
+    def around(self, robot) -> Setup:
+        """The same setup with the parameter space around another robot (e.g. the estimate)."""
+        return replace(self, space=ParameterSpace(robot, self.space.names, self.space.targets))
 
 
 class Problem:
@@ -61,10 +85,10 @@ class Problem:
         self.meas = setup.meas
         self.active = np.asarray(active, dtype=int)
         self.k = setup.k
+        self._wp, self._wr = 1.0 / setup.sigma_position, 1.0 / setup.sigma_orientation
         self.uses_orientation = setup.full_pose
         self.target_idx = self.space.target_index(self.meas.targets)
         self._Rm = self.meas.rotation if self.uses_orientation else None
-        self._sqrt_k = float(np.sqrt(self.k))
         self._frames_active = bool(np.any(self.active >= self.space.n_joint_params))
         self._backend = resolve(setup.backend)  # read once: ROBOCAL_NO_NUMBA as it is when the problem is set up
 
@@ -149,19 +173,24 @@ class Problem:
         return kernels.objective(c["conv"], geom, base, tools, *common)
 
     def residuals(self, x: np.ndarray) -> np.ndarray:
-        """Stacked residual vector [δp (3m) mm, √k·δ (3m)] of one solution (k_active,)."""
+        """Whitened residual vector [δp/σp (3m), δ/σr (3m)] of one solution (k_active,): its
+        squared norm is χ²."""
         dp, dr = self.errors(x)
         if dr is None:
-            return dp.ravel()
-        return np.concatenate([dp.ravel(), self._sqrt_k * dr.ravel()])
+            return self._wp * dp.ravel()
+        return np.concatenate([self._wp * dp.ravel(), self._wr * dr.ravel()])
+
+    def n_position_rows(self) -> int:
+        """The residual vector's first rows that are positions; the rest are orientations."""
+        return 3 * self.meas.n_poses
 
     def residual_jacobian(self, x: np.ndarray) -> np.ndarray:
-        """Exact ∂residuals/∂x, (n_residuals, k_active), Fortran-ordered as MINPACK wants."""
+        """Exact ∂(whitened residuals)/∂x, (n_residuals, k_active), Fortran-ordered as MINPACK wants."""
         Jc, R, _ = self.space.jacobian_columns(self.full(x), self.meas.q, self.target_idx, frames=self._frames_active)
         Jc = Jc[self.active]  # (k, m, 6)
         k, m = Jc.shape[0], Jc.shape[1]
         out = np.empty((k, self.n_residuals))
-        out[:, : 3 * m] = -Jc[:, :, :3].reshape(k, 3 * m)
+        out[:, : 3 * m] = -self._wp * Jc[:, :, :3].reshape(k, 3 * m)
         if self._Rm is not None:
             dr = orientation_error(self._Rm, R)
             w = np.ascontiguousarray(Jc[:, :, 3:])
@@ -169,5 +198,5 @@ class Problem:
                 Jr = self._kernel_inputs["kernels"].apply_right_jacobian_inv(dr, w)
             else:
                 Jr = apply_right_jacobian_inv(dr, w)
-            out[:, 3 * m :] = -self._sqrt_k * Jr.reshape(k, 3 * m)
+            out[:, 3 * m :] = -self._wr * Jr.reshape(k, 3 * m)
         return out.T

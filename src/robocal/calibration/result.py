@@ -18,11 +18,16 @@ from ..model.parameters import is_angle
 from ..model.robot import Robot
 from ..optimize.result import OptimizeResult
 from .config import CalibrationConfig
+from .diagnostics import GoodnessOfFit
 from .identifiability import Identifiability
+from .noise import NoiseEstimate
 
 #: version of the result JSON; 2 added ``schema_version``, the structured ``dropped`` reasons
-#: (kind, related), ``optimiser.method`` naming the solver that ran, and status ``completed``
+#: (kind, related), ``optimiser.method`` naming the solver that ran, status ``completed``,
+#: ``noise``, ``goodness_of_fit``, and per parameter ``absorbs`` and ``significant``
 SCHEMA_VERSION = 2
+#: a deviation smaller than this many standard uncertainties is "not significant"
+SIGNIFICANCE_SIGMAS = 2.0
 
 
 @dataclass
@@ -54,6 +59,9 @@ class CalibrationResult:
     validation: Measurements | None = field(default=None, repr=False)
     outliers: list[dict] = field(default_factory=list)
     reexpression_gap_mm: float | None = None
+    noise: NoiseEstimate | None = None
+    goodness_of_fit: GoodnessOfFit | None = None
+    covariance: np.ndarray | None = field(default=None, repr=False)
 
     @property
     def method(self) -> str:
@@ -75,6 +83,19 @@ class CalibrationResult:
         """Identified deviations {name: value} (mm, rad)."""
         return dict(zip(self.names, map(float, self.x)))
 
+    def significant(self, i: int) -> bool | None:
+        """|deviation| ≥ 2 standard uncertainties (None where no uncertainty is known)."""
+        if self.uncertainty is None or not math.isfinite(self.uncertainty[i]):
+            return None
+        return bool(abs(self.x[i]) >= SIGNIFICANCE_SIGMAS * self.uncertainty[i])
+
+    @property
+    def k(self) -> float | None:
+        """The orientation weight the fit used, (σp/σr)² in mm²/rad² (None for position data)."""
+        if self.noise is None or self.noise.orientation is None:
+            return None
+        return (self.noise.position / self.noise.orientation) ** 2
+
     def to_dict(self) -> dict:
         ident = self.identifiability
         initial_values = nominal_values(self.initial)
@@ -85,6 +106,8 @@ class CalibrationResult:
                 "name": n, "unit": "rad" if is_angle(n) else "mm", "nominal": nominal, "error": float(self.x[i]),
                 "value": nominal + float(self.x[i]),
                 "uncertainty": None if self.uncertainty is None else _finite_or_none(self.uncertainty[i]),
+                "significant": self.significant(i),
+                "absorbs": [{"name": d, "coefficient": c} for d, c in ident.absorbed_by(n)],
             })
         opt = self.optimisation
         cfg = self.config
@@ -93,7 +116,9 @@ class CalibrationResult:
             "method": cfg.method,
             "seed": cfg.seed,
             "objective": self.objective,
-            "k_mm2_per_rad2": cfg.k,
+            "k_mm2_per_rad2": self.k,
+            "noise": None if self.noise is None else self.noise.to_dict(),
+            "goodness_of_fit": None if self.goodness_of_fit is None else self.goodness_of_fit.to_dict(),
             "loss": cfg.loss,
             "frames": cfg.frames,
             "robot": self.nominal.name,
@@ -127,10 +152,13 @@ class CalibrationResult:
         """Write the calibrated robot as a robot file (loadable again)."""
         from ..io.robotfile import robot_to_toml
 
-        atomic_write(path, robot_to_toml(self.robot, comment=(
-            f"Calibrated by robocal ({self.method}, objective {self.objective}, seed {self.seed}) from "
-            f"{self.data or 'measurements'}; {len(self.names)} parameters identified, "
-            f"{len(self.identifiability.dropped)} left at nominal.")))
+        comment = (f"Calibrated by robocal ({self.method}, objective {self.objective}, seed {self.seed}) from "
+                   f"{self.data or 'measurements'}; {len(self.names)} parameters identified, "
+                   f"{len(self.identifiability.dropped)} left at nominal.")
+        # what makes the model doubtful travels with it, not only on the terminal
+        doubts = [w for w in self.warnings if w.startswith(("implausible", "model misfit"))]
+        comment += "".join(f"\nWARNING: {w}" for w in doubts)
+        atomic_write(path, robot_to_toml(self.robot, comment=comment))
 
 
 def _finite_or_none(v: float):

@@ -7,8 +7,21 @@ from pathlib import Path
 import typer
 
 
+def noise_line(result) -> str:
+    """σ used and the goodness of fit, in one line."""
+    import math
+
+    n, g = result.noise, result.goodness_of_fit
+    text = f"noise σ {n.position:.3g} mm" + ("" if n.orientation is None else f", {math.degrees(n.orientation):.3g}°")
+    text += f" ({n.source})"
+    if g is not None and g.dof > 0:
+        text += f"; χ² {g.chi2:.4g} on {g.dof} degrees of freedom (reduced {g.reduced_chi2:.3g}, p {g.p_value:.3g})"
+    return text
+
+
 def _print_summary(result, robot_name: str, data: Path) -> None:
-    from .common import console, metrics_table
+    from ..report.tables import FRAME_COLUMNS, PARAMETER_COLUMNS, frame_rows, parameter_rows
+    from .common import console, metrics_table, table
 
     m = result.metrics
     cols = {"before": m["before"], "after": m["after"]}
@@ -16,6 +29,10 @@ def _print_summary(result, robot_name: str, data: Path) -> None:
         cols["validation before"], cols["validation after"] = m["validation_before"], m["validation_after"]
     out = console()
     out.print(metrics_table(f"{robot_name}: {result.method} on {data} ({result.n_poses} poses)", cols))
+    out.print(table("identified parameters (angles in degrees)", PARAMETER_COLUMNS, parameter_rows(result),
+                    text_columns=(0, len(PARAMETER_COLUMNS) - 1)))
+    out.print(table("frames", FRAME_COLUMNS, frame_rows(result), "left"))
+    out.print(noise_line(result))
     ident, opt = result.identifiability, result.optimisation
     out.print(f"{len(result.names)} parameters identified, {len(ident.dropped)} dropped"
               + (f" ({', '.join(ident.dropped)})" if ident.dropped else "")
@@ -34,7 +51,12 @@ def calibrate_cmd(
         None, "--params", help="candidate joint parameters: comma list, or wen2019 | kou2022 (default: all)"
     ),
     objective: str | None = typer.Option(None, "--objective", help="sum_squares | sum_norms (default: method's)"),
-    k: float | None = typer.Option(None, "--k", help="orientation weight of the pose objective, mm²/rad²"),
+    noise: float | None = typer.Option(None, "--noise", help="measuring noise σ per axis, mm (default: estimated)"),
+    angle_noise: float | None = typer.Option(
+        None, "--angle-noise", help="orientation noise σ per axis, deg (default: estimated)"
+    ),
+    k: float | None = typer.Option(None, "--k", help="fixed orientation weight (σp/σr)², mm²/rad² (instead of "
+                                   "--angle-noise)"),
     position_only: bool = typer.Option(False, "--position-only", help="ignore rx, ry, rz columns"),
     loss: str = typer.Option("linear", "--loss", help="LM loss: linear | huber | soft_l1 | cauchy | arctan"),
     f_scale: float = typer.Option(1.0, "--f-scale", help="robust loss scale, mm"),
@@ -50,6 +72,7 @@ def calibrate_cmd(
     quiet: bool = typer.Option(False, "--quiet", "-q", help="no table, no progress bar"),
 ) -> None:
     """Identify a robot's geometric parameters from measured poses."""
+    import math
     import warnings
 
     from .. import options as opt
@@ -60,8 +83,8 @@ def calibrate_cmd(
 
     cfg = CalibrationConfig(method=method, frames=frames, params=params, seed=seed, objective=objective,
                             use_orientation=not position_only, loss=loss, f_scale=f_scale, particles=particles,
-                            iterations=iterations, box=box, halton=halton, backend=backend,
-                            **({} if k is None else {"k": k}))
+                            iterations=iterations, box=box, halton=halton, backend=backend, noise=noise,
+                            angle_noise=None if angle_noise is None else math.radians(angle_noise), k=k)
     nominal = load_robot(robot)
     total = None if method == "lm" else settings(cfg)["iterations"]
     with progress_bar(not quiet and method != "lm", method, total) as callback, warnings.catch_warnings():

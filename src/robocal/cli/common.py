@@ -36,12 +36,13 @@ def metrics_table(title: str, columns: dict):
     return table
 
 
-def table(title: str, columns, rows, justify: str = "right"):
+def table(title: str, columns, rows, justify: str = "right", text_columns: tuple[int, ...] = ()):
+    """A rich table; ``text_columns`` (names, notes) stay left whatever ``justify`` says."""
     from rich.table import Table
 
     t = Table(title=title)
-    for c in columns:
-        t.add_column(c, justify=justify)
+    for i, c in enumerate(columns):
+        t.add_column(c, justify="left" if i in text_columns else justify)
     for r in rows:
         t.add_row(*r)
     return t

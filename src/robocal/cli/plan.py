@@ -8,8 +8,6 @@ import typer
 
 
 def _print_plan(p, r, poses: int, candidates: int, criterion: str, measure: str, noise: float, angle_noise: float):
-    import math
-
     import numpy as np
 
     from ..model.parameters import is_angle
@@ -24,8 +22,7 @@ def _print_plan(p, r, poses: int, candidates: int, criterion: str, measure: str,
     worst = np.argsort(-p.predicted_std / np.where([is_angle(n) for n in p.names], 1 / r.reach(), 1.0))[:3]
     advice = ""
     if measure == "pose":
-        advice = (f"; calibrate with --k {(noise / math.radians(angle_noise)) ** 2:.3g} to weigh orientation as "
-                  f"planned ({noise} mm, {angle_noise}°)")
+        advice = f"; calibrate with --noise {noise:g} --angle-noise {angle_noise:g} to weigh the data as planned"
     c.print("least determined: " + ", ".join(f"{p.names[i]} ± {p.predicted_std[i]:.3g} "
                                              f"{'rad' if is_angle(p.names[i]) else 'mm'}" for i in worst) + advice)
 

@@ -21,6 +21,15 @@ def parallel_pairs(robot: Robot) -> list[int]:
     return [i for i, a in enumerate(robot.alpha[:-1]) if abs(math.remainder(a, math.pi)) < 1e-9]
 
 
+def complete(robot: Robot) -> Robot:
+    """A standard-DH robot with consecutive parallel axes as the same robot in the hayati
+    convention (DH + β, identical at β = 0): β is the misalignment of parallel axes that d
+    cannot express.  Other robots as they are."""
+    if robot.convention != "dh" or not parallel_pairs(robot):
+        return robot
+    return robot.replace(convention="hayati")
+
+
 def joint_candidates(robot: Robot) -> list[str]:
     """Default candidate joint parameters: a, α, θ, d of every joint, plus β of hayati joints
     whose axis is parallel to the next one (where β replaces the ill-defined d)."""

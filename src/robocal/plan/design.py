@@ -30,7 +30,7 @@ from .. import options as opt
 from ..calibration.identifiability import analyse
 from ..calibration.statistics import covariance, standard_uncertainties
 from ..exceptions import InputError
-from ..model.candidates import FRAME_MODES, frame_candidates, joint_candidates
+from ..model.candidates import FRAME_MODES, complete, frame_candidates, joint_candidates
 from ..model.parameters import ParameterSpace, is_angle
 from ..model.robot import Robot
 from ..simulation import MEASURES, random_joints
@@ -183,6 +183,7 @@ def plan_poses(robot: Robot, n_poses: int, *, candidates: int = 2000, criterion:
     name = criterion
     _check(name, measure, frames, noise, angle_noise, n_poses, candidates)
     rng = np.random.default_rng(seed)
+    robot = complete(robot)  # plan for the parameters a calibration will estimate
     cand = random_joints(robot, candidates, rng, joint_range)
     names = joint_candidates(robot) + frame_candidates(frames, ("",), measure == "pose")
     blocks, _ = _blocks(robot, cand, names, measure, noise, angle_noise)

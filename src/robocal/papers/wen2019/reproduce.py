@@ -126,7 +126,8 @@ def summary(r: dict) -> str:
         "# Wen et al. (2019): IPSO calibration of the ER10L-C10 — reproduction", "",
         f"Measured by robocal on {r['machine']}{' (quick run: shortened settings)' if r['quick'] else ''}.",
         f"Setup as in the paper: Hayati model of Table 1, true errors of Table 2, {POSES} joint sets uniform in",
-        "[−π, π], full pose measured, objective eq. 7 (k = 1e4 mm²/rad²: the paper does not give k), the",
+        "[−π, π], full pose measured, objective eq. 7 (the paper does not give k: the swarms use k = 1e4",
+        "mm²/rad², LM and hybrid whiten by the noise they estimate per residual block), the",
         f"paper's 24 parameters, IPSO with {IPSO['particles']} particles, c1 = c2 = {IPSO['c1']}, constriction "
         f"K = 0.7298, {gens} generations, start in ±0.5 mm / ±0.01 rad by (scrambled) Halton points. Validation:",
         "200 fresh poses of the same true robot, measured the same way.", "",

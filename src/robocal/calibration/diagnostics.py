@@ -1,0 +1,139 @@
+"""What a fit says about the model: goodness of fit, the joint pattern of what is left,
+implausible deviations.
+
+- :func:`goodness_of_fit`: χ² of the whitened residuals, its degrees of freedom and
+  p-value; with stated noise a fit beyond the 99.9 % quantile is a *model misfit*.
+- :func:`joint_patterns`: which joint's angle best explains the remaining residual, as an
+  angle error periodic in that joint (Δq_i = Σ_h a_h cos(h q_i) + b_h sin(h q_i), h = 1, 2)
+  pushed through the arm: the pattern a calibration engineer looks for when geometry is
+  not the whole story (compliance under gravity, gear transmission errors).
+- :func:`implausible_deviations`: identified deviations beyond 10 mm or 0.1 rad.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..model.parameters import is_angle, is_frame
+from .problem import Problem
+
+#: χ² quantile beyond which a fit with stated noise is called a misfit
+MISFIT_QUANTILE = 0.999
+#: identified joint deviations beyond these are not physical for a calibrated arm (mm, rad)
+PLAUSIBLE_LENGTH_MM, PLAUSIBLE_ANGLE_RAD = 10.0, 0.1
+HARMONICS = (1, 2)
+
+
+@dataclass(frozen=True)
+class GoodnessOfFit:
+    """χ² = Σ (residual/σ)² at the solution, on dof = N − k degrees of freedom."""
+
+    chi2: float
+    dof: int
+    noise_source: str
+
+    @property
+    def reduced_chi2(self) -> float | None:
+        return self.chi2 / self.dof if self.dof > 0 else None
+
+    @property
+    def p_value(self) -> float | None:
+        """Probability of a χ² at least this large if the model were complete and the noise as stated."""
+        from scipy.stats import chi2
+
+        return float(chi2.sf(self.chi2, self.dof)) if self.dof > 0 else None
+
+    def misfit(self) -> bool:
+        """With stated noise: χ² beyond its 99.9 % quantile."""
+        from scipy.stats import chi2
+
+        return self.noise_source == "stated" and self.dof > 0 and self.chi2 > chi2.ppf(MISFIT_QUANTILE, self.dof)
+
+    def to_dict(self) -> dict:
+        return {"chi2": self.chi2, "dof": self.dof, "reduced_chi2": self.reduced_chi2, "p_value": self.p_value,
+                "noise_source": self.noise_source}
+
+
+def goodness_of_fit(problem: Problem, x: np.ndarray, noise_source: str) -> GoodnessOfFit:
+    r = problem.residuals(x)
+    return GoodnessOfFit(float(r @ r), int(r.size - problem.n_params), noise_source)
+
+
+def _row_pose(problem: Problem) -> np.ndarray:
+    """Pose index of each residual row (positions, then orientations, 3 rows a pose)."""
+    m = problem.meas.n_poses
+    per_block = np.repeat(np.arange(m), 3)
+    return np.concatenate([per_block, per_block]) if problem.uses_orientation else per_block
+
+
+def joint_patterns(problem: Problem, x: np.ndarray) -> list[tuple[int, float]]:
+    """(joint, fraction of the whitened residual's sum of squares explained), best first.
+
+    For joint i the residual is regressed on ∂r/∂q_i · {cos h q_i, sin h q_i}: what an angle
+    error of that joint, periodic in its own angle, would leave in the measurements.
+    """
+    calibrated = problem.space.apply(problem.full(x))
+    n = calibrated.n_joints
+    thetas = problem.setup.around(calibrated).problem([f"theta{i + 1}" for i in range(n)])
+    Jq = -thetas.residual_jacobian(np.zeros(n))  # d(residual)/dq: the θ column is the joint's
+    r = problem.residuals(x)
+    total = float(r @ r)
+    if total <= 0:
+        return []
+    pose = _row_pose(problem)
+    out = []
+    for i in range(n):
+        qi = problem.meas.q[pose, i]
+        A = np.column_stack([Jq[:, i] * f(h * qi) for h in HARMONICS for f in (np.cos, np.sin)])
+        coef, *_ = np.linalg.lstsq(A, r, rcond=None)
+        left = r - A @ coef
+        out.append((i + 1, max(0.0, 1.0 - float(left @ left) / total)))
+    return sorted(out, key=lambda t: -t[1])
+
+
+def misfit_message(gof: GoodnessOfFit, patterns: list[tuple[int, float]]) -> str:
+    """The ``model misfit:`` warning: how far beyond the noise, and the joint that explains most."""
+    from scipy.stats import chi2
+
+    limit = chi2.ppf(MISFIT_QUANTILE, gof.dof) / gof.dof
+    text = (f"model misfit: the residuals are {math.sqrt(gof.reduced_chi2):.3g}× the stated noise (reduced χ² "
+            f"{gof.reduced_chi2:.3g} on {gof.dof} degrees of freedom, beyond its 99.9 % quantile {limit:.3g})")
+    if patterns and patterns[0][1] > 0.2:
+        joint, share = patterns[0]
+        text += (f"; an angle error of joint {joint} periodic in q{joint} explains {100 * share:.0f} % of what is "
+                 "left: an unmodelled joint effect such as compliance under gravity or transmission error")
+    return text + "; or the stated noise is too small"
+
+
+def implausible_deviations(names: list[str], x: np.ndarray, uncertainty: np.ndarray | None,
+                           correlation: np.ndarray | None) -> str | None:
+    """A warning naming joint deviations beyond PLAUSIBLE_* and the likely cause, or None.
+
+    Frame parameters are left out: a base frame metres from the tracker is normal.
+    """
+    bad = [i for i, n in enumerate(names) if not is_frame(n)
+           and abs(x[i]) > (PLAUSIBLE_ANGLE_RAD if is_angle(n) else PLAUSIBLE_LENGTH_MM)]
+    if not bad:
+        return None
+    shown = ", ".join(f"{names[i]} {x[i]:+.4g} {'rad' if is_angle(names[i]) else 'mm'}" for i in bad[:6])
+    cause = "nearly dependent parameters, a wrong nominal model, or a missing model term"
+    if correlation is not None:
+        c = np.abs(np.nan_to_num(correlation, nan=0.0))
+        np.fill_diagonal(c, 0.0)
+        i = bad[int(np.argmax([c[b].max() for b in bad]))]
+        j = int(np.argmax(c[i]))
+        if c[i, j] > 0.99:
+            cause = (f"{names[i]} and {names[j]} are nearly dependent (correlation {correlation[i, j]:+.4f}): "
+                     f"{_dependency_hint(names[i], names[j])}")
+    return (f"implausible deviations (beyond {PLAUSIBLE_LENGTH_MM:g} mm or {PLAUSIBLE_ANGLE_RAD:g} rad): {shown}; "
+            f"likely cause: {cause}. The calibrated model is not physical; check before using it")
+
+
+def _dependency_hint(a: str, b: str) -> str:
+    if re.fullmatch(r"d\d+", a) and re.fullmatch(r"d\d+", b):
+        return "consecutive parallel axes without a β term, or too few poses moving them"
+    return "the poses barely tell them apart; measure more, or more varied, poses"

@@ -1,0 +1,90 @@
+"""Tables of a calibration as users read them: the units of the files (mm, degrees),
+uncertainties beside every value, what is not significant, what a value stands for.
+
+Rows are plain strings, shared by the terminal and the HTML report.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..calibration.result import SIGNIFICANCE_SIGMAS, CalibrationResult, nominal_values
+from ..math.se3 import transform_to_xyz_rpy
+from ..math.so3 import orientation_error
+from ..model.parameters import is_angle, is_frame
+
+PARAMETER_COLUMNS = ("parameter", "unit", "nominal", "identified", "deviation", "± σ", "note")
+FRAME_COLUMNS = ("frame", "identified xyz (mm)", "identified rpy (deg)", "change from registration", "note")
+
+
+def _number(value: float, angle: bool) -> str:
+    text = f"{math.degrees(value):.5f}" if angle else f"{value:.4f}"
+    return text[1:] if text.startswith("-") and float(text) == 0 else text  # no "-0.0000"
+
+
+def _uncertainty(u: float | None, angle: bool) -> str:
+    if u is None or not math.isfinite(u):
+        return "—"
+    return f"{math.degrees(u) if angle else u:.2g}"
+
+
+def _absorbs(result: CalibrationResult, name: str) -> str:
+    terms = result.identifiability.absorbed_by(name)
+    if not terms:
+        return ""
+    parts = " ".join(f"{'+' if c >= 0 else '−'} {abs(c):.3g}·{d}" for d, c in terms)
+    return f"estimates {name} {parts} (regrouped)"
+
+
+def parameter_rows(result: CalibrationResult) -> list[tuple[str, ...]]:
+    """One row per identified joint parameter: nominal, identified value, deviation and its
+    standard uncertainty (mm, or degrees for angles), and a note."""
+    nominal = nominal_values(result.initial)
+    rows = []
+    for i, name in enumerate(result.names):
+        if is_frame(name):
+            continue
+        angle = is_angle(name)
+        x = float(result.x[i])
+        u = None if result.uncertainty is None else float(result.uncertainty[i])
+        notes = [n for n in (_absorbs(result, name),) if n]
+        if result.significant(i) is False:
+            notes.append(f"not significant (< {SIGNIFICANCE_SIGMAS:g} σ)")
+        rows.append((name, "deg" if angle else "mm", _number(nominal.get(name, 0.0), angle),
+                     _number(nominal.get(name, 0.0) + x, angle), _number(x, angle), _uncertainty(u, angle),
+                     "; ".join(notes)))
+    return rows
+
+
+def _frame_change(before: np.ndarray, after: np.ndarray, rotation: bool) -> str:
+    moved = float(np.linalg.norm(after[:3, 3] - before[:3, 3]))
+    if not rotation:
+        return f"{moved:.4f} mm"
+    turned = math.degrees(float(np.linalg.norm(orientation_error(after[:3, :3], before[:3, :3]))))
+    return f"{moved:.4f} mm, {turned:.5f}°"
+
+
+def frame_rows(result: CalibrationResult) -> list[tuple[str, ...]]:
+    """Base and tool frames as identified, and their change from the closed-form registration."""
+    frames = {"base": (result.initial.base, result.robot.base)}
+    frames["tool"] = (result.initial.tool, result.robot.tool)
+    for name, T in result.robot.targets.items():
+        frames[f"tool[{name}]"] = (result.initial.targets.get(name, T), T)
+    estimated = set(n.rsplit("_", 1)[0] for n in result.names if is_frame(n))
+    rows = []
+    for frame, (before, after) in frames.items():
+        xyz, rpy = transform_to_xyz_rpy(after)
+        rotation_identified = any(f"{frame}_r{a}" in result.names for a in "xyz")
+        if frame not in estimated:
+            note = "as given (not estimated)" if result.config.frames == "none" or frame != "base" else ""
+            change = "—"
+        else:
+            change = _frame_change(before, after, rotation_identified)
+            note = "" if rotation_identified or frame == "base" else "rotation not identified (position data)"
+        rpy_text = ", ".join(_number(v, True) for v in rpy)
+        if frame in estimated and not rotation_identified and frame != "base":
+            rpy_text = "not identified"
+        rows.append((frame, ", ".join(_number(v, False) for v in xyz), rpy_text, change, note))
+    return rows

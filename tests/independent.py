@@ -1,0 +1,85 @@
+"""An independent simulator for planted-truth tests: it shares no code with robocal.
+
+Forward kinematics is the textbook product of 4×4 elementary matrices, one pose at a time,
+written here from SPEC §2; noise comes from numpy's generator and scipy's rotations.  Tests
+plant a truth with it and check what robocal recovers, so an error in robocal's kinematics
+cannot cancel out.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+# Nominal tables from SPEC §5 and §6 (a mm, alpha deg, theta deg, d mm), copied here on purpose.
+TABLES = {
+    "er10l-c10": [(170, -90, 0, 0), (780, 0, -90, 0), (140, -90, 0, 0), (0, 90, 0, 1060), (0, -90, 0, 0),
+                  (0, 0, 0, 125)],
+    "kr5-arc": [(180, -90, 0, 400), (600, 0, -90, 0), (120, 90, 0, 0), (0, -90, 0, -620), (0, 90, 0, 0),
+                (0, 180, 0, -115)],
+}
+LIMITS_DEG = {
+    "er10l-c10": [(-180, 180)] * 6,
+    "kr5-arc": [(-155, 155), (-180, 65), (-15, 158), (-350, 350), (-130, 130), (-350, 350)],
+}
+
+
+def _rz(t):
+    c, s = np.cos(t), np.sin(t)
+    return np.array([[c, -s, 0, 0], [s, c, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1.0]])
+
+
+def _rx(t):
+    c, s = np.cos(t), np.sin(t)
+    return np.array([[1, 0, 0, 0], [0, c, -s, 0], [0, s, c, 0], [0, 0, 0, 1.0]])
+
+
+def _ry(t):
+    c, s = np.cos(t), np.sin(t)
+    return np.array([[c, 0, s, 0], [0, 1, 0, 0], [-s, 0, c, 0], [0, 0, 0, 1.0]])
+
+
+def _trans(x, y, z):
+    T = np.eye(4)
+    T[:3, 3] = (x, y, z)
+    return T
+
+
+def geometry(name: str, deviations: dict[str, float] | None = None) -> dict[str, np.ndarray]:
+    """Per-joint arrays a, alpha, theta, d, beta (mm, rad) of a robot with deviations added."""
+    t = np.array(TABLES[name], dtype=float)
+    g = {"a": t[:, 0].copy(), "alpha": np.radians(t[:, 1]), "theta": np.radians(t[:, 2]), "d": t[:, 3].copy(),
+         "beta": np.zeros(len(t))}
+    for key, value in (deviations or {}).items():
+        kind, joint = key.rstrip("0123456789"), int(key[len(key.rstrip("0123456789")):])
+        g[kind][joint - 1] += value
+    return g
+
+
+def pose(g: dict[str, np.ndarray], q: np.ndarray, base=np.eye(4), tool=np.eye(4)) -> np.ndarray:
+    """T = base · Π Rz(q+θ) Tz(d) Tx(a) Rx(α) Ry(β) · tool, one 4×4 product per joint (hayati;
+    β = 0 is standard DH)."""
+    T = np.array(base, dtype=float)
+    for i, qi in enumerate(q):
+        T = T @ _rz(qi + g["theta"][i]) @ _trans(0, 0, g["d"][i]) @ _trans(g["a"][i], 0, 0) @ _rx(g["alpha"][i]) \
+            @ _ry(g["beta"][i])
+    return T @ tool
+
+
+def campaign(name: str, deviations: dict[str, float], n: int, rng: np.random.Generator, *, noise: float,
+             angle_noise: float = 0.0, measure: str = "pose", base=np.eye(4), tool=np.eye(4),
+             joint_error=None) -> dict[str, np.ndarray | None]:
+    """Commanded joints (n, 6) rad, measured positions (n, 3) mm and rotations (n, 3, 3) or None.
+
+    joint_error(q) → Δq (n, 6) rad: an effect of the real robot that a geometric model does not contain.
+    """
+    lim = np.radians(LIMITS_DEG[name])
+    q = rng.uniform(lim[:, 0], lim[:, 1], (n, 6))
+    q_real = q + (0.0 if joint_error is None else joint_error(q))
+    g = geometry(name, deviations)
+    T = np.array([pose(g, qi, base, tool) for qi in q_real])
+    position = T[:, :3, 3] + rng.normal(0.0, noise, (n, 3))
+    rotation = None
+    if measure == "pose":
+        rotation = Rotation.from_rotvec(rng.normal(0.0, angle_noise, (n, 3))).as_matrix() @ T[:, :3, :3]
+    return {"q": q, "position": position, "rotation": rotation}
