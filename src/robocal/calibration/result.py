@@ -14,7 +14,7 @@ from ..math.se3 import transform_to_xyz_rpy
 from ..model.kinematics import joint_kinds
 from ..model.measurements import Measurements
 from ..model.metrics import Metrics
-from ..model.parameters import is_angle
+from ..model.parameters import is_angle, is_frame
 from ..model.robot import Robot
 from ..optimize.result import OptimizeResult
 from .config import CalibrationConfig
@@ -108,6 +108,8 @@ class CalibrationResult:
                 "uncertainty": None if self.uncertainty is None else _finite_or_none(self.uncertainty[i]),
                 "significant": self.significant(i),
                 "absorbs": [{"name": d, "coefficient": c} for d, c in ident.absorbed_by(n)],
+                # frame parameters are deviations from the closed-form registration, not from a file value
+                **({"relative_to": "registration"} if is_frame(n) else {}),
             })
         opt = self.optimisation
         cfg = self.config
@@ -130,6 +132,7 @@ class CalibrationResult:
                         for n in ident.dropped],
             "identifiability": ident.to_dict(),
             "metrics": {k: v.to_dict() for k, v in self.metrics.items()},
+            "frames_registered": frames_dict(self.initial),
             "frames_identified": frames_dict(self.robot),
             "status": opt.status,
             "success": opt.success,
