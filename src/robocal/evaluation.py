@@ -3,24 +3,73 @@
 from __future__ import annotations
 
 from collections.abc import Mapping
+from dataclasses import dataclass
 from pathlib import Path
 
+from . import options as opt
 from .exceptions import InputError
 from .io.measurements import load_measurements
 from .io.robotfile import load_robot
+from .model.candidates import FRAME_CHOICES
 from .model.measurements import Measurements
 from .model.metrics import Metrics
 from .model.robot import Robot
 
 
-def evaluate(robot: str | Path | Robot, data: str | Path | Measurements, *,
-             columns: Mapping[str, str] | None = None) -> Metrics:
-    """Error metrics of ``robot`` (file, built-in name or Robot) on ``data`` (file or Measurements)."""
+@dataclass(frozen=True)
+class Evaluation:
+    """Metrics of a model on data, with the frames mode used and what robocal noticed."""
+
+    metrics: Metrics
+    frames: str
+    notes: list[str]
+    per_target: dict[str, Metrics]
+
+    def to_dict(self) -> dict:
+        out = self.metrics.to_dict()
+        if self.frames != "none":
+            out["frames"] = self.frames
+        if len(self.per_target) > 1:
+            out["per_target"] = {t: m.to_dict() for t, m in self.per_target.items()}
+        return out
+
+
+def evaluate(robot: str | Path | Robot, data: str | Path | Measurements, *, columns: Mapping[str, str] | None = None,
+             frames: str = "none", joint_unit: str | None = None, length_unit: str | None = None) -> Evaluation:
+    """Error metrics of ``robot`` (file, built-in name or Robot) on ``data`` (file or Measurements).
+
+    frames: ``none`` evaluates the model as it is (a calibrated model carries its frames);
+    ``base``/``base+tool`` first fit those frames to the data (nominal joints, closed form and
+    LM), which is how a nominal model is judged on tracker data; ``auto`` fits them when the
+    data are not in the robot's frame.  With ``none`` and data far from the robot's frame, a
+    note names the frames option.
+    """
+    from .calibration.checks import check_units
+    from .calibration.registration import choose_frames, fit_frames
+
+    opt.choice(frames, FRAME_CHOICES, "frames", "frames mode")
     r = load_robot(robot)
-    meas = data if isinstance(data, Measurements) else load_measurements(data, n_joints=r.n_joints, columns=columns,
-                                                                          robot_label=r.source)
+    meas = data if isinstance(data, Measurements) else load_measurements(
+        data, n_joints=r.n_joints, columns=columns, joint_unit=joint_unit, length_unit=length_unit,
+        robot_label=r.source)
+    if length_unit is None:
+        check_units(r, meas, "none")
+    notes: list[str] = []
+    mode = frames
+    if frames in ("none", "auto"):
+        choice = choose_frames(r, meas)
+        if frames == "none" and choice.mode != "none":
+            notes.append(f"{choice.sentence()}; evaluated as given: fit the frames first with frames auto or "
+                         f"{choice.mode}")
+        elif frames == "auto" and choice.mode != "none":
+            notes.append(f"frames auto: {choice.sentence()}")
+        mode = choice.mode if frames == "auto" else "none"
     missing = [t for t in meas.target_names if t and t not in r.targets]
-    if missing:
-        raise InputError(f"target '{missing[0]}' has no tool frame in the robot {r.source or r.name}",
-                         source=meas.source)
-    return Metrics.of(r, meas)
+    if missing and mode != "base+tool":
+        raise InputError(f"target '{missing[0]}' has no tool frame in the robot {r.source or r.name}; evaluate with "
+                         "frames base+tool to fit one", source=meas.source)
+    if mode != "none":
+        r = fit_frames(r, meas, mode)
+    per_target = {t or "(default)": Metrics.of(r, meas.subset([i for i, x in enumerate(meas.targets) if x == t]))
+                  for t in meas.target_names} if meas.targets is not None else {}
+    return Evaluation(Metrics.of(r, meas), mode, notes, per_target)

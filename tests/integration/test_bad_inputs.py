@@ -12,7 +12,7 @@ SENTINEL = "previous content that must survive\n"
 
 def test_corpus_is_large_enough():
     assert len([c for c in CASES.values() if c["kind"] != "cli"]) >= 40
-    assert len([c for c in CASES.values() if c["kind"] == "cli"]) >= 10
+    assert len([c for c in CASES.values() if c["kind"] == "cli"]) >= 30
 
 
 @pytest.fixture(scope="module")
@@ -35,7 +35,8 @@ def test_bad_input(name, good_data, tmp_path, run_cli):
     elif case["kind"] == "data":
         args = ["calibrate", "kr5-arc", BAD / name, "--out", out, "--export", fresh]
     else:
-        args = [a.replace("{good}", str(good_data)).replace("{tmp}", str(tmp_path)) for a in case["args"]]
+        args = [a.replace("{good}", str(good_data)).replace("{tmp}", str(tmp_path)).replace("{bad}", str(BAD))
+                for a in case["args"]]
         if "--out" not in args and args[0] in ("calibrate", "simulate", "reproduce"):
             args += ["--out", fresh if args[0] != "calibrate" else out]
     code, stdout, err = run_cli(*args)

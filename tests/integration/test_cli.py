@@ -96,3 +96,77 @@ def test_bad_simulate_arguments_write_nothing(tmp_path, run_cli):
 def test_console_script_runs():
     proc = subprocess.run([sys.executable, "-m", "robocal", "robots"], capture_output=True, text=True)
     assert proc.returncode == 0 and "er10l-c10" in proc.stdout
+
+
+def test_valid_but_ugly_files_calibrate(tmp_path, run_cli):
+    d = tmp_path / "d.csv"
+    run_cli("simulate", "kr5-arc", "--errors", "uniform:0.1,0.002", "--poses", 30, "--measure", "position",
+            "--seed", 4, "--out", d)
+    ugly = tmp_path / "ugly.csv"
+    ugly.write_bytes(b"\xef\xbb\xbf" + d.read_text().replace("\n", "\r\n").encode() + b"\r\n\r\n\n")
+    code, out, err = run_cli("calibrate", "kr5-arc", ugly, "--quiet", "--out", tmp_path / "r.json")
+    assert code == 0, err
+    assert json.loads((tmp_path / "r.json").read_text())["n_poses"] == 30
+
+
+def test_stated_units_and_column_lists(tmp_path, run_cli):
+    robot = load_robot("kr5-arc")
+    sim = simulate(robot, 30, deviations="uniform:0.1,0.002", seed=5, measure="position",
+                   joint_range=(np.radians(-60), np.radians(60)))  # a small work cell: every joint within ±π deg
+    q, p = np.degrees(sim.measurements.q), sim.measurements.position
+    rows = ["J1,J2,J3,J4,J5,J6,X,Y,Z"] + [",".join(f"{v:.9f}" for v in (*np.radians(q[i]), *(p[i] / 1000)))
+                                         for i in range(30)]
+    f = tmp_path / "metres_radians.csv"
+    f.write_text("\n".join(rows) + "\n")
+    columns = "J1=q1,J2=q2,J3=q3,J4=q4,J5=q5,J6=q6,X=x,Y=y,Z=z"
+    code, _, err = run_cli("calibrate", "kr5-arc", f, "--column", columns, "--quiet")
+    assert code == 2 and "look like radians" in err and "joint unit" in err
+    code, _, err = run_cli("calibrate", "kr5-arc", f, "--column", columns, "--joint-unit", "rad", "--quiet")
+    assert code == 2 and "look like metres" in err
+    out = tmp_path / "r.json"
+    code, _, err = run_cli("calibrate", "kr5-arc", f, "--column", columns, "--joint-unit", "rad", "--length-unit", "m",
+                           "--quiet", "--out", out)
+    assert code == 0, err
+    assert json.loads(out.read_text())["metrics"]["after"]["position"]["rms"] < 1e-5
+    # a work cell in degrees, within ±π: stating the unit lets it load
+    deg = tmp_path / "degrees.csv"
+    deg.write_text("q1,q2,q3,q4,q5,q6,x,y,z\n" + "\n".join(",".join(f"{v:.9f}" for v in (*q[i] / 60, *p[i]))
+                                                            for i in range(30)) + "\n")
+    assert "look like radians" in run_cli("evaluate", "kr5-arc", deg)[2]
+    assert run_cli("evaluate", "kr5-arc", deg, "--joint-unit", "deg")[0] == 0
+
+
+def test_exported_robot_files_are_clean(tmp_path, run_cli):
+    d, cal = tmp_path / "d.csv", tmp_path / "cal.toml"
+    run_cli("simulate", "kr5-arc", "--errors", "uniform:0.1,0.002", "--poses", 40, "--measure", "position",
+            "--seed", 6, "--out", d)
+    assert run_cli("calibrate", "kr5-arc", d, "--export", cal, "--quiet")[0] == 0
+    text = cal.read_text()
+    assert "-0.0," not in text and "-0.0]" not in text and "= -0.0\n" not in text
+    assert "limits = [-155.0, 155.0]" in text and "9999999" not in text
+    assert load_robot(cal).convention == "hayati"  # DH + β on the parallel axes 2 ∥ 3
+
+
+def test_several_reflectors_get_their_own_figures(tmp_path, run_cli):
+    robot = load_robot("kr5-arc")
+    sim = simulate(robot, 25, deviations="uniform:0.1,0.002", seed=7, measure="position")
+    from robocal.io.measurements import save_measurements
+    from robocal.model.measurements import Measurements
+
+    q, pos, tg = [], [], []
+    for name, xyz in {"A": (0.0, 0.0, 100.0), "B": (60.0, 0.0, 80.0), "C": (0.0, 70.0, 90.0)}.items():
+        T = sim.truth.replace(tool=np.eye(4))
+        T.tool[:3, 3] = xyz
+        q.append(sim.measurements.q)
+        pos.append(T.positions(sim.measurements.q))
+        tg += [name] * 25
+    f = tmp_path / "three.csv"
+    save_measurements(Measurements(q=np.vstack(q), position=np.vstack(pos), targets=tuple(tg)), f)
+    out = tmp_path / "r.json"
+    code, stdout, err = run_cli("calibrate", "kr5-arc", f, "--out", out)
+    assert code == 0, err
+    assert "per reflector" in stdout
+    assert "frames auto: reflector 'A' has no tool frame" in err
+    r = json.loads(out.read_text())
+    assert set(r["metrics_per_target"]) == {"A", "B", "C"} and r["frames"] == "base+tool"
+    assert r["poses"] == "25 poses × 3 reflectors (75 measured points)"

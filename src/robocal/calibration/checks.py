@@ -25,10 +25,12 @@ def check_units(robot: Robot, meas: Measurements, frames: str) -> None:
     spread_n = np.linalg.norm(model - model.mean(0), axis=1).max()
     if spread_n > 10 and spread_m < spread_n / 100:
         raise InputError(f"measured points spread over {spread_m:.4g} but the robot predicts {spread_n:.4g} mm: "
-                         "positions look like metres; measurement files give mm", source=meas.source)
+                         "positions look like metres; measurement files give mm (or state the file's length unit)",
+                         source=meas.source)
     if spread_n > 10 and spread_m > spread_n * 100:
         raise InputError(f"measured points spread over {spread_m:.4g} but the robot predicts {spread_n:.4g} mm: "
-                         "positions look like µm or wrong units; measurement files give mm",
+                         "positions look like µm or wrong units; measurement files give mm (or state the file's "
+                         "length unit)",
                          source=meas.source)
 
 
@@ -40,6 +42,17 @@ def check_targets(robot: Robot, meas: Measurements, frames: str) -> None:
     if missing:
         raise InputError(f"target '{missing[0]}' has no tool frame in the robot; identify it with frames base+tool "
                          "or add [targets.NAME] to the robot file", source=meas.source)
+
+
+def check_validation_targets(robot: Robot, meas: Measurements, validation: Measurements | None) -> None:
+    """Validation poses can only be predicted for reflectors the calibration measured or the robot file knows."""
+    if validation is None:
+        return
+    unseen = [t for t in validation.target_names if t and t not in meas.target_names and t not in robot.targets]
+    if unseen:
+        known = ", ".join(repr(t) for t in meas.target_names)
+        raise InputError(f"reflector {unseen[0]!r} of the validation data was never measured for the calibration "
+                         f"(calibration reflectors: {known})", source=validation.source)
 
 
 def degeneracy_warnings(robot: Robot, meas: Measurements) -> list[str]:

@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import asdict, dataclass, field, fields, replace
 
 from .. import options as opt
 from ..backend import BACKENDS
 from ..exceptions import InputError
-from ..model.candidates import FRAME_MODES
+from ..io.measurements import ReadOptions
+from ..model.candidates import FRAME_CHOICES
 from ..optimize.lm import LOSSES
 
 METHODS = ("lm", "pso", "ipso", "ldpso-bt", "hybrid")
@@ -35,20 +36,23 @@ class CalibrationConfig:
     older way to weigh orientation, a fixed (σp/σr)² in mm²/rad² instead of angle_noise.
 
     method: ``lm``, ``pso``, ``ipso``, ``ldpso-bt`` or ``hybrid`` (IPSO then LM).
-    frames: ``none`` (base and tool as in the robot), ``base`` (identify the measuring
-    frame), ``base+tool`` (also a tool offset per target: 3 for position data, 6 for full
-    pose).  params: candidate joint parameters: None/``auto``/``all`` for every parameter
-    of the convention, ``wen2019``/``kou2022`` for the papers' 24, or names (a sequence or
-    a comma list).  objective: ``sum_squares`` (Wen eq. 7 with weight k) or ``sum_norms``
-    (Kou eq. 4), default per method.  loss/f_scale: robust loss of LM with its scale (mm).
-    particles/iterations/box: override the swarm's paper settings; box = (± mm, ± rad)
-    around the initial estimate.  halton: IPSO's start, ``scrambled`` or ``plain``.  swarm:
-    further paper settings to override (``w``, ``c1``, …).  max_evaluations: cap on LM's
-    residual evaluations.  backend: ``auto``, ``numba`` or ``numpy`` for the swarm objectives.
+    frames: ``auto`` (registered when the data are not in the robot's frame, and said),
+    ``none`` (base and tool as in the robot), ``base`` (identify the measuring frame),
+    ``base+tool`` (also a tool offset per target: 3 for position data, 6 for full pose).
+    params: candidate joint parameters: None/``auto``/``all`` for every parameter of the
+    convention, ``wen2019``/``kou2022`` for the papers' 24, or names (a sequence or a comma
+    list).  objective: ``sum_squares`` (Wen eq. 7 with weight k) or ``sum_norms`` (Kou eq. 4),
+    default per method.  loss/f_scale: robust loss of LM with its scale (mm).
+    particles/iterations/box: override the swarm's paper settings; box = (± mm, ± rad) around
+    the initial estimate.  halton: IPSO's start, ``scrambled`` or ``plain``.  swarm: further
+    paper settings to override (``w``, ``c1``, …).  max_evaluations: cap on LM's residual
+    evaluations.  backend: ``auto``, ``numba`` or ``numpy`` for the swarm objectives.
+    joint_unit / length_unit: ``deg``/``rad`` and ``mm``/``m`` of the data files, overriding
+    robocal's unit checks (default: degrees and millimetres, checked).
     """
 
     method: str = "lm"
-    frames: str = "none"
+    frames: str = "auto"
     params: str | tuple[str, ...] | None = None
     seed: int | None = 0
     objective: str | None = None
@@ -65,11 +69,13 @@ class CalibrationConfig:
     swarm: Mapping[str, float] = field(default_factory=dict)
     max_evaluations: int | None = None
     backend: str = "auto"
+    joint_unit: str | None = None
+    length_unit: str | None = None
 
     def __post_init__(self) -> None:
         set_ = object.__setattr__
         opt.choice(self.method, METHODS, "method", "method")
-        opt.choice(self.frames, FRAME_MODES, "frames", "frames mode")
+        opt.choice(self.frames, FRAME_CHOICES, "frames", "frames mode")
         set_(self, "params", _params(self.params))
         if self.seed is not None:
             set_(self, "seed", opt.integer(self.seed, "seed", minimum=0))
@@ -103,6 +109,12 @@ class CalibrationConfig:
         set_(self, "swarm", dict(self.swarm))
         opt.choice(self.halton, HALTON, "halton", "Halton start")
         opt.choice(self.backend, BACKENDS, "backend", "backend")
+        ReadOptions(joint_unit=self.joint_unit, length_unit=self.length_unit)  # checks both
+
+    def read_options(self, robot, columns=None) -> dict:
+        """How to read data files for ``robot``: the keywords of the measurement loaders."""
+        return asdict(ReadOptions(n_joints=robot.n_joints, columns=columns, joint_unit=self.joint_unit,
+                                  length_unit=self.length_unit, robot_label=robot.source))
 
     @classmethod
     def build(cls, config: CalibrationConfig | None = None, **options) -> CalibrationConfig:

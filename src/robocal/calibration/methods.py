@@ -102,7 +102,11 @@ def reexpress(search: Problem, x_search: np.ndarray, problem: Problem) -> tuple[
 def run_swarm(search: Problem, config: CalibrationConfig, progress: Progress | None) -> OptimizeResult:
     """The configured swarm over the searched candidates (hybrid: its IPSO stage)."""
     lower, upper = swarm_box(search.names, config.method, config.box)
-    kw = {"seed": config.seed, "callback": progress, "backend": config.backend, **settings(config)}
+    # particle 0 starts at the initial estimate (nominal joints, fitted frames): the papers draw
+    # every particle at random, but on real data that start is already within a millimetre or
+    # two, and a swarm should never end worse than the model it was handed
+    kw = {"seed": config.seed, "callback": progress, "backend": config.backend, "start": np.zeros(len(search.names)),
+          **settings(config)}
 
     def objective(X):
         return search.objective(X, config.objective_kind)

@@ -45,9 +45,9 @@ from .identifiability import NO_EFFECT, SECOND_ORDER, Identifiability, Reason, a
 from .methods import Estimate, fit_lm, optimise
 from .noise import MAX_REWEIGHTS, NoiseEstimate, block_sigmas, settled
 from .problem import Setup
-from .registration import register_frames
+from .registration import choose_frames, fit_frames
 from .result import CalibrationResult
-from .statistics import OUTLIER_SIGMAS, covariance, f_test, robust_outliers
+from .statistics import MAX_OUTLIER_FRACTION, OUTLIER_GAP, OUTLIER_SIGMAS, covariance, f_test, robust_outliers
 
 #: significance level of the F-test that decides whether parameters that become
 #: identifiable at the estimate are worth adding
@@ -58,9 +58,12 @@ REFIT_EVALUATIONS = 100
 
 @dataclass(frozen=True)
 class Inputs:
+    """The nominal robot, the measurements, validation data, and the frames mode in effect."""
+
     nominal: Robot
     meas: Measurements
     validation: Measurements | None
+    frames: str
 
 
 @dataclass(frozen=True)
@@ -72,25 +75,36 @@ class Candidates:
     explicit: bool
 
 
-def _measurements(data, nominal: Robot, columns) -> Measurements:
+def _measurements(data, nominal: Robot, config: CalibrationConfig, columns) -> Measurements:
     if isinstance(data, Measurements):
         if data.n_joints != nominal.n_joints:
             raise InputError(f"data have {data.n_joints} joints, the robot has {nominal.n_joints}", source=data.source)
         return data
-    return load_measurements(data, n_joints=nominal.n_joints, columns=columns, robot_label=nominal.source)
+    return load_measurements(data, **config.read_options(nominal, columns))
 
 
-def load_inputs(robot, data, validate, config: CalibrationConfig, columns=None) -> Inputs:
-    """Step 1: the nominal robot and the measurements, position-only when asked, checked."""
+def load_inputs(robot, data, validate, config: CalibrationConfig, notes: list[str], columns=None) -> Inputs:
+    """Step 1: the nominal robot and the measurements, position-only when asked, checked; the
+    frames mode (``auto`` decides here, and says what it decided)."""
     nominal = load_robot(robot)
-    meas = _measurements(data, nominal, columns)
-    val = None if validate is None else _measurements(validate, nominal, columns)
+    meas = _measurements(data, nominal, config, columns)
+    val = None if validate is None else _measurements(validate, nominal, config, columns)
     if not (meas.full_pose and config.use_orientation):
         meas = meas.position_only()
         val = None if val is None else val.position_only()
-    checks.check_targets(nominal, meas, config.frames)
-    checks.check_units(nominal, meas, config.frames)
-    return Inputs(nominal, meas, val)
+    frames = config.frames
+    if frames in ("auto", "none"):
+        choice = choose_frames(nominal, meas)
+        if frames == "auto" and choice.mode != "none":  # it changed what is calibrated: say so
+            notes.append(f"frames auto: {choice.sentence()}")
+        elif frames == "none" and choice.mode != "none":
+            notes.append(f"frames none, but {choice.sentence()}: calibrate with frames auto or {choice.mode}")
+        frames = choice.mode if frames == "auto" else "none"
+    checks.check_targets(nominal, meas, frames)
+    checks.check_validation_targets(nominal, meas, val)
+    if config.length_unit is None:  # a stated unit overrides the spread check
+        checks.check_units(nominal, meas, frames)
+    return Inputs(nominal, meas, val, frames)
 
 
 def complete_model(robot: Robot, config: CalibrationConfig) -> Robot:
@@ -103,15 +117,17 @@ def complete_model(robot: Robot, config: CalibrationConfig) -> Robot:
 
 
 def register(inputs: Inputs, config: CalibrationConfig) -> Setup:
-    """Step 2: the complete model, frames registered in closed form, the parameter space
-    around the result, and the noise weighting to start with."""
-    initial = register_frames(complete_model(inputs.nominal, config), inputs.meas, config.frames)
-    space = ParameterSpace.of(initial, inputs.meas.target_names if config.frames == "base+tool" else None)
+    """Step 2: the complete model, its frames fitted with the nominal joints (closed form, then
+    LM on base and tools together: see :func:`~robocal.calibration.registration.fit_frames`),
+    the parameter space around the result, and the noise weighting to start with.  A swarm
+    then searches a few millimetres around frames that are already right."""
     sigma_p, sigma_r = config.noise_model.initial()
+    initial = fit_frames(complete_model(inputs.nominal, config), inputs.meas, inputs.frames, sigma_p, sigma_r)
+    space = ParameterSpace.of(initial, inputs.meas.target_names if inputs.frames == "base+tool" else None)
     return Setup(space, inputs.meas, sigma_p, sigma_r, config.use_orientation, config.backend)
 
 
-def choose_candidates(setup: Setup, config: CalibrationConfig) -> Candidates:
+def choose_candidates(setup: Setup, config: CalibrationConfig, frames_mode: str) -> Candidates:
     """Step 3: joint candidates (the convention's or the config's) and the frames' parameters."""
     robot = setup.space.robot
     requested = resolve_params(config.params, robot.n_joints)
@@ -120,7 +136,7 @@ def choose_candidates(setup: Setup, config: CalibrationConfig) -> Candidates:
     if unknown:
         raise InputError(f"unknown parameter '{unknown[0]}' for this {robot.convention} robot "
                          f"(known: {', '.join(setup.space.names[:8])}, …)", option="params")
-    frames = frame_candidates(config.frames, setup.meas.target_names, setup.full_pose)
+    frames = frame_candidates(frames_mode, setup.meas.target_names, setup.full_pose)
     return Candidates(joints, joints + [n for n in frames if n not in joints], requested is not None)
 
 
@@ -147,33 +163,54 @@ def searched_names(candidates: Candidates, ident: Identifiability) -> list[str]:
     return [n for n in candidates.names if n not in ident.reasons or ident.reasons[n].kind != NO_EFFECT]
 
 
-def screen_outliers(est: Estimate, config: CalibrationConfig, notes: list[str]) -> tuple[Estimate, list[dict]]:
-    """Step 6: with a robust loss, poses beyond OUTLIER_SIGMAS robust σ are left out and the
-    inliers refitted by plain least squares (the answer as if the outliers were never measured);
-    with a plain fit, such poses are only named."""
+@dataclass(frozen=True)
+class Screening:
+    """Outliers left out by a robust fit, and the plain fit that keeps them (for comparison)."""
+
+    outliers: list[dict]
+    with_outliers: Robot | None = None
+
+
+def screen_outliers(est: Estimate, config: CalibrationConfig, notes: list[str]) -> tuple[Estimate, Screening]:
+    """Step 6: poses that fail the outlier test (:func:`~robocal.calibration.statistics.robust_outliers`).
+
+    With a robust loss they are left out and the inliers refitted by plain least squares (the
+    answer as if the outliers were never measured); a plain fit on every pose is kept beside
+    it, so that validation can say what leaving them out did.  With a plain fit they are only
+    named, with the suggestion of a robust loss: only poses that stand apart are named, so the
+    suggestion is not made for the continuous tail of an incomplete model.
+    """
     problem = est.problem
     if config.method not in ("lm", "hybrid") or est.optimisation.status != "converged":
-        return est, []
+        return est, Screening([])
     dp, _ = problem.errors(est.x)
     flagged, sigma = robust_outliers(dp)
     if not flagged.size:
-        return est, []
+        return est, Screening([])
     meas = problem.meas
+    test = (f"residual beyond {OUTLIER_SIGMAS:g} σ̂ = {OUTLIER_SIGMAS * sigma:.3g} mm and {OUTLIER_GAP:g}× the largest "
+            "residual within it")
     if config.loss == "linear":
-        notes.append(f"{meas.labels(flagged)} look like outliers (residual > {OUTLIER_SIGMAS:g} σ̂, σ̂ = {sigma:.3g} "
-                     "mm); a robust fit (loss huber) would leave them out")
-        return est, []
+        notes.append(f"{meas.labels(flagged)} look like outliers ({test}); a robust fit (loss huber, "
+                     "--loss huber) would leave them out")
+        return est, Screening([])
+    plain = CalibrationConfig.build(config, loss="linear")
+    keep_all = fit_lm(problem, est.x, plain)
     outliers = [{"row": int(meas.rows[i]), "pose_id": None if meas.pose_ids is None else meas.pose_ids[i],
                  "error_mm": float(np.linalg.norm(dp[i]))} for i in flagged]
     inliers = problem.setup.with_measurements(meas.subset(np.setdiff1d(np.arange(meas.n_poses), flagged)))
     refit_problem = inliers.problem(problem.names)
-    lm = fit_lm(refit_problem, est.x, CalibrationConfig.build(config, loss="linear"))
+    lm = fit_lm(refit_problem, est.x, plain)
     merged = est.optimisation.then(lm, method=est.optimisation.method,
                                    message=f"{est.optimisation.message}; {len(flagged)} outliers removed, inliers "
                                            f"refitted: {lm.message}", extra={"robust_scale_mm": sigma})
-    notes.append(f"{len(flagged)} outlier poses (residual > {OUTLIER_SIGMAS:g} σ̂, σ̂ = {sigma:.3g} mm) left out: "
-                 f"{meas.labels(flagged)}")
-    return est.replace(problem=refit_problem, optimisation=merged, x=lm.x), outliers
+    notes.append(f"{len(flagged)} outlier poses left out ({test}): {meas.labels(flagged)}")
+    if len(flagged) > MAX_OUTLIER_FRACTION * meas.n_poses:
+        notes.append(f"{len(flagged)} of {meas.n_poses} poses ({100 * len(flagged) / meas.n_poses:.0f} %) left out "
+                     f"as outliers, more than {100 * MAX_OUTLIER_FRACTION:g} %: the model may be incomplete rather "
+                     "than the data bad; compare the validation figures with and without them")
+    screening = Screening(outliers, problem.space.apply(problem.full(keep_all.x)))
+    return est.replace(problem=refit_problem, optimisation=merged, x=lm.x), screening
 
 
 def refine_at_estimate(est: Estimate, ident: Identifiability, candidates: Candidates,
@@ -247,9 +284,10 @@ def reweigh(est: Estimate, config: CalibrationConfig) -> tuple[Estimate, NoiseEs
                 break
             lm = fit_lm(problem, est.x, config)
             refits += 1
+            # χ² under new weights is another scale: the history stays that of the first weights
             est = Estimate(problem, est.optimisation.then(lm, method=est.optimisation.method, message=(
-                f"{est.optimisation.message}; reweighted (σp {sigmas[0]:.3g} mm): {lm.message}")),
-                lm.x, est.reexpression_gap_mm)
+                f"{est.optimisation.message}; reweighted (σp {sigmas[0]:.3g} mm): {lm.message}"),
+                history=est.optimisation.history), lm.x, est.reexpression_gap_mm)
     return est, NoiseEstimate(sigmas[0], sigmas[1] if full else None, source, refits)
 
 
@@ -283,14 +321,20 @@ def judge(est: Estimate, config: CalibrationConfig, noise: NoiseEstimate,
 
 
 def evaluate(initial: Robot, calibrated: Robot, meas: Measurements, all_rows: Measurements,
-             validation: Measurements | None) -> dict[str, Metrics]:
-    """Step 8: before/after metrics on the calibration data and, when given, on validation data."""
+             validation: Measurements | None, screening: Screening, notes: list[str]) -> dict[str, Metrics]:
+    """Step 10: before/after metrics on the calibration data and, when given, on validation data;
+    with outliers left out, validation of the plain fit that kept them too."""
     metrics = {"before": Metrics.of(initial, meas), "after": Metrics.of(calibrated, meas)}
     if all_rows is not meas:
         metrics["after_all_rows"] = Metrics.of(calibrated, all_rows)
     if validation is not None:
         metrics["validation_before"] = Metrics.of(initial, validation)
         metrics["validation_after"] = Metrics.of(calibrated, validation)
+        if screening.with_outliers is not None:
+            kept = metrics["validation_with_outliers_kept"] = Metrics.of(screening.with_outliers, validation)
+            notes.append(f"leaving out {len(screening.outliers)} outlier poses changed the validation RMS from "
+                         f"{kept.position['rms']:.4g} mm (plain fit of every pose) to "
+                         f"{metrics['validation_after'].position['rms']:.4g} mm")
     return metrics
 
 
@@ -324,13 +368,14 @@ def calibrate(
     """
     start = time.perf_counter()
     cfg = CalibrationConfig.build(config, **({"method": method} if config is None else {}), **options)
-    inputs = load_inputs(robot, data, validate, cfg, columns)
-    notes = checks.degeneracy_warnings(inputs.nominal, inputs.meas)
+    notes: list[str] = []
+    inputs = load_inputs(robot, data, validate, cfg, notes, columns)
+    notes += checks.degeneracy_warnings(inputs.nominal, inputs.meas)
     setup = register(inputs, cfg)
-    candidates = choose_candidates(setup, cfg)
+    candidates = choose_candidates(setup, cfg, inputs.frames)
     ident = analyse_identifiability(setup, candidates, notes)
     est = optimise(setup.problem(ident.kept), setup.problem(searched_names(candidates, ident)), cfg, progress)
-    est, outliers = screen_outliers(est, cfg, notes)
+    est, screening = screen_outliers(est, cfg, notes)
     notes += _status_notes(est, cfg)
     est, noise = reweigh(est, cfg)
     refined, ident = refine_at_estimate(est, ident, candidates, cfg)
@@ -339,7 +384,7 @@ def calibrate(
     gof, unc, cov = judge(est, cfg, noise, notes)
     initial = setup.space.robot
     calibrated = setup.space.apply(est.problem.full(est.x)).replace(name=f"{inputs.nominal.name} (calibrated)")
-    metrics = evaluate(initial, calibrated, est.problem.meas, inputs.meas, inputs.validation)
+    metrics = evaluate(initial, calibrated, est.problem.meas, inputs.meas, inputs.validation, screening, notes)
     for note in notes:
         warnings.warn(note, RobocalWarning, stacklevel=2)
     return CalibrationResult(
@@ -347,6 +392,6 @@ def calibrate(
         uncertainty=unc, identifiability=ident, optimisation=est.optimisation, metrics=metrics,
         data=inputs.meas.source, n_poses=est.problem.meas.n_poses, full_pose=setup.full_pose, warnings=notes,
         time_s=time.perf_counter() - start, measurements=est.problem.meas, validation=inputs.validation,
-        outliers=outliers, reexpression_gap_mm=est.reexpression_gap_mm, noise=noise, goodness_of_fit=gof,
-        covariance=cov,
+        outliers=screening.outliers, reexpression_gap_mm=est.reexpression_gap_mm, noise=noise, goodness_of_fit=gof,
+        covariance=cov, frames=inputs.frames,
     )

@@ -10,6 +10,8 @@ bilinear: fixing one makes the other linear).
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from ..exceptions import InputError
@@ -64,3 +66,89 @@ def register_frames(robot: Robot, meas: Measurements, mode: str, iterations: int
         named = {t: T for t, T in tools.items() if t != ""}
         return robot.replace(base=base, tool=tools.get("", robot.tool), targets={**robot.targets, **named})
     return robot.replace(base=base)
+
+
+def _rms(robot: Robot, meas: Measurements, targets) -> float:
+    dp = meas.position - robot.positions(meas.q, targets)
+    return float(np.sqrt(np.mean(np.sum(dp * dp, axis=1))))
+
+
+#: frames auto: registering must shrink the nominal model's RMS error by this factor, and by
+#: at least AUTO_MIN_GAIN_MM, before the data count as living in another frame
+AUTO_FACTOR, AUTO_MIN_GAIN_MM = 3.0, 1.0
+
+
+@dataclass(frozen=True)
+class FrameChoice:
+    """What ``frames auto`` decided: the mode, and the nominal model's RMS position error (mm)
+    as given and after registering that mode's frames (None when nothing was registered)."""
+
+    mode: str
+    given_rms: float | None = None
+    registered_rms: float | None = None
+    reason: str = ""
+
+    def sentence(self) -> str:
+        if self.reason:
+            return self.reason
+        if self.mode == "none":
+            return f"the data sit in the robot's frame ({self.given_rms:.4g} mm RMS as given)"
+        what = "the base" if self.mode == "base" else "base and tool"
+        return (f"the data are not in the robot's frame: the nominal model is {self.given_rms:.4g} mm RMS off as "
+                f"given and {self.registered_rms:.4g} mm after registering {what} (frames {self.mode})")
+
+
+def choose_frames(robot: Robot, meas: Measurements) -> FrameChoice:
+    """For ``frames auto``: the frames mode the data need.
+
+    The nominal model's RMS position error is compared as given, with a registered base,
+    and with base and tools: a tracker's data, metres away and turned, shrink by orders of
+    magnitude; data in the robot's own frame shrink only by what a rigid move can take of
+    the geometric errors.  Reflectors the robot file does not know always need base+tool.
+    """
+    unknown = [t for t in meas.target_names if t and t not in robot.targets]
+    targets = meas.targets if meas.targets and not unknown else None
+    try:
+        _check_spread(meas.position, meas.source)
+    except InputError:
+        return FrameChoice("none", reason="too few or collinear poses to register a frame; frames as given")
+    both = _rms(register_frames(robot, meas, "base+tool"), meas, meas.targets)
+    if unknown:
+        return FrameChoice("base+tool", None, both, f"reflector '{unknown[0]}' has no tool frame in the robot file, "
+                           f"so base and tools are identified (frames base+tool; {both:.4g} mm RMS registered)")
+    given = _rms(robot, meas, targets)
+    if given <= AUTO_FACTOR * both or given - both < AUTO_MIN_GAIN_MM:
+        return FrameChoice("none", given, None)
+    base = _rms(register_frames(robot, meas, "base"), meas, targets)
+    if base <= 1.5 * both + 0.5:
+        return FrameChoice("base", given, base)
+    return FrameChoice("base+tool", given, both)
+
+
+def fit_frames(robot: Robot, meas: Measurements, mode: str, sigma_position: float = 1.0,
+               sigma_orientation: float | None = None) -> Robot:
+    """Frames of ``mode`` fitted to the measurements with the nominal joint geometry: the closed
+    form of :func:`register_frames`, then Levenberg–Marquardt on the frame parameters alone
+    (base and tools together, full pose when the data have it).
+
+    The LM step matters when tools are unknown: the closed form registers the base while the
+    reflector offset is still a guess, which can leave the base tens of millimetres off.
+    """
+    from ..model.candidates import frame_candidates
+    from ..model.parameters import ParameterSpace
+    from ..optimize.lm import levenberg_marquardt
+    from .problem import DEFAULT_K, Setup
+
+    initial = register_frames(robot, meas, mode)
+    if mode == "none":
+        return initial
+    space = ParameterSpace.of(initial, meas.target_names if mode == "base+tool" else None)
+    sigma_r = sigma_orientation if sigma_orientation is not None else sigma_position / np.sqrt(DEFAULT_K)
+    rigid = Setup(space, meas, sigma_position, sigma_r).problem(frame_candidates(mode, meas.target_names,
+                                                                                   meas.full_pose))
+    x0 = np.zeros(rigid.n_params)
+    lm = levenberg_marquardt(rigid.residuals, rigid.residual_jacobian, x0)
+    start = rigid.residuals(x0)
+    if not np.all(np.isfinite(lm.x)) or lm.fun > float(start @ start):
+        return initial
+    return space.apply(rigid.full(lm.x))

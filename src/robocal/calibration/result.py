@@ -62,6 +62,7 @@ class CalibrationResult:
     noise: NoiseEstimate | None = None
     goodness_of_fit: GoodnessOfFit | None = None
     covariance: np.ndarray | None = field(default=None, repr=False)
+    frames: str = "none"
 
     @property
     def method(self) -> str:
@@ -82,6 +83,20 @@ class CalibrationResult:
     def deviations(self) -> dict[str, float]:
         """Identified deviations {name: value} (mm, rad)."""
         return dict(zip(self.names, map(float, self.x)))
+
+    def per_target_metrics(self) -> dict[str, dict[str, Metrics]]:
+        """Before/after (and validation) metrics of each reflector, when the data have several."""
+        if self.measurements is None or len(self.measurements.target_names) < 2:
+            return {}
+        out: dict[str, dict[str, Metrics]] = {}
+        val = {} if self.validation is None else self.validation.by_target()
+        for t, m in self.measurements.by_target().items():
+            name = t or "(tool)"
+            out[name] = {"before": Metrics.of(self.initial, m), "after": Metrics.of(self.robot, m)}
+            if t in val:
+                out[name]["validation_before"] = Metrics.of(self.initial, val[t])
+                out[name]["validation_after"] = Metrics.of(self.robot, val[t])
+        return out
 
     def significant(self, i: int) -> bool | None:
         """|deviation| ≥ 2 standard uncertainties (None where no uncertainty is known)."""
@@ -122,16 +137,20 @@ class CalibrationResult:
             "noise": None if self.noise is None else self.noise.to_dict(),
             "goodness_of_fit": None if self.goodness_of_fit is None else self.goodness_of_fit.to_dict(),
             "loss": cfg.loss,
-            "frames": cfg.frames,
+            "frames": self.frames,
+            "frames_requested": cfg.frames,
             "robot": self.nominal.name,
             "data": self.data,
             "n_poses": self.n_poses,
+            "poses": None if self.measurements is None else self.measurements.describe(),
             "measure": "pose" if self.full_pose else "position",
             "parameters": params,
             "dropped": [{"name": n, "reason": ident.reasons[n].text(), **ident.reasons[n].to_dict()}
                         for n in ident.dropped],
             "identifiability": ident.to_dict(),
             "metrics": {k: v.to_dict() for k, v in self.metrics.items()},
+            "metrics_per_target": {t: {k: v.to_dict() for k, v in m.items()}
+                                   for t, m in self.per_target_metrics().items()},
             "frames_registered": frames_dict(self.initial),
             "frames_identified": frames_dict(self.robot),
             "status": opt.status,

@@ -18,6 +18,11 @@ OUTLIER_SIGMAS = 6.0
 MAXWELL_MEDIAN = 1.5382
 #: fewer poses than this give no robust scale worth screening with
 MIN_POSES_FOR_OUTLIERS = 8
+#: an outlier also stands this far apart: beyond this many times the largest residual within
+#: OUTLIER_SIGMAS (gross errors are isolated; a tail of model misfit is continuous)
+OUTLIER_GAP = 3.0
+#: leaving out more than this fraction of the poses gets a warning: the model, not the data, may be at fault
+MAX_OUTLIER_FRACTION = 0.05
 
 
 def covariance(J: np.ndarray | None = None, *, information: np.ndarray | None = None, variance: float = 1.0,
@@ -73,13 +78,19 @@ def f_test(rss_restricted: float, rss_full: float, n_added: int, dof_full: int) 
 
 
 def robust_outliers(position_errors: np.ndarray) -> tuple[np.ndarray, float]:
-    """Poses whose |δp| exceeds OUTLIER_SIGMAS robust σ, and that σ (mm per axis).
+    """Poses that fail the outlier test, and the robust σ (mm per axis).
 
-    σ comes from the median |δp| through the Maxwell law, so a few gross errors do not
-    inflate it.
+    The test: |δp| beyond OUTLIER_SIGMAS robust σ (σ from the median |δp| through the Maxwell
+    law, so gross errors do not inflate it; Gaussian noise passes it with probability
+    1 − 1e-7 per pose) *and* beyond OUTLIER_GAP times the largest |δp| within that bound.  A lost
+    beam or a mislabelled row stands apart from the rest; the residuals of an incomplete model
+    (real robots: compliance, gears) form a continuous tail, which the gap keeps in.
     """
     norm = np.linalg.norm(position_errors, axis=1)
     sigma = float(np.median(norm)) / MAXWELL_MEDIAN
     if len(norm) < MIN_POSES_FOR_OUTLIERS:
         return np.zeros(0, dtype=int), sigma
-    return np.flatnonzero(norm > OUTLIER_SIGMAS * max(sigma, 1e-9)), sigma
+    bound = OUTLIER_SIGMAS * max(sigma, 1e-9)
+    bulk = norm[norm <= bound]
+    limit = max(bound, OUTLIER_GAP * float(bulk.max())) if bulk.size else bound
+    return np.flatnonzero(norm > limit), sigma

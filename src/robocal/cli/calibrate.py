@@ -28,7 +28,12 @@ def _print_summary(result, robot_name: str, data: Path) -> None:
     if "validation_before" in m:
         cols["validation before"], cols["validation after"] = m["validation_before"], m["validation_after"]
     out = console()
-    out.print(metrics_table(f"{robot_name}: {result.method} on {data} ({result.n_poses} poses)", cols))
+    out.print(metrics_table(f"{robot_name}: {result.method} on {data} ({result.measurements.describe()})", cols))
+    per_target = result.per_target_metrics()
+    if per_target:
+        keys = [k for k in ("before", "after", "validation_after") if k in next(iter(per_target.values()))]
+        rows = [(t, str(m["after"].n), *(f"{m[k].position['rms']:.4f}" for k in keys)) for t, m in per_target.items()]
+        out.print(table("per reflector: position RMS (mm)", ("reflector", "points", *keys), rows, text_columns=(0,)))
     out.print(table("identified parameters (angles in degrees)", PARAMETER_COLUMNS, parameter_rows(result),
                     text_columns=(0, len(PARAMETER_COLUMNS) - 1)))
     out.print(table("frames", FRAME_COLUMNS, frame_rows(result), "left"))
@@ -45,7 +50,7 @@ def calibrate_cmd(
     data: Path = typer.Argument(..., help="measurement CSV"),
     method: str = typer.Option("lm", "--method", help="lm | pso | ipso | ldpso-bt | hybrid"),
     validate: Path | None = typer.Option(None, "--validate", help="validation CSV (poses not used to identify)"),
-    frames: str = typer.Option("none", "--frames", help="none | base | base+tool"),
+    frames: str = typer.Option("auto", "--frames", help="auto | none | base | base+tool (auto: registered if needed)"),
     seed: int = typer.Option(0, "--seed"),
     params: str | None = typer.Option(
         None, "--params", help="candidate joint parameters: comma list, or wen2019 | kou2022 (default: all)"
@@ -69,6 +74,8 @@ def calibrate_cmd(
     export: Path | None = typer.Option(None, "--export", help="calibrated robot TOML to write"),
     report: Path | None = typer.Option(None, "--report", help="self-contained HTML report to write"),
     column: list[str] | None = typer.Option(None, "--column", help="map file columns: FILE=ROBOCAL[,FILE=ROBOCAL…]"),
+    joint_unit: str | None = typer.Option(None, "--joint-unit", help="deg | rad (default: deg, checked)"),
+    length_unit: str | None = typer.Option(None, "--length-unit", help="mm | m (default: mm, checked)"),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="no table, no progress bar"),
 ) -> None:
     """Identify a robot's geometric parameters from measured poses."""
@@ -84,7 +91,8 @@ def calibrate_cmd(
     cfg = CalibrationConfig(method=method, frames=frames, params=params, seed=seed, objective=objective,
                             use_orientation=not position_only, loss=loss, f_scale=f_scale, particles=particles,
                             iterations=iterations, box=box, halton=halton, backend=backend, noise=noise,
-                            angle_noise=None if angle_noise is None else math.radians(angle_noise), k=k)
+                            angle_noise=None if angle_noise is None else math.radians(angle_noise), k=k,
+                            joint_unit=joint_unit, length_unit=length_unit)
     nominal = load_robot(robot)
     total = None if method == "lm" else settings(cfg)["iterations"]
     with progress_bar(not quiet and method != "lm", method, total) as callback, warnings.catch_warnings():

@@ -7,7 +7,6 @@ joints as starting guess and configuration branch); optional ``pose_id`` names t
 
 from __future__ import annotations
 
-from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -15,7 +14,7 @@ import numpy as np
 
 from ..math.so3 import rpy_to_matrix
 from .atomic import read_text
-from .measurements import read_pose_table
+from .measurements import ReadOptions, read_pose_table
 
 
 @dataclass
@@ -33,9 +32,9 @@ class Goals:
         return len(self.ids)
 
 
-def parse_goals(text: str, *, source: str = "<goals>", n_joints: int | None = None,
-                columns: Mapping[str, str] | None = None) -> Goals:
-    t = read_pose_table(text, source=source, n_joints=n_joints, columns=columns, require_joints=False,
+def parse_goals(text: str, *, source: str = "<goals>", **options) -> Goals:
+    """Goals from CSV text; options are those of :class:`~robocal.io.measurements.ReadOptions`."""
+    t = read_pose_table(text, source=source, options=ReadOptions(**options), require_joints=False,
                         require_position=False)
     ids = t.pose_ids if t.pose_ids is not None else [str(r) for r in t.rows]
     return Goals(
@@ -47,5 +46,5 @@ def parse_goals(text: str, *, source: str = "<goals>", n_joints: int | None = No
     )
 
 
-def load_goals(path: str | Path, *, n_joints: int | None = None, columns: Mapping[str, str] | None = None) -> Goals:
-    return parse_goals(read_text(path, "goals file"), source=str(path), n_joints=n_joints, columns=columns)
+def load_goals(path: str | Path, **options) -> Goals:
+    return parse_goals(read_text(path, "goals file"), source=str(path), **options)

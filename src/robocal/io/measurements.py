@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .. import options as opt
 from ..exceptions import InputError
 from ..math.so3 import matrix_to_rpy, project_to_so3, rpy_to_matrix
 from ..model.measurements import Measurements
@@ -77,32 +78,59 @@ def _pose_columns(table: CsvTable, has_joints: bool, require_position: bool) -> 
     return all(have_pos), all(have_rot)
 
 
-def read_pose_table(
-    text: str,
-    *,
-    source: str,
-    n_joints: int | None = None,
-    columns: Mapping[str, str] | None = None,
-    require_joints: bool = True,
-    require_position: bool = True,
-    robot_label: str = "",
-) -> PoseTable:
-    """Read and validate a CSV with columns q1..qn, x, y, z, rx, ry, rz, pose_id, target."""
-    table = read_csv(text, source=source, columns=columns)
+#: units a file may state instead of robocal's degrees and millimetres
+JOINT_UNITS = ("deg", "rad")
+LENGTH_UNITS = ("mm", "m")
+
+
+@dataclass(frozen=True)
+class ReadOptions:
+    """How to read a measurement-style file.
+
+    n_joints: the robot's joint count, checked against the q-columns; robot_label names the
+    robot in that message.  columns: file column → robocal column (``{"A1": "q1"}``).
+    joint_unit / length_unit: ``deg``/``rad`` and ``mm``/``m`` as the file has them; None
+    means robocal's degrees and millimetres, with a check that rejects joints that all look
+    like radians.
+    """
+
+    n_joints: int | None = None
+    columns: Mapping[str, str] | None = None
+    joint_unit: str | None = None
+    length_unit: str | None = None
+    robot_label: str = ""
+
+    def __post_init__(self) -> None:
+        if self.joint_unit is not None:
+            opt.choice(self.joint_unit, JOINT_UNITS, "joint_unit", "joint unit")
+        if self.length_unit is not None:
+            opt.choice(self.length_unit, LENGTH_UNITS, "length_unit", "length unit")
+
+
+def read_pose_table(text: str, *, source: str, options: ReadOptions = ReadOptions(), require_joints: bool = True,
+                    require_position: bool = True) -> PoseTable:
+    """Read and validate a CSV with columns q1..qn, x, y, z, rx, ry, rz, pose_id, target.
+
+    Joints come back in degrees and lengths in mm, whatever units the options state.
+    """
+    table = read_csv(text, source=source, columns=options.columns)
     known = set(POSITION) | set(ORIENTATION) | set(OPTIONAL)
     for h in table.header:
         if h not in known and not _JOINT.match(h):
             raise InputError(f"unknown column '{h}' (expected q1..qn, x, y, z, optional rx, ry, rz, pose_id, "
                              "target; map other names with a column mapping)", source=source)
-    qcols = _joint_columns(table, n_joints, require_joints, robot_label)
+    qcols = _joint_columns(table, options.n_joints, require_joints, options.robot_label)
     has_pos, has_rot = _pose_columns(table, bool(qcols), require_position)
     q = numbers(table, qcols) if qcols else None
-    if q is not None and len(q) >= 3 and 0 < np.abs(q).max() <= math.pi + 1e-9:
-        raise InputError("all joint values lie within ±π: they look like radians; files give joints in degrees",
-                         source=source)
+    if q is not None and options.joint_unit == "rad":
+        q = np.degrees(q)
+    elif q is not None and options.joint_unit is None and len(q) >= 3 and 0 < np.abs(q).max() <= math.pi + 1e-9:
+        raise InputError("all joint values lie within ±π: they look like radians; files give joints in degrees "
+                         "(state the unit with joint unit deg or rad)", source=source)
+    scale = 1000.0 if options.length_unit == "m" else 1.0
     return PoseTable(
         q=q,
-        position=numbers(table, POSITION) if has_pos else None,
+        position=scale * numbers(table, POSITION) if has_pos else None,
         rpy=numbers(table, ORIENTATION) if has_rot else None,
         pose_ids=strings(table, "pose_id", required=True) if "pose_id" in table else None,
         targets=strings(table, "target") if "target" in table else None,
@@ -110,18 +138,10 @@ def read_pose_table(
     )
 
 
-def parse_measurements(
-    text: str,
-    *,
-    source: str = "<data>",
-    n_joints: int | None = None,
-    columns: Mapping[str, str] | None = None,
-    average: bool = True,
-    repeat_tolerance: float = REPEAT_TOLERANCE_MM,
-    robot_label: str = "",
-) -> Measurements:
+def parse_measurements(text: str, *, source: str = "<data>", average: bool = True,
+                       repeat_tolerance: float = REPEAT_TOLERANCE_MM, **options) -> Measurements:
     """Parse CSV text; see :func:`load_measurements`."""
-    t = read_pose_table(text, source=source, n_joints=n_joints, columns=columns, robot_label=robot_label)
+    t = read_pose_table(text, source=source, options=ReadOptions(**options))
     meas = Measurements(
         q=np.radians(t.q),
         position=t.position,
@@ -182,24 +202,16 @@ def average_repeats(meas: Measurements, tolerance: float = REPEAT_TOLERANCE_MM) 
     )
 
 
-def load_measurements(
-    path: str | Path,
-    *,
-    n_joints: int | None = None,
-    columns: Mapping[str, str] | None = None,
-    average: bool = True,
-    repeat_tolerance: float = REPEAT_TOLERANCE_MM,
-    robot_label: str = "",
-) -> Measurements:
+def load_measurements(path: str | Path, *, average: bool = True, repeat_tolerance: float = REPEAT_TOLERANCE_MM,
+                      **options) -> Measurements:
     """Load and validate a measurement CSV.
 
-    n_joints: the robot's joint count, checked against the q-columns.  columns: map of
-    file column name → robocal column name (e.g. ``{"A1": "q1"}``).  average: average
-    repeated rows by pose_id.
+    options: those of :class:`ReadOptions` (n_joints, columns, joint_unit, length_unit,
+    robot_label).  average: average repeated rows by pose_id (positions within
+    ``repeat_tolerance`` mm of their mean).
     """
-    return parse_measurements(read_text(path, "measurement file"), source=str(path), n_joints=n_joints,
-                              columns=columns, average=average, repeat_tolerance=repeat_tolerance,
-                              robot_label=robot_label)
+    return parse_measurements(read_text(path, "measurement file"), source=str(path), average=average,
+                              repeat_tolerance=repeat_tolerance, **options)
 
 
 def measurements_to_csv(meas: Measurements, *, extra: Mapping[str, Sequence] | None = None) -> str:

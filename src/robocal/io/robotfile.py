@@ -151,17 +151,24 @@ def parse_robot(text: str, *, source: str = "<robot>", default_name: str = "robo
 
 
 def _deg(x_rad: float) -> str:
-    """Shortest decimal degrees whose conversion gives back exactly ``x_rad``."""
+    """Shortest decimal degrees whose conversion gives back exactly ``x_rad``: 120.0, not
+    119.99999999999999, for a limit the user wrote as 120; never -0.0."""
     deg = math.degrees(x_rad)
-    for _ in range(8):
+    for digits in range(0, 18):
+        text = _num(round(deg, digits))
+        if math.radians(float(text)) == x_rad:
+            return text
+    for _ in range(8):  # no short decimal: the nearest doubles of the degree value
         if math.radians(float(repr(deg))) == x_rad:
-            return repr(deg)
+            return _num(deg)
         deg = math.nextafter(deg, math.inf if math.radians(deg) < x_rad else -math.inf)
-    return repr(math.degrees(x_rad))
+    return _num(math.degrees(x_rad))
 
 
 def _num(x: float) -> str:
-    return repr(float(x))
+    """Shortest round-trip decimal of a float, with 0.0 for -0.0."""
+    x = float(x)
+    return repr(x + 0.0 if x == 0 else x)
 
 
 def _frame_text(header: str, T: np.ndarray) -> list[str]:

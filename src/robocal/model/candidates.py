@@ -11,6 +11,8 @@ from .robot import Robot
 
 #: what a calibration estimates besides the joints: nothing, the measuring frame, or it and the tools
 FRAME_MODES = ("none", "base", "base+tool")
+#: ``auto``: registered when the data are not in the robot's frame (see calibration.registration)
+FRAME_CHOICES = ("auto",) + FRAME_MODES
 
 
 def parallel_pairs(robot: Robot) -> list[int]:

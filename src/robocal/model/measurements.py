@@ -51,6 +51,22 @@ class Measurements:
     def target_names(self) -> tuple[str, ...]:
         return ("",) if self.targets is None else tuple(dict.fromkeys(self.targets))
 
+    def describe(self) -> str:
+        """How many poses and reflectors: "500 poses × 3 reflectors (1500 measured points)"."""
+        if self.targets is None or len(self.target_names) == 1:
+            return f"{self.n_poses} poses"
+        configs = len(np.unique(np.round(self.q, 9), axis=0))
+        k = len(self.target_names)
+        if configs * k == self.n_poses:
+            return f"{configs} poses × {k} reflectors ({self.n_poses} measured points)"
+        return f"{self.n_poses} measured points of {k} reflectors at {configs} poses"
+
+    def by_target(self) -> dict[str, Measurements]:
+        """The measurements of each reflector, by name ("" for the default tool)."""
+        if self.targets is None:
+            return {"": self}
+        return {t: self.subset([i for i, x in enumerate(self.targets) if x == t]) for t in self.target_names}
+
     def label(self, i: int) -> str:
         """How messages name pose i: its pose_id where the file has them, else its file row."""
         if self.pose_ids is not None:

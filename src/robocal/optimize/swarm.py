@@ -203,33 +203,44 @@ def _uniform_start(rng, n, lower, upper, batch: int = 1):
     return rng.uniform(lower, upper, shape), rng.uniform(-half, half, shape)
 
 
+def _with_start(x0: np.ndarray, start) -> np.ndarray:
+    """The initial positions with particle 0 of every swarm put at ``start`` (when given)."""
+    if start is None:
+        return x0
+    x0 = np.array(x0, copy=True)
+    x0[:, 0] = start
+    return x0
+
+
 @_floats_may_overflow
 def pso(objective: Objective, lower, upper, *, particles: int = kou2022.PSO["particles"],
         iterations: int = kou2022.PSO["iterations"], w: float = kou2022.PSO["w"], c1: float = kou2022.PSO["c1"],
         c2: float = kou2022.PSO["c2"], seed: int | None = 0, callback: Progress | None = None,
-        backend: str = "auto") -> OptimizeResult:
+        backend: str = "auto", start: np.ndarray | None = None) -> OptimizeResult:
     """Standard global-best PSO: v ← w v + c1 r1 (pbest − x) + c2 r2 (gbest − x); x ← x + v.
-    Defaults: Kou et al. (2022), Table 3."""
-    start = time.perf_counter()
+    Defaults: Kou et al. (2022), Table 3.  start: a position for particle 0 (else random)."""
+    t0 = time.perf_counter()
     rng = np.random.default_rng(seed)
     x0, v0 = _uniform_start(rng, particles, lower, upper)
+    x0 = _with_start(x0, start)
     s = SwarmEngine(objective, lower, upper, x0, v0, backend=backend, callback=callback, iterations=iterations)
     for t in range(1, iterations + 1):
         r1, r2 = s.draw(rng)
         s.step(INERTIA, w, c1, c2, r1, r2, t)
-    return s.result("pso", start, {"particles": particles, "w": w, "c1": c1, "c2": c2})
+    return s.result("pso", t0, {"particles": particles, "w": w, "c1": c1, "c2": c2})
 
 
 @_floats_may_overflow
 def ipso(objective: Objective, lower, upper, *, particles: int = wen2019.IPSO["particles"],
          iterations: int = wen2019.IPSO["iterations"], c1: float = wen2019.IPSO["c1"],
          c2: float = wen2019.IPSO["c2"], seed: int | None = 0, halton_scramble: bool = True,
-         callback: Progress | None = None, backend: str = "auto") -> OptimizeResult:
+         callback: Progress | None = None, backend: str = "auto", start: np.ndarray | None = None) -> OptimizeResult:
     """IPSO of Wen et al. (2019): Halton initial positions and velocities, constriction factor
-    v ← K (v + c1 r1 (pbest − x) + c2 r2 (gbest − x)), K from φ = c1 + c2 (paper: 0.7298)."""
+    v ← K (v + c1 r1 (pbest − x) + c2 r2 (gbest − x)), K from φ = c1 + c2 (paper: 0.7298).
+    start: a position for particle 0 (else its Halton point)."""
     from scipy.stats import qmc
 
-    start = time.perf_counter()
+    t0 = time.perf_counter()
     rng = np.random.default_rng(seed)
     lower, upper = np.asarray(lower, float), np.asarray(upper, float)
     halton = qmc.Halton(d=lower.size, scramble=halton_scramble, seed=rng if halton_scramble else None)
@@ -240,12 +251,12 @@ def ipso(objective: Objective, lower, upper, *, particles: int = wen2019.IPSO["p
     x0 = lower + h[:particles] * (upper - lower)
     v0 = -half + h[particles:] * 2 * half
     K = constriction(c1 + c2)
-    s = SwarmEngine(objective, lower, upper, x0[None], v0[None], backend=backend, callback=callback,
-                    iterations=iterations)
+    s = SwarmEngine(objective, lower, upper, _with_start(x0[None], start), v0[None], backend=backend,
+                    callback=callback, iterations=iterations)
     for t in range(1, iterations + 1):
         r1, r2 = s.draw(rng)
         s.step(CONSTRICTION, K, c1, c2, r1, r2, t)
-    return s.result("ipso", start, {"particles": particles, "c1": c1, "c2": c2, "K": K,
+    return s.result("ipso", t0, {"particles": particles, "c1": c1, "c2": c2, "K": K,
                                     "halton_scramble": halton_scramble})
 
 
@@ -255,12 +266,15 @@ def ldpso_bt(objective: Objective, lower, upper, *, particles: int = kou2022.LDP
              iterations: int = kou2022.LDPSO_BT["iterations"], w1: float = kou2022.LDPSO_BT["w1"],
              w2: float = kou2022.LDPSO_BT["w2"], switch: float = kou2022.LDPSO_BT["switch"],
              c1: float = kou2022.LDPSO_BT["c1"], c2: float = kou2022.LDPSO_BT["c2"], seed: int | None = 0,
-             callback: Progress | None = None, backend: str = "auto") -> OptimizeResult:
+             callback: Progress | None = None, backend: str = "auto", start: np.ndarray | None = None
+             ) -> OptimizeResult:
     """LDPSO-BT of Kou et al. (2022): linearly decreasing population and a two-stage velocity
-    update, standard with w1 for t ≤ switch·T, then v ← w2 v + c2 r2 (gbest − x)."""
-    start = time.perf_counter()
+    update, standard with w1 for t ≤ switch·T, then v ← w2 v + c2 r2 (gbest − x).  start: a
+    position for particle 0 (else random)."""
+    t0 = time.perf_counter()
     rng = np.random.default_rng(seed)
     x0, v0 = _uniform_start(rng, particles, lower, upper)
+    x0 = _with_start(x0, start)
     s = SwarmEngine(objective, lower, upper, x0, v0, backend=backend, callback=callback, iterations=iterations)
     sizes = []
     for t in range(1, iterations + 1):
@@ -274,7 +288,7 @@ def ldpso_bt(objective: Objective, lower, upper, *, particles: int = kou2022.LDP
         else:
             (r2,) = s.draw(rng, 1)
             s.step(SOCIAL, w2, 0.0, c2, r2, r2, t)
-    return s.result("ldpso-bt", start, {
+    return s.result("ldpso-bt", t0, {
         "particles": particles, "min_particles": min_particles, "w1": w1, "w2": w2, "switch": switch,
         "c1": c1, "c2": c2, "mean_population": float(np.mean(sizes)) if sizes else particles,
     })

@@ -19,10 +19,16 @@ def quiet(_: str) -> None:
     """A ``say`` that says nothing."""
 
 
+#: figures below this are zero up to rounding (a sum of 1e-16s), shown as 0
+ZERO = 1e-12
+
+
 def fmt(x: float | None, digits: int = 4) -> str:
     """A figure for a summary table: fixed point, or 3 significant digits when tiny or huge; — when absent."""
     if x is None or not math.isfinite(x):
         return "—"
+    if abs(x) < ZERO:
+        return "0"
     return f"{x:.{digits}g}" if abs(x) < 1e-3 or abs(x) >= 1e4 else f"{x:.{digits}f}"
 
 

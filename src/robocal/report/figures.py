@@ -32,8 +32,25 @@ def save_png(fig, path) -> None:
     atomic_write(path, png_bytes(fig))
 
 
-def convergence(histories: dict[str, np.ndarray], title: str, ylabel: str = "best objective"):
-    """Best objective against iteration, log scale, one line per method."""
+def _log_axis(axis, values=None) -> None:
+    """Readable log ticks: 1-2-5 steps with plain numbers over up to three decades, else
+    decades labelled 10ⁿ."""
+    from matplotlib.ticker import FuncFormatter, LogFormatterSciNotation, LogLocator, NullFormatter
+
+    v = None if values is None else np.asarray(values, float)
+    v = None if v is None else v[np.isfinite(v) & (v > 0)]
+    if v is not None and v.size and np.log10(v.max() / v.min()) <= 3:
+        axis.set_major_locator(LogLocator(base=10, subs=(1.0, 2.0, 5.0)))
+        axis.set_major_formatter(FuncFormatter(lambda x, _: f"{x:g}"))
+    else:
+        axis.set_major_locator(LogLocator(base=10, numticks=8))
+        axis.set_major_formatter(LogFormatterSciNotation())
+    axis.set_minor_formatter(NullFormatter())
+
+
+def convergence(histories: dict[str, np.ndarray], title: str, ylabel: str = "best objective",
+                xlabel: str = "iteration"):
+    """Best objective against iteration, log scale, one line per method; the y label carries the unit."""
     fig, ax = new_figure(7, 4)
     for name, h in histories.items():
         h = np.asarray(h, dtype=float)
@@ -41,11 +58,118 @@ def convergence(histories: dict[str, np.ndarray], title: str, ylabel: str = "bes
             continue
         ax.plot(np.arange(h.size), np.maximum(h, 1e-300), label=name, lw=1.4)
     ax.set_yscale("log")
-    ax.set_xlabel("iteration (LM: residual evaluation)")
+    _log_axis(ax.yaxis, np.concatenate([np.ravel(h) for h in histories.values()]))
+    from matplotlib.ticker import MaxNLocator
+
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+    ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)
     ax.set_title(title)
-    ax.grid(True, which="both", alpha=0.3)
+    ax.grid(True, which="major", alpha=0.3)
     ax.legend()
+    return fig
+
+
+def iteration_label(methods) -> str:
+    """What one step of the x axis is: swarm generations, LM residual evaluations, or both."""
+    swarm = any(m in ("pso", "ipso", "ldpso-bt", "hybrid") for m in methods)
+    lm = any(m in ("lm", "hybrid") for m in methods)
+    if swarm and lm:
+        return "iteration (swarms: generation; LM: residual evaluation)"
+    return "residual evaluation" if lm else "generation"
+
+
+def error_distribution(errors: dict[str, np.ndarray], title: str):
+    """Empirical distribution (ECDF) of position errors |δp| in mm, one curve per set, log x axis:
+    before and after calibration differ by orders of magnitude, and 500 poses stay readable."""
+    fig, ax = new_figure(7, 4)
+    for (label, e), color in zip(errors.items(), ("tab:red", "tab:blue", "tab:green", "tab:purple", "tab:gray")):
+        e = np.sort(np.maximum(np.asarray(e, float), 1e-9))
+        ax.step(e, np.arange(1, e.size + 1) / e.size, where="post", color=color,
+                label=f"{label}: median {np.median(e):.3g}, 95 % {np.percentile(e, 95):.3g} mm")
+    ax.set_xscale("log")
+    _log_axis(ax.xaxis, np.concatenate([np.ravel(e) for e in errors.values()]))
+    ax.set_xlabel("position error |δp| (mm)")
+    ax.set_ylabel("fraction of poses with smaller error")
+    ax.set_ylim(0, 1.02)
+    ax.set_title(title)
+    ax.grid(True, which="major", alpha=0.3)
+    ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.16), ncols=2, frameon=False)
+    return fig
+
+
+def workspace_errors(points: np.ndarray, errors: np.ndarray, title: str):
+    """Where in the workspace the error is: the measured points (mm) projected on XY, XZ and YZ,
+    coloured by |δp| (mm)."""
+    from matplotlib.figure import Figure
+    from matplotlib.ticker import MaxNLocator
+
+    fig = Figure(figsize=(14, 4.4), layout="constrained")
+    axes = fig.subplots(1, 3)
+    vmax = float(np.percentile(errors, 99)) or 1.0
+    for ax, (i, j) in zip(axes, ((0, 1), (0, 2), (1, 2))):
+        sc = ax.scatter(points[:, i], points[:, j], c=errors, s=10, cmap="viridis", vmin=0.0, vmax=vmax)
+        ax.set_xlabel(f"{'xyz'[i]} (mm)")
+        ax.set_ylabel(f"{'xyz'[j]} (mm)")
+        ax.set_aspect("equal", adjustable="datalim")
+        ax.xaxis.set_major_locator(MaxNLocator(5))
+        ax.yaxis.set_major_locator(MaxNLocator(5))
+        ax.grid(True, alpha=0.3)
+    fig.colorbar(sc, ax=list(axes), label="|δp| (mm)", shrink=0.9)
+    fig.suptitle(title)
+    return fig
+
+
+def residual_vs_joints(q: np.ndarray, errors: np.ndarray, title: str, bins: int = 12):
+    """|δp| (mm) against each joint angle (deg), with the median per angle bin: a pattern here
+    is what geometry leaves to compliance or gear errors."""
+    n = q.shape[1]
+    cols = min(n, 3)
+    rows = -(-n // cols)
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(4.2 * cols, 3.0 * rows))
+    axes = np.atleast_1d(fig.subplots(rows, cols, sharey=True)).ravel()
+    for i in range(n):
+        ax = axes[i]
+        deg = np.degrees(q[:, i])
+        ax.scatter(deg, errors, s=5, alpha=0.4, color="tab:blue")
+        edges = np.linspace(deg.min(), deg.max(), bins + 1)
+        idx = np.clip(np.digitize(deg, edges) - 1, 0, bins - 1)
+        med = [np.median(errors[idx == b]) if np.any(idx == b) else np.nan for b in range(bins)]
+        ax.plot(0.5 * (edges[1:] + edges[:-1]), med, color="tab:red", lw=1.5, label="median")
+        ax.set_xlabel(f"q{i + 1} (deg)")
+        ax.grid(True, alpha=0.3)
+        if i % cols == 0:
+            ax.set_ylabel("|δp| (mm)")
+    for ax in axes[n:]:
+        ax.set_visible(False)
+    axes[0].legend(fontsize=8)
+    fig.suptitle(title)
+    fig.tight_layout()
+    return fig
+
+
+def parameter_bars(names: list[str], values: np.ndarray, sigmas: np.ndarray | None, angle: np.ndarray, title: str):
+    """Identified deviations with ±2σ bars: lengths in mm and angles in degrees, side by side."""
+    from matplotlib.figure import Figure
+
+    groups = [(np.flatnonzero(~angle), "deviation (mm)", 1.0), (np.flatnonzero(angle), "deviation (deg)",
+                                                                 180.0 / np.pi)]
+    groups = [g for g in groups if g[0].size]
+    fig = Figure(figsize=(11, 0.3 * max(len(g[0]) for g in groups) + 1.5))
+    axes = np.atleast_1d(fig.subplots(1, len(groups)))
+    for ax, (idx, label, scale) in zip(axes, groups):
+        y = np.arange(idx.size)
+        err = None if sigmas is None else np.where(np.isfinite(sigmas[idx]), 2 * sigmas[idx] * scale, 0.0)
+        ax.errorbar(values[idx] * scale, y, xerr=err, fmt="o", ms=4, capsize=3, color="tab:blue")
+        ax.axvline(0, color="black", lw=0.6)
+        ax.set_yticks(y, [names[i] for i in idx])
+        ax.invert_yaxis()
+        ax.set_xlabel(label + (" ± 2σ" if sigmas is not None else ""))
+        ax.grid(True, axis="x", alpha=0.3)
+    fig.suptitle(title)
+    fig.tight_layout()
     return fig
 
 
@@ -113,8 +237,8 @@ def sensitivity_bars(table: dict[str, list[float]], title: str):
         ax.set_xticks(x, labels, rotation=30)
         ax.set_ylabel(unit)
         ax.grid(True, axis="y", alpha=0.3)
-        ax.legend(fontsize=8)
-    fig.suptitle(title)
+        ax.legend(fontsize=8, ncols=3, loc="lower center", bbox_to_anchor=(0.5, 1.0), frameon=False)
+    fig.suptitle(title, y=1.06)
     fig.tight_layout()
     return fig
 
@@ -127,9 +251,10 @@ def per_pose_errors(errors: dict[str, np.ndarray], title: str, ylabel: str = "|p
         mag = np.linalg.norm(e, axis=1) if e.ndim == 2 else e
         ax.plot(np.arange(1, len(mag) + 1), np.maximum(mag, 1e-16), "o-", ms=3, label=name)
     ax.set_yscale("log")
+    _log_axis(ax.yaxis)
     ax.set_xlabel("pose")
     ax.set_ylabel(ylabel)
     ax.set_title(title)
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=8)
+    ax.grid(True, which="major", alpha=0.3)
+    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     return fig

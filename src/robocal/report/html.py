@@ -6,10 +6,13 @@ import base64
 import html
 from pathlib import Path
 
+import numpy as np
+
 from ..calibration.result import CalibrationResult
 from ..cli.calibrate import noise_line
 from ..io.atomic import atomic_write
 from ..model.metrics import Metrics, pose_errors
+from ..model.parameters import is_angle, is_frame
 from . import figures
 from .tables import FRAME_COLUMNS, PARAMETER_COLUMNS, frame_rows, parameter_rows
 
@@ -17,7 +20,7 @@ _CSS = """
 body{font-family:system-ui,sans-serif;margin:2em auto;max-width:1000px;color:#222}
 table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #ccc;padding:3px 8px;text-align:right}
 th{background:#f0f0f0}td:first-child,th:first-child{text-align:left}img{max-width:100%}
-td.l{text-align:left}.warn{background:#fff4e0;border-left:4px solid #e90;padding:.4em .8em}code{background:#f4f4f4}
+td.l,th.l{text-align:left}.warn{background:#fff4e0;border-left:4px solid #e90;padding:.4em .8em}code{background:#f4f4f4}
 """
 
 
@@ -38,32 +41,76 @@ def _metrics_table(columns: dict[str, Metrics]) -> str:
 
 def _summary(result: CalibrationResult, d: dict) -> str:
     return (f"<p>Method <b>{html.escape(result.method)}</b> (objective {html.escape(d['objective'])}, seed "
-            f"{result.seed}), frames <code>{html.escape(result.config.frames)}</code>, {result.n_poses} poses "
+            f"{result.seed}), frames <code>{html.escape(result.frames)}</code>, {result.n_poses} poses "
             f"({'full pose' if result.full_pose else 'position only'}) from <code>{html.escape(result.data)}</code>. "
             f"Status: {html.escape(d['status'])} after {d['iterations']} iterations, {d['evaluations']} evaluations, "
             f"{d['time_s']:.2f} s.</p>")
 
 
+#: above this many poses, per-pose figures give way to distributions
+PER_POSE_LIMIT = 60
+
+
+def objective_label(result: CalibrationResult) -> str:
+    """What the convergence history measures, with its unit."""
+    if result.method in ("lm", "hybrid"):
+        return "χ² (whitened sum of squares, dimensionless)"
+    if result.objective == "sum_norms":
+        return "best Σ|δp| (mm)"
+    return "best Σ k|δ|² + |δp|² (mm²)"
+
+
+def _norms(robot, meas) -> np.ndarray:
+    dp, _ = pose_errors(robot, meas)
+    return np.linalg.norm(dp, axis=1)
+
+
 def _error_figures(result: CalibrationResult) -> list[str]:
-    parts = []
-    if result.measurements is not None:
-        dp0, dr0 = pose_errors(result.initial, result.measurements)
-        dp1, dr1 = pose_errors(result.robot, result.measurements)
+    meas, val = result.measurements, result.validation
+    if meas is None:
+        return []
+    parts = ["<h2>Error distribution</h2><p>Position error |δp| of every pose; the curves show the "
+             "fraction of poses with a smaller error (log scale).</p>"]
+    series = {"before (calibration poses)": _norms(result.initial, meas),
+              "after (calibration poses)": _norms(result.robot, meas)}
+    if val is not None:
+        series["before (validation poses)"] = _norms(result.initial, val)
+        series["after (validation poses)"] = _norms(result.robot, val)
+    parts.append(_img(figures.error_distribution(series, f"{result.nominal.name}: {result.method}")))
+    where = val if val is not None else meas
+    label = "validation" if val is not None else "calibration"
+    after = _norms(result.robot, where)
+    parts.append(f"<h2>Where the error is</h2><p>Measured points of the {label} poses in the measuring frame, "
+                 "coloured by the calibrated model's position error.</p>")
+    parts.append(_img(figures.workspace_errors(where.position, after, f"{label} poses after calibration")))
+    parts.append("<h2>Error against each joint angle</h2><p>What calibration left, against each joint: a trend "
+                 "or a wave here is a joint effect geometry cannot take (compliance, gear errors).</p>")
+    parts.append(_img(figures.residual_vs_joints(where.q, after, f"{label} poses after calibration")))
+    if meas.n_poses <= PER_POSE_LIMIT:
+        dp0, dr0 = pose_errors(result.initial, meas)
+        dp1, dr1 = pose_errors(result.robot, meas)
         parts.append("<h2>Per-pose errors (calibration data)</h2>")
         parts.append(_img(figures.position_errors(dp0, {result.method: dp1}, "calibration poses")))
         parts.append(_img(figures.axis_errors(dp1, f"after {result.method}")))
         if dr0 is not None:
             parts.append(_img(figures.orientation_errors(dr0, dr1, "calibration poses")))
-    if result.validation is not None:
-        dp0, _ = pose_errors(result.initial, result.validation)
-        dp1, _ = pose_errors(result.robot, result.validation)
-        parts.append("<h2>Validation poses (not used to identify)</h2>")
-        parts.append(_img(figures.position_errors(dp0, {result.method: dp1}, "validation poses")))
     return parts
 
 
+def _per_target(result: CalibrationResult) -> list[str]:
+    per_target = result.per_target_metrics()
+    if not per_target:
+        return []
+    first = next(iter(per_target.values()))
+    keys = [k for k in ("before", "after", "validation_before", "validation_after") if k in first]
+    rows = [(t, str(m["after"].n), *(f"{m[k].position['rms']:.4f}" for k in keys)) for t, m in per_target.items()]
+    return ["<h2>Per reflector</h2>",
+            _table(("reflector", "points", *(f"{k.replace('_', ' ')} RMS (mm)" for k in keys)), rows)]
+
+
 def _table(columns, rows, left: int = 1) -> str:
-    head = "".join(f"<th>{html.escape(c)}</th>" for c in columns)
+    head = "".join(f"<th{' class=l' if i < left or i == len(columns) - 1 else ''}>{html.escape(c)}</th>"
+                   for i, c in enumerate(columns))
     body = "".join("<tr>" + "".join(f"<td{' class=l' if i < left or i == len(r) - 1 else ''}>{html.escape(v)}</td>"
                                     for i, v in enumerate(r)) + "</tr>" for r in rows)
     return f"<table><tr>{head}</tr>{body}</table>"
@@ -72,7 +119,14 @@ def _table(columns, rows, left: int = 1) -> str:
 def _parameter_tables(result: CalibrationResult, d: dict) -> list[str]:
     parts = ["<h2>Identified parameters</h2><p>Lengths in mm, angles in degrees; ± σ is the standard "
              "uncertainty. A regrouped parameter estimates the combination shown.</p>",
-             _table(PARAMETER_COLUMNS, parameter_rows(result)), "<h2>Parameters not identified</h2>"]
+             _table(PARAMETER_COLUMNS, parameter_rows(result))]
+    joints = [i for i, n in enumerate(result.names) if not is_frame(n)]
+    if joints:
+        names = [result.names[i] for i in joints]
+        sig = None if result.uncertainty is None else result.uncertainty[joints]
+        parts.append(_img(figures.parameter_bars(names, result.x[joints], sig, np.array([is_angle(n) for n in names]),
+                                                 "identified deviations")))
+    parts.append("<h2>Parameters not identified</h2>")
     if d["dropped"]:
         parts.append(_table(("name", "reason"), [(x["name"], x["reason"]) for x in d["dropped"]]))
     else:
@@ -98,11 +152,19 @@ def calibration_html(result: CalibrationResult) -> str:
     if "validation_before" in result.metrics:
         cols["validation before"] = result.metrics["validation_before"]
         cols["validation after"] = result.metrics["validation_after"]
-    parts.append("<h2>Accuracy</h2><p>“Before” is the nominal geometry with the registered frames.</p>")
+    parts.append("<h2>Accuracy</h2><p>“Before” is the nominal geometry with the registered frames. Measured: "
+                 f"{html.escape(result.measurements.describe() if result.measurements else str(result.n_poses))}"
+                 + (f"; validation: {html.escape(result.validation.describe())}" if result.validation else "")
+                 + ".</p>")
     parts.append(_metrics_table(cols))
+    parts += _per_target(result)
     parts += _error_figures(result)
     parts.append("<h2>Convergence</h2>")
-    parts.append(_img(figures.convergence({result.method: result.optimisation.history}, "best objective")))
+    if result.noise is not None and result.noise.refits:
+        parts.append(f"<p>The fit with the weights it started from; the {result.noise.refits} refits after "
+                     "reweighting by the estimated noise are not drawn (χ² under other weights is another scale).</p>")
+    parts.append(_img(figures.convergence({result.method: result.optimisation.history}, "best objective per iteration",
+                                          objective_label(result), figures.iteration_label([result.method]))))
     parts += _parameter_tables(result, d)
     parts.append("<p>Generated by robocal.</p></body></html>")
     return "\n".join(parts)

@@ -78,7 +78,7 @@ def frame_rows(result: CalibrationResult) -> list[tuple[str, ...]]:
         xyz, rpy = transform_to_xyz_rpy(after)
         rotation_identified = any(f"{frame}_r{a}" in result.names for a in "xyz")
         if frame not in estimated:
-            note = "as given (not estimated)" if result.config.frames == "none" or frame != "base" else ""
+            note = "as given (not estimated)" if result.frames == "none" or frame != "base" else ""
             change = "—"
         else:
             change = _frame_change(before, after, rotation_identified)

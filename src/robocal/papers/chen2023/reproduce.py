@@ -27,7 +27,7 @@ def _case_figures(out: Path, key: str, noise: float, runs) -> None:
                                              f"2TPR&2TPS: 30 targets, tracker noise {noise} mm"),
                      out / f"compensation_{key}.png")
     figures.save_png(figures.convergence({"mean over the 30 targets": runs[1].history.mean(axis=1)},
-                                         "eq. 18 PSO: best fitness per iteration", "fitness (mm)"),
+                                         "eq. 18 PSO: best fitness per iteration", "fitness (mm)", "iteration"),
                      out / f"pso_convergence_{key}.png")
 
 

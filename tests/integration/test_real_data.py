@@ -1,0 +1,72 @@
+"""Real laser-tracker data: the UR10 of examples/ur10-ipa (series C, 2773 poses, full pose).
+
+Tests of behaviour, not of one tuned number: frames are found without being asked, every
+method reaches the regime of Levenberg–Marquardt, the exported model evaluates to the
+calibration's own validation figure, and no robust-loss advice is given for what is a
+continuous tail of model misfit.
+"""
+
+import json
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from robocal.calibration import calibrate
+from robocal.io.measurements import load_measurements
+
+DATA = Path(__file__).parents[2] / "examples" / "ur10-ipa" / "series_c.csv"
+
+
+@pytest.fixture(scope="module")
+def split():
+    """The documented split: a random half with np.random.default_rng(0).permutation."""
+    meas = load_measurements(DATA, n_joints=6)
+    idx = np.random.default_rng(0).permutation(meas.n_poses)
+    half = meas.n_poses // 2
+    return meas.subset(np.sort(idx[:half])), meas.subset(np.sort(idx[half:]))
+
+
+def _run(cal, val, method="lm", **kw):
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        res = calibrate("ur10", cal, method, validate=val, **kw)
+    return res, [str(w.message) for w in caught]
+
+
+@pytest.mark.slow
+def test_lm_finds_the_frames_itself_and_validates_in_the_geometric_regime(split, tmp_path, run_cli):
+    cal, val = split
+    res, said = _run(cal, val)
+    assert res.frames == "base+tool" and any(s.startswith("frames auto: the data are not in the robot's frame")
+                                             for s in said)
+    v = res.metrics["validation_after"].position["rms"]
+    assert v < 0.55 and res.metrics["validation_before"].position["rms"] > 1.5 * v
+    assert not any("look like outliers" in s for s in said)  # a continuous tail of misfit, not outliers
+    # the exported model, evaluated on the validation half, gives the calibration's own figure
+    exported, val_file = tmp_path / "ur10.toml", tmp_path / "val.csv"
+    res.export(exported)
+    from robocal.io.measurements import save_measurements
+
+    save_measurements(val, val_file)
+    code, out, err = run_cli("evaluate", exported, val_file, "--json")
+    assert code == 0, err
+    assert json.loads(out)["position"]["rms"] == pytest.approx(v, rel=1e-6)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("method", ["ipso", "pso"])
+def test_swarms_at_paper_settings_reach_lms_regime_on_real_data(split, method):
+    cal, val = split
+    res, _ = _run(cal.position_only(), val.position_only(), method, frames="base+tool")
+    assert res.metrics["validation_after"].position["rms"] < 1.0
+    assert res.optimisation.status == "completed"
+
+
+def test_without_frames_robocal_names_the_option(split):
+    cal, val = split
+    res, said = _run(cal.subset(np.arange(200)), None, frames="none")
+    assert any(s.startswith("frames none, but the data are not in the robot's frame") and "frames auto" in s
+               for s in said)
+    assert res.metrics["after"].position["rms"] > 100  # as asked: no frames, no good fit
