@@ -157,13 +157,16 @@ class Problem:
             "geom_cols": ((self.active // kinds) * 5 + self.active % kinds).astype(np.int64),
             "qtrig": kernels.joint_trig(self.meas.q),
             "tidx": tidx,
-            "Rm": self._Rm if self._Rm is not None else np.zeros((1, 3, 3)),
+            # numba compiles one specialisation per array layout: contiguous inputs always, so that
+            # a view (rotations sliced from 4×4 poses) does not compile a second kernel mid-run
+            "Rm": np.ascontiguousarray(self._Rm) if self._Rm is not None else np.zeros((1, 3, 3)),
+            "pm": np.ascontiguousarray(self.meas.position),
         }
 
     def _compiled_objective(self, X: np.ndarray, kind: str) -> np.ndarray:
         c = self._kernel_inputs
         kernels = c["kernels"]
-        common = (c["qtrig"], c["tidx"], self.meas.position, c["Rm"], self._Rm is not None, self.k,
+        common = (c["qtrig"], c["tidx"], c["pm"], c["Rm"], self._Rm is not None, self.k,
                   0 if kind == "sum_squares" else 1)
         if not self._frames_active:
             # each particle adds its joint deviations to the nominal geometry inside the kernel
