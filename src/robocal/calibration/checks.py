@@ -20,7 +20,8 @@ ROT_WEIGHT = 1000.0
 def check_units(robot: Robot, meas: Measurements, frames: str) -> None:
     """Catch metres-for-millimetres and similar: compare the spread of the measured points with
     the spread the nominal model predicts for the same joints."""
-    model = robot.positions(meas.q, meas.targets if meas.targets and frames == "none" else None)
+    model = robot.positions(meas.q, meas.targets if meas.targets and frames == "none" else None, meas.torques,
+                            meas.payload)
     spread_m = np.linalg.norm(meas.position - meas.position.mean(0), axis=1).max()
     spread_n = np.linalg.norm(model - model.mean(0), axis=1).max()
     if spread_n > 10 and spread_m < spread_n / 100:

@@ -73,7 +73,7 @@ class Setup:
 
     def around(self, robot) -> Setup:
         """The same setup with the parameter space around another robot (e.g. the estimate)."""
-        return replace(self, space=ParameterSpace(robot, self.space.names, self.space.targets))
+        return replace(self, space=replace(self.space, robot=robot))
 
 
 class Problem:
@@ -88,6 +88,7 @@ class Problem:
         self._wp, self._wr = 1.0 / setup.sigma_position, 1.0 / setup.sigma_orientation
         self.uses_orientation = setup.full_pose
         self.target_idx = self.space.target_index(self.meas.targets)
+        self.joints = self.space.joint_data(self.meas.q, self.meas.torques, self.meas.payload)
         self._Rm = self.meas.rotation if self.uses_orientation else None
         self._frames_active = bool(np.any(self.active >= self.space.n_joint_params))
         self._backend = resolve(setup.backend)  # read once: ROBOCAL_NO_NUMBA as it is when the problem is set up
@@ -118,8 +119,8 @@ class Problem:
     def errors(self, X: np.ndarray):
         """Position errors (…, m, 3) mm and orientation errors (…, m, 3) rad (or None)."""
         if self._Rm is None:
-            return self.meas.position - self.space.points(self.full(X), self.meas.q, self.target_idx), None
-        R, p = self.space.pose(self.full(X), self.meas.q, self.target_idx)
+            return self.meas.position - self.space.points(self.full(X), self.meas.q, self.target_idx, self.joints), None
+        R, p = self.space.pose(self.full(X), self.meas.q, self.target_idx, self.joints)
         return self.meas.position - p, orientation_error(self._Rm, R)
 
     def objective(self, X: np.ndarray, kind: str = "sum_squares", *, backend: str | None = None) -> np.ndarray:
@@ -130,7 +131,8 @@ class Problem:
         if kind not in ("sum_squares", "sum_norms"):
             raise ValueError(f"unknown objective {kind!r}")
         X = np.asarray(X, dtype=float)
-        if X.ndim == 2 and (self._backend if backend is None else resolve(backend)) == "numba":
+        compiled = (self._backend if backend is None else resolve(backend)) == "numba"
+        if X.ndim == 2 and compiled and self.joints is None:  # the kernels move no joints
             return self._compiled_objective(X, kind)
         dp, dr = self.errors(X)
         if kind == "sum_norms":
@@ -189,7 +191,8 @@ class Problem:
 
     def residual_jacobian(self, x: np.ndarray) -> np.ndarray:
         """Exact ∂(whitened residuals)/∂x, (n_residuals, k_active), Fortran-ordered as MINPACK wants."""
-        Jc, R, _ = self.space.jacobian_columns(self.full(x), self.meas.q, self.target_idx, frames=self._frames_active)
+        Jc, R, _ = self.space.jacobian_columns(self.full(x), self.meas.q, self.target_idx, frames=self._frames_active,
+                                               joints=self.joints)
         Jc = Jc[self.active]  # (k, m, 6)
         k, m = Jc.shape[0], Jc.shape[1]
         out = np.empty((k, self.n_residuals))

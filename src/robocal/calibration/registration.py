@@ -69,7 +69,7 @@ def register_frames(robot: Robot, meas: Measurements, mode: str, iterations: int
 
 
 def _rms(robot: Robot, meas: Measurements, targets) -> float:
-    dp = meas.position - robot.positions(meas.q, targets)
+    dp = meas.position - robot.positions(meas.q, targets, meas.torques, meas.payload)
     return float(np.sqrt(np.mean(np.sum(dp * dp, axis=1))))
 
 

@@ -27,8 +27,9 @@ from .table import CsvTable, numbers, read_csv, strings
 
 POSITION = ("x", "y", "z")
 ORIENTATION = ("rx", "ry", "rz")
-OPTIONAL = ("pose_id", "target")
+OPTIONAL = ("pose_id", "target", "payload")
 _JOINT = re.compile(r"^q(\d+)$")
+_TORQUE = re.compile(r"^tau(\d+)$")
 
 #: repeated rows of one pose_id that spread further than this (mm) are an error
 REPEAT_TOLERANCE_MM = 1.0
@@ -44,6 +45,20 @@ class PoseTable:
     pose_ids: list[str] | None
     targets: list[str] | None
     rows: np.ndarray
+    torques: np.ndarray | None = None
+    payload: np.ndarray | None = None
+
+
+def _torque_columns(table: CsvTable, n_joints: int) -> list[str] | None:
+    """tau1..tauN (N·m), all or none, matching the joints."""
+    taus = sorted((int(m.group(1)), h) for h in table.header if (m := _TORQUE.match(h)))
+    if not taus:
+        return None
+    if [k for k, _ in taus] != list(range(1, n_joints + 1)):
+        have = ", ".join(h for _, h in taus)
+        raise InputError(f"torque columns come as tau1..tau{n_joints}, one per joint; the file has {have}",
+                         source=table.source)
+    return [h for _, h in taus]
 
 
 def _joint_columns(table: CsvTable, n_joints: int | None, required: bool, robot_label: str) -> list[str]:
@@ -116,9 +131,9 @@ def read_pose_table(text: str, *, source: str, options: ReadOptions = ReadOption
     table = read_csv(text, source=source, columns=options.columns)
     known = set(POSITION) | set(ORIENTATION) | set(OPTIONAL)
     for h in table.header:
-        if h not in known and not _JOINT.match(h):
+        if h not in known and not _JOINT.match(h) and not _TORQUE.match(h):
             raise InputError(f"unknown column '{h}' (expected q1..qn, x, y, z, optional rx, ry, rz, pose_id, "
-                             "target; map other names with a column mapping)", source=source)
+                             "target, tau1..taun, payload; map other names with a column mapping)", source=source)
     qcols = _joint_columns(table, options.n_joints, require_joints, options.robot_label)
     has_pos, has_rot = _pose_columns(table, bool(qcols), require_position)
     q = numbers(table, qcols) if qcols else None
@@ -128,6 +143,11 @@ def read_pose_table(text: str, *, source: str, options: ReadOptions = ReadOption
         raise InputError("all joint values lie within ±π: they look like radians; files give joints in degrees "
                          "(state the unit with joint unit deg or rad)", source=source)
     scale = 1000.0 if options.length_unit == "m" else 1.0
+    taus = _torque_columns(table, len(qcols)) if qcols else None
+    payload = numbers(table, ["payload"])[:, 0] if "payload" in table else None
+    if payload is not None and np.any(payload < 0):
+        row = int(table.lines[int(np.argmax(payload < 0))])
+        raise InputError("payload must be ≥ 0 kg", source=source, where=f"row {row}, column 'payload'")
     return PoseTable(
         q=q,
         position=scale * numbers(table, POSITION) if has_pos else None,
@@ -135,6 +155,8 @@ def read_pose_table(text: str, *, source: str, options: ReadOptions = ReadOption
         pose_ids=strings(table, "pose_id", required=True) if "pose_id" in table else None,
         targets=strings(table, "target") if "target" in table else None,
         rows=table.lines,
+        torques=numbers(table, taus) if taus else None,
+        payload=payload,
     )
 
 
@@ -151,6 +173,8 @@ def parse_measurements(text: str, *, source: str = "<data>", average: bool = Tru
         rows=t.rows,
         source=source,
         n_raw=len(t.rows),
+        torques=t.torques,
+        payload=t.payload,
     )
     if average and t.pose_ids is not None:
         meas = average_repeats(meas, repeat_tolerance)
@@ -191,11 +215,16 @@ def average_repeats(meas: Measurements, tolerance: float = REPEAT_TOLERANCE_MM) 
     first = np.array([g[0] for g in order])
     pos = np.array([_check_group(meas, keys[g[0]], g, tolerance) for g in order])
     rot = None if meas.rotation is None else project_to_so3(np.stack([meas.rotation[g].sum(0) for g in order]))
+    def mean(values):
+        return None if values is None else np.stack([values[g].mean(0) for g in order])
+
     return replace(
         meas,
         q=meas.q[first].copy(),
         position=pos,
         rotation=rot,
+        torques=mean(meas.torques),
+        payload=mean(meas.payload),
         targets=None if meas.targets is None else tuple(keys[g[0]][1] for g in order),
         pose_ids=tuple(keys[g[0]][0] for g in order),
         rows=meas.rows[first],
@@ -220,6 +249,10 @@ def measurements_to_csv(meas: Measurements, *, extra: Mapping[str, Sequence] | N
     header += [f"q{i + 1}" for i in range(meas.n_joints)] + list(POSITION)
     if meas.rotation is not None:
         header += list(ORIENTATION)
+    if meas.torques is not None:
+        header += [f"tau{i + 1}" for i in range(meas.n_joints)]
+    if meas.payload is not None:
+        header.append("payload")
     extra = dict(extra or {})
     header += list(extra)
     qdeg = np.degrees(meas.q)
@@ -234,6 +267,10 @@ def measurements_to_csv(meas: Measurements, *, extra: Mapping[str, Sequence] | N
         row += [repr(float(v)) for v in qdeg[j]] + [repr(float(v)) for v in meas.position[j]]
         if rpy is not None:
             row += [repr(float(v)) for v in rpy[j]]
+        if meas.torques is not None:
+            row += [repr(float(v)) for v in meas.torques[j]]
+        if meas.payload is not None:
+            row.append(repr(float(meas.payload[j])))
         row += [extra[k][j] for k in extra]
         w.writerow(row)
     return out.getvalue()

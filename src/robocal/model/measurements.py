@@ -16,6 +16,8 @@ class Measurements:
     data.  targets: target (reflector) name per pose, or None.  pose_ids: the file's
     pose_id per pose, or None.  rows: line number in the source file of each pose (first
     line of an averaged group; header = line 1).  n_raw: rows before averaging.
+    torques: (m, n) joint torques in N·m (the robot controller's measured or commanded
+    torques), or None.  payload: (m,) payload mass in kg, or None.
     """
 
     q: np.ndarray
@@ -26,6 +28,8 @@ class Measurements:
     rows: np.ndarray | None = None
     source: str = "<data>"
     n_raw: int = 0
+    torques: np.ndarray | None = None
+    payload: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "q", np.atleast_2d(np.asarray(self.q, dtype=float)))
@@ -99,6 +103,8 @@ class Measurements:
             pose_ids=pick(self.pose_ids),
             rows=self.rows[index],
             n_raw=len(index),
+            torques=None if self.torques is None else self.torques[index],
+            payload=None if self.payload is None else self.payload[index],
         )
 
     def position_only(self) -> Measurements:

@@ -11,6 +11,10 @@ Every deviation is additive, except the frame rotations: the base rotates about 
 measuring-frame axes through the base origin, ``R_base = Exp(δ) · R_base°``, and a tool
 rotates about its own axes, ``R_tool = R_tool° · Exp(δ)``; both are rotation vectors,
 so no Euler singularity can hide in them.  Units: mm for lengths, rad for angles.
+
+Joint terms (:mod:`robocal.model.terms`) come last, named by their :class:`TermSpec`
+(``compliance2``, ``gravity2_3x``, ``harmonic4_cos1``, …); they move the joints, q_eff = q +
+Δq, so every pose and Jacobian takes the per-pose :class:`JointData` they need.
 """
 
 from __future__ import annotations
@@ -22,8 +26,10 @@ import numpy as np
 
 from ..math.se3 import homogeneous
 from ..math.so3 import exp_so3, left_jacobian
+from .dh import THETA
 from .kinematics import chain_points, chain_pose, chain_twist_jacobian, joint_kinds
 from .robot import Robot
+from .terms import JointTerms, TermSpec, basis, joint_offsets
 
 FRAME_AXES = ("x", "y", "z", "rx", "ry", "rz")
 _ANGLE_KINDS = frozenset(("alpha", "theta", "beta", "rx", "ry", "rz"))
@@ -38,8 +44,43 @@ def is_frame(name: str) -> bool:
     return name.startswith(("base_", "tool"))
 
 
+def is_term(name: str) -> bool:
+    """A joint-term parameter (compliance, gravity, harmonic)."""
+    return name.startswith(("compliance", "gravity", "harmonic"))
+
+
+def unit(name: str) -> str:
+    """The unit of a parameter's value: mm, rad, or rad/(N·m) for a compliance."""
+    if name.startswith("compliance"):
+        return "rad/(N·m)"
+    return "rad" if is_angle(name) else "mm"
+
+
+@dataclass(frozen=True, eq=False)
+class JointData:
+    """Per-pose inputs of the joint terms: the robot's own offsets Δq0 (m, n) rad and the basis
+    B (m, n, T) of the space's term parameters, so that q_eff = q + Δq0 + B · p_terms."""
+
+    offset: np.ndarray
+    basis: np.ndarray
+
+    @classmethod
+    def of(cls, robot: Robot, spec: TermSpec, q: np.ndarray, torques=None, payload=None) -> JointData | None:
+        """The joint data of ``robot`` at commanded q, or None when there is nothing to add."""
+        if (robot.terms is None or robot.terms.empty) and spec.empty:
+            return None
+        q = np.atleast_2d(q)
+        return cls(joint_offsets(robot.terms, robot.convention, robot.geometry, q, torques, payload),
+                   basis(spec, robot.convention, robot.geometry, q, torques, payload, robot.terms))
+
+    def subset(self, index) -> JointData:
+        return JointData(self.offset[index], self.basis[index])
+
+
 def is_angle(name: str) -> bool:
-    """True for parameters in rad, False for mm."""
+    """True for parameters in rad (angles, gravity and harmonic terms), False for mm (and compliances)."""
+    if name.startswith(("gravity", "harmonic")):
+        return True
     kind = name.rsplit("_", 1)[-1] if is_frame(name) else name.rstrip("0123456789")
     return kind in _ANGLE_KINDS
 
@@ -55,18 +96,29 @@ class ParameterSpace:
     robot: Robot
     names: tuple[str, ...]
     targets: tuple[str, ...]
+    terms: TermSpec = TermSpec()
 
     @classmethod
-    def of(cls, robot: Robot, targets: Sequence[str] | None = None) -> ParameterSpace:
-        """The full space of ``robot``: joints, base, and a tool for each target
-        (default: the robot's own targets)."""
+    def of(cls, robot: Robot, targets: Sequence[str] | None = None, terms: TermSpec | None = None) -> ParameterSpace:
+        """The full space of ``robot``: joints, base, a tool for each target (default: the robot's
+        own targets), and the joint terms of ``terms``."""
         targets = tuple(robot.target_names if targets is None else dict.fromkeys(targets))
+        terms = terms or TermSpec()
         kinds = joint_kinds(robot.convention)
         names = [f"{k}{i + 1}" for i in range(robot.n_joints) for k in kinds]
         names += [f"base_{ax}" for ax in FRAME_AXES]
         for t in targets:
             names += [f"{tool_prefix(t)}_{ax}" for ax in FRAME_AXES]
-        return cls(robot, tuple(names), targets)
+        names += terms.names(robot.n_joints)
+        return cls(robot, tuple(names), targets, terms)
+
+    @property
+    def n_term_params(self) -> int:
+        return len(self.terms.names(self.robot.n_joints))
+
+    def joint_data(self, q: np.ndarray, torques=None, payload=None) -> JointData | None:
+        """The per-pose term inputs of this space's robot at commanded q (None without terms)."""
+        return JointData.of(self.robot, self.terms, q, torques, payload)
 
     # --- indexing --------------------------------------------------------------
     @property
@@ -115,8 +167,22 @@ class ParameterSpace:
         kinds = joint_kinds(self.robot.convention)
         joints = deviation[..., :nj].reshape(deviation.shape[:-1] + (self.robot.n_joints, len(kinds)))
         base = deviation[..., nj : nj + 6]
-        tools = deviation[..., nj + 6 :].reshape(deviation.shape[:-1] + (len(self.targets), 6))
+        nt = 6 * len(self.targets)
+        tools = deviation[..., nj + 6 : nj + 6 + nt].reshape(deviation.shape[:-1] + (len(self.targets), 6))
         return joints, base, tools
+
+    def term_values(self, deviation: np.ndarray) -> np.ndarray:
+        """The joint-term part (…, T) of deviation vectors."""
+        return np.asarray(deviation, dtype=float)[..., self.size - self.n_term_params:]
+
+    def effective_joints(self, deviation: np.ndarray, q: np.ndarray, joints: JointData | None) -> np.ndarray:
+        """q_eff = q + Δq0 + B · p_terms, (…, m, n); q itself without joint data."""
+        if joints is None:
+            return q
+        dq = joints.offset
+        if self.n_term_params:
+            dq = dq + np.einsum("mit,...t->...mi", joints.basis, self.term_values(deviation))
+        return q + dq
 
     def nominal_tools(self) -> np.ndarray:
         """Tool frames of the reference robot, one per target of the space, (T, 4, 4)."""
@@ -142,53 +208,68 @@ class ParameterSpace:
         return geom, base, tools
 
     def apply(self, deviation: np.ndarray) -> Robot:
-        """The robot with deviations (k,) added: nominal + deviation = real."""
-        geom, base, tools = self.expand(np.asarray(deviation, dtype=float))
+        """The robot with deviations (k,) added: nominal + deviation = real (joint terms included)."""
+        deviation = np.asarray(deviation, dtype=float)
+        geom, base, tools = self.expand(deviation)
         named = {t: tools[i] for i, t in enumerate(self.targets) if t != ""}
         default = tools[self.targets.index("")] if "" in self.targets else self.robot.tool
         extra = {t: v for t, v in self.robot.targets.items() if t not in named}
-        return self.robot.replace(geometry=geom, base=base, tool=default, targets={**extra, **named})
+        changes = {"geometry": geom, "base": base, "tool": default, "targets": {**extra, **named}}
+        if self.n_term_params:
+            n = self.robot.n_joints
+            own = self.robot.terms or JointTerms()
+            changes["terms"] = own.with_vector(self.terms, n, own.vector(self.terms, n) + self.term_values(deviation))
+        return self.robot.replace(**changes)
 
     def _tools_for(self, tools: np.ndarray, target_idx: np.ndarray | None) -> np.ndarray:
         return tools[..., :1, :, :] if target_idx is None else tools[..., target_idx, :, :]
 
-    def pose(self, deviation: np.ndarray, q: np.ndarray, target_idx: np.ndarray | None = None):
-        """End rotation (…, m, 3, 3) and position (…, m, 3) mm for deviation vectors (…, k).
+    def pose(self, deviation: np.ndarray, q: np.ndarray, target_idx: np.ndarray | None = None,
+             joints: JointData | None = None):
+        """End rotation (…, m, 3, 3) and position (…, m, 3) mm for deviation vectors (…, k) at
+        commanded joints q (m, n) rad.
 
         One batched call over all leading axes of ``deviation`` and all poses of ``q``.
         """
         geom, base, tools = self.expand(deviation)
+        q = self.effective_joints(deviation, q, joints)
         return chain_pose(self.robot.convention, geom, q, base, self._tools_for(tools, target_idx))
 
-    def points(self, deviation: np.ndarray, q: np.ndarray, target_idx: np.ndarray | None = None) -> np.ndarray:
+    def points(self, deviation: np.ndarray, q: np.ndarray, target_idx: np.ndarray | None = None,
+               joints: JointData | None = None) -> np.ndarray:
         """Measured-point positions (…, m, 3) mm only: the cheap path of position-only objectives."""
         geom, base, tools = self.expand(deviation)
+        q = self.effective_joints(deviation, q, joints)
         return chain_points(self.robot.convention, geom, q, base, self._tools_for(tools, target_idx))
 
-    def jacobian(self, deviation: np.ndarray, q: np.ndarray, target_idx: np.ndarray | None = None):
+    def jacobian(self, deviation: np.ndarray, q: np.ndarray, target_idx: np.ndarray | None = None,
+                 joints: JointData | None = None):
         """Exact derivative of the end pose with respect to the deviation vector (k,).
 
         Returns ``(J, R, p)``: J (m, 6, k) with rows (position mm, rotation rad about the
         measuring-frame axes, left perturbation), R (m, 3, 3), p (m, 3).  J is a view of
         a (k, m, 6) array: each parameter's column is contiguous.
         """
-        Jc, R_e, p_e = self.jacobian_columns(deviation, q, target_idx)
+        Jc, R_e, p_e = self.jacobian_columns(deviation, q, target_idx, joints=joints)
         return np.moveaxis(Jc, 0, -1), R_e, p_e
 
-    def jacobian_columns(
-        self, deviation: np.ndarray, q: np.ndarray, target_idx: np.ndarray | None = None, frames: bool = True
-    ):
+    def jacobian_columns(self, deviation: np.ndarray, q: np.ndarray, target_idx: np.ndarray | None = None,
+                         frames: bool = True, joints: JointData | None = None):
         """As :meth:`jacobian` with J laid out (k, m, 6); ``frames=False`` leaves the base and
-        tool columns zero (cheaper when none of them is estimated)."""
+        tool columns zero (cheaper when none of them is estimated).  A joint term's column is
+        the joints' θ columns (the joint-value columns) weighted by its basis."""
         deviation = np.asarray(deviation, dtype=float)
         geom, base, tools = self.expand(deviation)
         tool = tools[:1] if target_idx is None else tools[target_idx]
+        q = self.effective_joints(deviation, q, joints)
         Jj, R_e, p_e, R_f = chain_twist_jacobian(self.robot.convention, geom, q, base, tool)
         m = p_e.shape[0]
         kinds = len(joint_kinds(self.robot.convention))
         J = np.zeros((self.size, m, 6))
         nj = self.n_joint_params
         J[:nj] = Jj[:, :kinds].reshape(nj, m, 6)
+        if self.n_term_params:
+            J[self.size - self.n_term_params:] = np.einsum("imk,mit->tmk", Jj[:, THETA], joints.basis)
         if frames:
             _, db, dt = self._split(deviation)
             self._base_columns(J[nj : nj + 6], db, p_e - base[:3, 3])

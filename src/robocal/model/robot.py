@@ -10,6 +10,8 @@ import numpy as np
 from ..math.se3 import homogeneous
 from .dh import ALPHA, BETA, THETA, A, D
 from .kinematics import chain_pose, check_convention
+from .residual import ResidualModel
+from .terms import JointTerms, joint_offsets
 
 
 @dataclass(frozen=True, eq=False)
@@ -19,7 +21,9 @@ class Robot:
     geometry: (n, 5) array of (a mm, alpha rad, theta rad, d mm, beta rad) per joint.
     limits: (n, 2) rad, ±inf where a joint has none.  base: measuring frame → robot base
     (4×4, mm).  tool: flange → measured point (4×4).  targets: further named tool frames,
-    one per reflector on the flange (the unnamed target "" is ``tool``).
+    one per reflector on the flange (the unnamed target "" is ``tool``).  terms: joint terms
+    beyond geometry (:mod:`robocal.model.terms`); residual: a learned correction of the pose
+    in the measuring frame (:mod:`robocal.model.residual`).
     """
 
     convention: str
@@ -30,6 +34,8 @@ class Robot:
     targets: Mapping[str, np.ndarray] = field(default_factory=dict)
     name: str = ""
     source: str = ""  # where it was loaded from (file path or "built-in NAME"), for messages
+    terms: JointTerms | None = None
+    residual: ResidualModel | None = None
 
     def __post_init__(self) -> None:
         check_convention(self.convention)
@@ -73,15 +79,30 @@ class Robot:
         except KeyError as exc:
             raise ValueError(f"robot has no tool frame for target {exc.args[0]!r}") from None
 
-    def fk(self, q, targets: Sequence[str] | None = None) -> np.ndarray:
-        """End poses (m, 4, 4) in the measuring frame for joint values q (m, n) in rad."""
-        R, p = chain_pose(self.convention, self.geometry, np.atleast_2d(q), self.base, self.tool_frames(targets))
+    def effective_joints(self, q, torques=None, payload=None) -> np.ndarray:
+        """Joint values (m, n) rad the arm reaches for commanded q: q + Δq of its joint terms."""
+        q = np.atleast_2d(np.asarray(q, float))
+        return q + joint_offsets(self.terms, self.convention, self.geometry, q, torques, payload)
+
+    def fk(self, q, targets: Sequence[str] | None = None, torques=None, payload=None) -> np.ndarray:
+        """End poses (m, 4, 4) in the measuring frame for commanded joints q (m, n) rad, with the
+        robot's joint terms (torques (m, n) N·m and payload (m,) kg where they need them) and
+        its residual correction."""
+        q = np.atleast_2d(np.asarray(q, float))
+        R, p = chain_pose(self.convention, self.geometry, self.effective_joints(q, torques, payload), self.base,
+                          self.tool_frames(targets))
+        if self.residual is not None:
+            R, p = self.residual.correct(q, R, p)
         return homogeneous(R, p)
 
-    def positions(self, q, targets: Sequence[str] | None = None) -> np.ndarray:
-        """Measured-point positions (m, 3) mm in the measuring frame for joint values q (m, n) rad."""
-        _, p = chain_pose(self.convention, self.geometry, np.atleast_2d(q), self.base, self.tool_frames(targets))
-        return p
+    def positions(self, q, targets: Sequence[str] | None = None, torques=None, payload=None) -> np.ndarray:
+        """Measured-point positions (m, 3) mm in the measuring frame for commanded joints q (m, n) rad."""
+        return self.fk(q, targets, torques, payload)[:, :3, 3]
+
+    @property
+    def geometric(self) -> bool:
+        """True when the model is geometry alone (no joint terms, no residual correction)."""
+        return (self.terms is None or self.terms.empty) and self.residual is None
 
     def replace(self, **changes) -> Robot:
         return replace(self, **changes)
