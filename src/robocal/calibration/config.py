@@ -16,6 +16,8 @@ METHODS = ("lm", "pso", "ipso", "ldpso-bt", "hybrid")
 OBJECTIVES = ("sum_squares", "sum_norms")
 #: IPSO's start: a Halton sequence scrambled with the seed, or the plain sequence
 HALTON = ("scrambled", "plain")
+#: what a model may hold beyond geometry (SPEC §10); ``auto`` chooses among them by cross-validation
+MODEL_TERMS = ("compliance", "harmonics", "residual")
 #: named candidate sets: every joint parameter of the convention, or a paper's 24
 PARAMETER_SETS = ("auto", "all", "wen2019", "kou2022")
 #: default objective of each method (its paper's)
@@ -49,6 +51,10 @@ class CalibrationConfig:
     evaluations.  backend: ``auto``, ``numba`` or ``numpy`` for the swarm objectives.
     joint_unit / length_unit: ``deg``/``rad`` and ``mm``/``m`` of the data files, overriding
     robocal's unit checks (default: degrees and millimetres, checked).
+    model: ``geometric``, ``auto`` (chosen by cross-validation) or terms joined by ``+``
+    (``compliance``, ``harmonics``, ``residual``; geometry is always included).  harmonics:
+    their count H per joint.  payload: a payload mass (kg) for every pose, where the data have
+    no ``payload`` column.
     """
 
     method: str = "lm"
@@ -71,6 +77,9 @@ class CalibrationConfig:
     backend: str = "auto"
     joint_unit: str | None = None
     length_unit: str | None = None
+    model: str = "geometric"
+    harmonics: int = 2
+    payload: float | None = None
 
     def __post_init__(self) -> None:
         set_ = object.__setattr__
@@ -110,6 +119,13 @@ class CalibrationConfig:
         opt.choice(self.halton, HALTON, "halton", "Halton start")
         opt.choice(self.backend, BACKENDS, "backend", "backend")
         ReadOptions(joint_unit=self.joint_unit, length_unit=self.length_unit)  # checks both
+        set_(self, "model", _model(self.model))
+        set_(self, "harmonics", opt.integer(self.harmonics, "harmonics", minimum=1))
+        if self.payload is not None:
+            set_(self, "payload", opt.number(self.payload, "payload", minimum=0.0))
+        if self.is_swarm and (self.model == "auto" or self.model_terms - {"residual"}):
+            raise InputError(f"joint terms ({self.model}) are fitted by lm or hybrid, not {self.method}",
+                             option="model")
 
     def read_options(self, robot, columns=None) -> dict:
         """How to read data files for ``robot``: the keywords of the measurement loaders."""
@@ -124,6 +140,11 @@ class CalibrationConfig:
         if unknown:
             raise TypeError(f"unknown calibration option {unknown[0]!r}")
         return cls(**options) if config is None else replace(config, **options)
+
+    @property
+    def model_terms(self) -> frozenset[str]:
+        """The terms beyond geometry the model asks for (empty for geometric and auto)."""
+        return frozenset() if self.model in ("geometric", "auto") else frozenset(self.model.split("+")) - {"geometric"}
 
     @property
     def noise_model(self):
@@ -143,6 +164,21 @@ class CalibrationConfig:
     @property
     def is_swarm(self) -> bool:
         return self.method in ("pso", "ipso", "ldpso-bt")
+
+
+def _model(value) -> str:
+    """``geometric``, ``auto``, or known terms joined by ``+`` in a canonical order."""
+    if not isinstance(value, str) or not value.strip():
+        raise InputError(f"expected geometric, auto or TERM[+TERM…], got {value!r}", option="model")
+    if value in ("geometric", "auto"):
+        return value
+    parts = [p.strip() for p in value.split("+") if p.strip()]
+    unknown = [p for p in parts if p not in MODEL_TERMS + ("geometric",)]
+    if unknown:
+        raise InputError(f"unknown model term {unknown[0]!r} (expected geometric | auto | "
+                         f"{' | '.join(MODEL_TERMS)}, joined by +)", option="model")
+    terms = [t for t in MODEL_TERMS if t in parts]
+    return "+".join(terms) if terms else "geometric"
 
 
 def _params(value) -> str | tuple[str, ...] | None:

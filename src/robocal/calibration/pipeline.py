@@ -24,7 +24,7 @@ from __future__ import annotations
 import time
 import warnings
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -35,8 +35,9 @@ from ..io.robotfile import load_robot
 from ..model.candidates import complete, frame_candidates, joint_candidates
 from ..model.measurements import Measurements
 from ..model.metrics import Metrics
-from ..model.parameters import ParameterSpace
+from ..model.parameters import ParameterSpace, is_term
 from ..model.robot import Robot
+from ..model.terms import TermSpec
 from ..optimize.result import Progress
 from . import checks
 from .config import CalibrationConfig, resolve_params
@@ -92,6 +93,10 @@ def load_inputs(robot, data, validate, config: CalibrationConfig, notes: list[st
     if not (meas.full_pose and config.use_orientation):
         meas = meas.position_only()
         val = None if val is None else val.position_only()
+    if config.payload is not None:  # a stated payload where the files have no column
+        meas = meas if meas.payload is not None else replace(meas, payload=np.full(meas.n_poses, config.payload))
+        if val is not None and val.payload is None:
+            val = replace(val, payload=np.full(val.n_poses, config.payload))
     frames = config.frames
     if frames in ("auto", "none"):
         choice = choose_frames(nominal, meas)
@@ -116,14 +121,14 @@ def complete_model(robot: Robot, config: CalibrationConfig) -> Robot:
     return complete(robot)
 
 
-def register(inputs: Inputs, config: CalibrationConfig) -> Setup:
+def register(inputs: Inputs, config: CalibrationConfig, spec: TermSpec = TermSpec()) -> Setup:
     """Step 2: the complete model, its frames fitted with the nominal joints (closed form, then
     LM on base and tools together: see :func:`~robocal.calibration.registration.fit_frames`),
     the parameter space around the result, and the noise weighting to start with.  A swarm
     then searches a few millimetres around frames that are already right."""
     sigma_p, sigma_r = config.noise_model.initial()
     initial = fit_frames(complete_model(inputs.nominal, config), inputs.meas, inputs.frames, sigma_p, sigma_r)
-    space = ParameterSpace.of(initial, inputs.meas.target_names if inputs.frames == "base+tool" else None)
+    space = ParameterSpace.of(initial, inputs.meas.target_names if inputs.frames == "base+tool" else None, spec)
     return Setup(space, inputs.meas, sigma_p, sigma_r, config.use_orientation, config.backend)
 
 
@@ -137,7 +142,8 @@ def choose_candidates(setup: Setup, config: CalibrationConfig, frames_mode: str)
         raise InputError(f"unknown parameter '{unknown[0]}' for this {robot.convention} robot "
                          f"(known: {', '.join(setup.space.names[:8])}, …)", option="params")
     frames = frame_candidates(frames_mode, setup.meas.target_names, setup.full_pose)
-    return Candidates(joints, joints + [n for n in frames if n not in joints], requested is not None)
+    terms = setup.space.terms.names(robot.n_joints)
+    return Candidates(joints, joints + [n for n in frames + terms if n not in joints], requested is not None)
 
 
 def analyse_identifiability(setup: Setup, candidates: Candidates, notes: list[str]) -> Identifiability:
@@ -159,8 +165,10 @@ def analyse_identifiability(setup: Setup, candidates: Candidates, notes: list[st
 
 
 def searched_names(candidates: Candidates, ident: Identifiability) -> list[str]:
-    """What a swarm searches: every candidate that has any effect on the data."""
-    return [n for n in candidates.names if n not in ident.reasons or ident.reasons[n].kind != NO_EFFECT]
+    """What a swarm searches: every geometric candidate that has any effect on the data (joint
+    terms are left to LM, which hybrid runs after the swarm)."""
+    return [n for n in candidates.names if not is_term(n)
+            and (n not in ident.reasons or ident.reasons[n].kind != NO_EFFECT)]
 
 
 @dataclass(frozen=True)
@@ -347,6 +355,59 @@ def _status_notes(est: Estimate, config: CalibrationConfig) -> list[str]:
     return []
 
 
+@dataclass
+class Fit:
+    """A parametric model (geometry and joint terms) fitted to the data: what steps 2–9 give."""
+
+    setup: Setup
+    candidates: Candidates
+    identifiability: Identifiability
+    estimate: Estimate
+    screening: Screening
+    noise: NoiseEstimate
+    goodness: GoodnessOfFit
+    uncertainty: np.ndarray | None
+    covariance: np.ndarray | None
+    notes: list[str]
+
+    @property
+    def robot(self) -> Robot:
+        return self.setup.space.apply(self.estimate.problem.full(self.estimate.x))
+
+    @property
+    def n_params(self) -> int:
+        return self.estimate.problem.n_params
+
+
+def term_spec(terms, meas: Measurements, config: CalibrationConfig) -> TermSpec:
+    """The joint terms of a model for these data: compliance on measured torques where the file
+    has them, else under gravity (with the payload's own compliances when it varies)."""
+    compliance = None
+    if "compliance" in terms:
+        compliance = "torque" if meas.torques is not None else "gravity"
+    varying_payload = meas.payload is not None and np.ptp(meas.payload) > 0
+    return TermSpec(compliance, compliance == "gravity" and varying_payload,
+                    config.harmonics if "harmonics" in terms else 0)
+
+
+def fit_parametric(inputs: Inputs, config: CalibrationConfig, spec: TermSpec,
+                   progress: Progress | None = None) -> Fit:
+    """Steps 2–9 for one parametric model."""
+    notes: list[str] = []
+    setup = register(inputs, config, spec)
+    candidates = choose_candidates(setup, config, inputs.frames)
+    ident = analyse_identifiability(setup, candidates, notes)
+    est = optimise(setup.problem(ident.kept), setup.problem(searched_names(candidates, ident)), config, progress)
+    est, screening = screen_outliers(est, config, notes)
+    notes += _status_notes(est, config)
+    est, noise = reweigh(est, config)
+    refined, ident = refine_at_estimate(est, ident, candidates, config)
+    if refined is not est:  # parameters were added: their weights are settled again
+        est, noise = reweigh(refined, config)
+    gof, unc, cov = judge(est, config, noise, notes)
+    return Fit(setup, candidates, ident, est, screening, noise, gof, unc, cov, notes)
+
+
 def calibrate(
     robot: str | Path | Robot,
     data: str | Path | Measurements,
@@ -360,38 +421,34 @@ def calibrate(
 ) -> CalibrationResult:
     """Calibrate ``robot`` (file, built-in name or Robot) on ``data`` (file or Measurements).
 
-    Options are those of :class:`CalibrationConfig` (``frames``, ``params``, ``seed``, …),
+    Options are those of :class:`CalibrationConfig` (``frames``, ``params``, ``model``, …),
     given as keywords or as ``config``.  validate: poses not used to identify, for honest
     figures.  columns: map of file column names to robocal's.  progress: called with
     (iteration, total, best objective).  Warnings are issued as :class:`RobocalWarning` and
     listed in the result.
     """
+    from .selection import fit_model
+
     start = time.perf_counter()
     cfg = CalibrationConfig.build(config, **({"method": method} if config is None else {}), **options)
     notes: list[str] = []
     inputs = load_inputs(robot, data, validate, cfg, notes, columns)
     notes += checks.degeneracy_warnings(inputs.nominal, inputs.meas)
-    setup = register(inputs, cfg)
-    candidates = choose_candidates(setup, cfg, inputs.frames)
-    ident = analyse_identifiability(setup, candidates, notes)
-    est = optimise(setup.problem(ident.kept), setup.problem(searched_names(candidates, ident)), cfg, progress)
-    est, screening = screen_outliers(est, cfg, notes)
-    notes += _status_notes(est, cfg)
-    est, noise = reweigh(est, cfg)
-    refined, ident = refine_at_estimate(est, ident, candidates, cfg)
-    if refined is not est:  # parameters were added: their weights are settled again
-        est, noise = reweigh(refined, cfg)
-    gof, unc, cov = judge(est, cfg, noise, notes)
+    chosen = fit_model(inputs, cfg, progress)
+    fit = chosen.fit
+    notes += fit.notes + chosen.notes
+    est, setup = fit.estimate, fit.setup
     initial = setup.space.robot
-    calibrated = setup.space.apply(est.problem.full(est.x)).replace(name=f"{inputs.nominal.name} (calibrated)")
-    metrics = evaluate(initial, calibrated, est.problem.meas, inputs.meas, inputs.validation, screening, notes)
+    calibrated = fit.robot.replace(name=f"{inputs.nominal.name} (calibrated)", residual=chosen.residual)
+    metrics = evaluate(initial, calibrated, est.problem.meas, inputs.meas, inputs.validation, fit.screening, notes)
     for note in notes:
         warnings.warn(note, RobocalWarning, stacklevel=2)
     return CalibrationResult(
         config=cfg, robot=calibrated, initial=initial, nominal=inputs.nominal, names=est.problem.names, x=est.x,
-        uncertainty=unc, identifiability=ident, optimisation=est.optimisation, metrics=metrics,
-        data=inputs.meas.source, n_poses=est.problem.meas.n_poses, full_pose=setup.full_pose, warnings=notes,
-        time_s=time.perf_counter() - start, measurements=est.problem.meas, validation=inputs.validation,
-        outliers=screening.outliers, reexpression_gap_mm=est.reexpression_gap_mm, noise=noise, goodness_of_fit=gof,
-        covariance=cov, frames=inputs.frames,
+        uncertainty=fit.uncertainty, identifiability=fit.identifiability, optimisation=est.optimisation,
+        metrics=metrics, data=inputs.meas.source, n_poses=est.problem.meas.n_poses, full_pose=setup.full_pose,
+        warnings=notes, time_s=time.perf_counter() - start, measurements=est.problem.meas,
+        validation=inputs.validation, outliers=fit.screening.outliers, reexpression_gap_mm=est.reexpression_gap_mm,
+        noise=fit.noise, goodness_of_fit=fit.goodness, covariance=fit.covariance, frames=inputs.frames,
+        model=chosen.name, model_selection=chosen.table, error_budget=chosen.budget(calibrated, inputs.validation),
     )

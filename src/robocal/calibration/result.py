@@ -14,7 +14,7 @@ from ..math.se3 import transform_to_xyz_rpy
 from ..model.kinematics import joint_kinds
 from ..model.measurements import Measurements
 from ..model.metrics import Metrics
-from ..model.parameters import is_angle, is_frame
+from ..model.parameters import is_frame, unit
 from ..model.robot import Robot
 from ..optimize.result import OptimizeResult
 from .config import CalibrationConfig
@@ -63,6 +63,9 @@ class CalibrationResult:
     goodness_of_fit: GoodnessOfFit | None = None
     covariance: np.ndarray | None = field(default=None, repr=False)
     frames: str = "none"
+    model: str = "geometric"
+    model_selection: list[dict] = field(default_factory=list)
+    error_budget: list[dict] = field(default_factory=list)
 
     @property
     def method(self) -> str:
@@ -118,7 +121,7 @@ class CalibrationResult:
         for i, n in enumerate(self.names):
             nominal = initial_values.get(n, 0.0)
             params.append({
-                "name": n, "unit": "rad" if is_angle(n) else "mm", "nominal": nominal, "error": float(self.x[i]),
+                "name": n, "unit": unit(n), "nominal": nominal, "error": float(self.x[i]),
                 "value": nominal + float(self.x[i]),
                 "uncertainty": None if self.uncertainty is None else _finite_or_none(self.uncertainty[i]),
                 "significant": self.significant(i),
@@ -137,6 +140,13 @@ class CalibrationResult:
             "noise": None if self.noise is None else self.noise.to_dict(),
             "goodness_of_fit": None if self.goodness_of_fit is None else self.goodness_of_fit.to_dict(),
             "loss": cfg.loss,
+            "model": self.model,
+            "model_selection": list(self.model_selection),
+            "error_budget": list(self.error_budget),
+            "residual_model": None if self.robot.residual is None else {
+                "kind": "gaussian process on the joint angles", "points": int(len(self.robot.residual.X)),
+                "length_scales_rad": self.robot.residual.length_scales.tolist(),
+                "outputs": "position" if self.robot.residual.alpha.shape[1] == 3 else "position and orientation"},
             "frames": self.frames,
             "frames_requested": cfg.frames,
             "robot": self.nominal.name,
