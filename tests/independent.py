@@ -83,3 +83,31 @@ def campaign(name: str, deviations: dict[str, float], n: int, rng: np.random.Gen
     if measure == "pose":
         rotation = Rotation.from_rotvec(rng.normal(0.0, angle_noise, (n, 3))).as_matrix() @ T[:, :3, :3]
     return {"q": q, "position": position, "rotation": rotation}
+
+
+def link_frames(g: dict[str, np.ndarray], q: np.ndarray) -> list[np.ndarray]:
+    """The frame after each joint (hayati/DH, base = identity), one 4×4 per joint."""
+    T, out = np.eye(4), []
+    for i, qi in enumerate(q):
+        T = T @ _rz(qi + g["theta"][i]) @ _trans(0, 0, g["d"][i]) @ _trans(g["a"][i], 0, 0) @ _rx(g["alpha"][i]) \
+            @ _ry(g["beta"][i])
+        out.append(T)
+    return out
+
+
+def gravity_torques(g: dict[str, np.ndarray], q: np.ndarray, masses, centres, step: float = 1e-6) -> np.ndarray:
+    """Gravity torques (n,) N·m about each joint, of point masses (kg) at centres (mm, each in its
+    link's frame), from the potential energy by central differences: τ_i = ∂(Σ m_j g⃗·c_j)/∂q_i,
+    the load joint i holds, with gravity along −z of the base."""
+    gvec = np.array([0.0, 0.0, -9.80665])
+
+    def work(qq):
+        return sum(m * gvec @ (T @ np.append(c, 1.0))[:3] / 1000.0
+                   for m, c, T in zip(masses, centres, link_frames(g, qq)))
+
+    tau = np.zeros(len(q))
+    for i in range(len(q)):
+        dq = np.zeros(len(q))
+        dq[i] = step
+        tau[i] = (work(q + dq) - work(q - dq)) / (2 * step)
+    return tau

@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
+
+import numpy as np
 
 from . import options as opt
 from .exceptions import InputError
@@ -14,6 +16,7 @@ from .model.candidates import FRAME_CHOICES
 from .model.measurements import Measurements
 from .model.metrics import Metrics
 from .model.robot import Robot
+from .model.terms import missing_torques
 
 
 @dataclass(frozen=True)
@@ -35,14 +38,17 @@ class Evaluation:
 
 
 def evaluate(robot: str | Path | Robot, data: str | Path | Measurements, *, columns: Mapping[str, str] | None = None,
-             frames: str = "none", joint_unit: str | None = None, length_unit: str | None = None) -> Evaluation:
+             frames: str = "none", joint_unit: str | None = None, length_unit: str | None = None,
+             payload: float | None = None) -> Evaluation:
     """Error metrics of ``robot`` (file, built-in name or Robot) on ``data`` (file or Measurements).
 
     frames: ``none`` evaluates the model as it is (a calibrated model carries its frames);
     ``base``/``base+tool`` first fit those frames to the data (nominal joints, closed form and
     LM), which is how a nominal model is judged on tracker data; ``auto`` fits them when the
     data are not in the robot's frame.  With ``none`` and data far from the robot's frame, a
-    note names the frames option.
+    note names the frames option.  The whole model is evaluated: its joint terms (on the data's
+    ``tau1..tauN`` and ``payload`` columns; payload: kg where the file has no such column)
+    and its residual correction.
     """
     from .calibration.checks import check_units
     from .calibration.registration import choose_frames, fit_frames
@@ -54,7 +60,9 @@ def evaluate(robot: str | Path | Robot, data: str | Path | Measurements, *, colu
         robot_label=r.source)
     if length_unit is None:
         check_units(r, meas, "none")
-    notes: list[str] = []
+    if payload is not None and meas.payload is None:
+        meas = replace(meas, payload=np.full(meas.n_poses, opt.number(payload, "payload", minimum=0.0)))
+    notes: list[str] = [w for w in (missing_torques(r.terms, meas.torques, meas.source),) if w]
     mode = frames
     if frames in ("none", "auto"):
         choice = choose_frames(r, meas)

@@ -115,3 +115,34 @@ def joint_limits(text: str | None, n: int, option: str = "limits"):
             raise InputError(f"joint {j + 1}: need finite lo < hi, got {p!r}", option=option)
         out.append((math.radians(lo), math.radians(hi)))
     return np.array(out)
+
+
+def joint_values(text: str | None, option: str) -> dict[int, float] | None:
+    """'J=V,J=V…' (1-based joints) → {joint: value}, or None."""
+    if text is None:
+        return None
+    out: dict[int, float] = {}
+    for pair in str(text).split(","):
+        if "=" not in pair:
+            raise InputError(f"expected JOINT=VALUE[,JOINT=VALUE…], got {pair!r}", option=option)
+        j, v = pair.split("=", 1)
+        out[integer(j.strip(), option, minimum=1)] = number(v.strip(), option)
+    return out
+
+
+def harmonic_specs(items, option: str = "harmonic") -> dict[int, list[tuple[float, float]]] | None:
+    """'J:H=A,B' items (joint, order h ≥ 1, amplitudes of cos(h q) and sin(h q) in deg) →
+    {joint: [(a_1, b_1), …]} rad, orders not given left at zero; or None."""
+    if not items:
+        return None
+    out: dict[int, dict[int, tuple[float, float]]] = {}
+    for item in items:
+        head, sep, values = str(item).partition("=")
+        j, colon, h = head.partition(":")
+        if not (sep and colon):
+            raise InputError(f"expected JOINT:ORDER=A_COS,B_SIN (deg), e.g. 2:1=0.01,0.005, got {item!r}",
+                             option=option)
+        a, b = floats(values, option, (2,))
+        out.setdefault(integer(j.strip(), option, minimum=1), {})[integer(h.strip(), option, minimum=1)] = (
+            math.radians(a), math.radians(b))
+    return {j: [orders.get(h, (0.0, 0.0)) for h in range(1, max(orders) + 1)] for j, orders in out.items()}

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -16,6 +16,7 @@ from .model.candidates import parallel_pairs
 from .model.measurements import Measurements
 from .model.parameters import ParameterSpace
 from .model.robot import Robot
+from .model.terms import JointTerms, mass_torques, nominal_masses
 from .papers import wen2019
 
 MEASURES = ("pose", "position")
@@ -102,6 +103,8 @@ def simulate(
     q: np.ndarray | None = None,
     base: Sequence[float] | None = None,
     tool: Sequence[float] | None = None,
+    compliance: Mapping[int, float] | None = None,
+    harmonics: Mapping[int, Sequence[Sequence[float]]] | None = None,
 ) -> Simulation:
     """Simulate a measurement campaign on a robot with planted deviations.
 
@@ -113,6 +116,12 @@ def simulate(
     the commanded joints.  base/tool: the true measuring frame → base and flange → point as
     (x, y, z[, rx, ry, rz]) in mm and rad, replacing the robot's own.  q: joint sets to use
     instead of random ones (rad); joint_range: see :func:`joint_ranges`.
+
+    compliance: {joint (1-based): c rad/(N·m)} planted as Δq_i = c_i τ_i, with τ the gravity
+    torques of a plausible mass model (:func:`robocal.model.terms.nominal_masses`) at the
+    commanded joints, written to the measurements as ``tau1..tauN``.  harmonics: {joint:
+    [(a_1, b_1), (a_2, b_2), …]} rad planted as Δq_i = Σ_h a_h cos(h q_i) + b_h sin(h q_i).
+    The true robot carries both as joint terms (torque form).
     """
     opt.choice(measure, MEASURES, "measure", "measure")
     for name, value in (("noise", noise), ("angle_noise", angle_noise), ("joint_noise", joint_noise),
@@ -131,17 +140,54 @@ def simulate(
         truth = truth.replace(base=frame_from_values(base))
     if tool is not None:
         truth = truth.replace(tool=frame_from_values(tool))
+    terms = planted_terms(robot, compliance, harmonics)
+    if terms is not None:
+        truth = truth.replace(terms=terms)
     q_cmd = random_joints(robot, n_poses, rng, joint_range) if q is None else np.asarray(q, float)
+    torques = None
+    if compliance:
+        masses, centres = nominal_masses(robot.convention, truth.geometry)
+        torques = mass_torques(robot.convention, truth.geometry, q_cmd, terms.gravity_direction, masses, centres)
     q_act = q_cmd.copy()
     if joint_noise > 0:
         q_act = q_act + rng.normal(0.0, joint_noise, q_cmd.shape)
     if joint_noise_uniform > 0:
         q_act = q_act + rng.uniform(-joint_noise_uniform, joint_noise_uniform, q_cmd.shape)
-    T = truth.fk(q_act)
+    T = truth.fk(q_act, torques=torques)
     pos = T[:, :3, 3] + (rng.normal(0.0, noise, (len(q_cmd), 3)) if noise > 0 else 0.0)
     rot = None
     if measure == "pose":
         rot = T[:, :3, :3]
         if angle_noise > 0:
             rot = exp_so3(rng.normal(0.0, angle_noise, (len(q_cmd), 3))) @ rot
-    return Simulation(Measurements(q=q_cmd, position=pos, rotation=rot, source="<simulated>"), truth, planted)
+    return Simulation(Measurements(q=q_cmd, position=pos, rotation=rot, source="<simulated>", torques=torques),
+                      truth, planted)
+
+
+def planted_terms(robot: Robot, compliance: Mapping[int, float] | None,
+                  harmonics: Mapping[int, Sequence[Sequence[float]]] | None) -> JointTerms | None:
+    """Joint terms from {joint: c} and {joint: [(a, b), …]} (1-based joints), checked."""
+    if not compliance and not harmonics:
+        return None
+    n = robot.n_joints
+
+    def joint(j, option):
+        j = opt.integer(j, option, minimum=1)
+        if j > n:
+            raise InputError(f"joint {j} does not exist (the robot has {n})", option=option)
+        return j - 1
+
+    c = None
+    if compliance:
+        c = np.zeros(n)
+        for j, value in compliance.items():
+            c[joint(j, "compliance")] = opt.number(value, "compliance")
+    h = None
+    if harmonics:
+        width = max(len(v) for v in harmonics.values())
+        h = np.zeros((n, width, 2))
+        for j, pairs in harmonics.items():
+            i = joint(j, "harmonic")
+            for k, pair in enumerate(pairs):
+                h[i, k] = opt.floats(pair, "harmonic", (2,))
+    return JointTerms(compliance=c, harmonics=h)

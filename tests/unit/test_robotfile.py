@@ -75,6 +75,19 @@ BAD_ROBOTS = [
     ("convention = 'dh'\n[[joint]]\na=0\nalpha=0\nd=0\ntheta=0\n[base]\nxyz=[1,2]\n", "[base] xyz"),
     ("convention = 'dh'\nreach = 3\n[[joint]]\na=0\nalpha=0\nd=0\ntheta=0\n", "unknown key 'reach'"),
     ("convention = 'dh'\n[[joint]\na=0\n", "not valid TOML"),
+    ("convention = 'dh'\n[[joint]]\na=0\nalpha=0\nd=0\ntheta=0\ncompliance='soft'\n",
+     "joint 1, key 'compliance': expected a number"),
+    ("convention = 'dh'\n[[joint]]\na=0\nalpha=0\nd=0\ntheta=0\nharmonics=[[0.01]]\n",
+     "joint 1, key 'harmonics': expected a list of 2 numbers"),
+    ("convention = 'dh'\n" + "[[joint]]\na=0\nalpha=0\nd=0\ntheta=0\n" * 2
+     + "gravity_deflection=[[0, 0, 0], [0, 0, 0]]\n",
+     "joint 2, key 'gravity_deflection': expected 1 [x, y, z] triples"),
+    ("convention = 'dh'\n[[joint]]\na=0\nalpha=0\nd=0\ntheta=0\n[gravity]\ndirection=[0, 0, 0]\n",
+     "gravity direction must not be zero"),
+    ("convention = 'dh'\n[[joint]]\na=0\nalpha=0\nd=0\ntheta=0\n[gravity]\ncom=[0, 0, 0]\n",
+     "[gravity]: unknown key 'com'"),
+    ("convention = 'dh'\nresidual = 'nowhere.residual.json'\n[[joint]]\na=0\nalpha=0\nd=0\ntheta=0\n",
+     "key 'residual': no such residual-model file"),
 ]
 
 
@@ -95,3 +108,37 @@ def test_radian_limits_are_rejected():
     text = "convention='dh'\n" + "[[joint]]\na=0\nalpha=0\nd=0\ntheta=0\nlimits=[-3.14, 3.14]\n" * 3
     with pytest.raises(InputError, match="look like radians"):
         parse_robot(text)
+
+
+def test_joint_terms_and_the_residual_file_round_trip(tmp_path, rng):
+    from robocal.model.residual import Block, ResidualModel
+    from robocal.model.terms import JointTerms
+
+    r = load_robot("kr5-arc")
+    gravity = np.zeros((6, 6, 3))
+    for i in range(6):
+        gravity[i, i:] = rng.normal(0, 1e-4, (6 - i, 3))
+    terms = JointTerms(compliance=rng.normal(0, 1e-6, 6), gravity=gravity, harmonics=rng.normal(0, 1e-4, (6, 2, 2)),
+                       gravity_direction=np.array([0.0, 0.6, -0.8]), payload_com=np.array([1.0, -2.0, 80.0]))
+    X = rng.uniform(-2, 2, (30, 6))
+    blocks = (Block(rng.normal(size=(30, 3)), rng.uniform(0.3, 3, 6), 1.7, rng.normal(size=3), rng.uniform(0.1, 1, 3)),)
+    residual = ResidualModel(X, blocks, np.linalg.qr(rng.normal(size=(3, 3)))[0])
+    robot = r.replace(terms=terms, residual=residual)
+    written = save_robot(robot, tmp_path / "arm.toml")
+    assert [p.name for p in written] == ["arm.toml", "arm.residual.json"]
+    back = load_robot(tmp_path / "arm.toml")
+    for key in ("compliance", "gravity", "harmonics", "gravity_direction", "payload_com"):
+        np.testing.assert_allclose(getattr(back.terms, key), getattr(terms, key), rtol=1e-15, atol=0)
+    q = rng.uniform(-2, 2, (40, 6))
+    torques = rng.normal(0, 50, (40, 6))
+    payload = rng.uniform(0, 5, 40)
+    np.testing.assert_allclose(back.fk(q, None, torques, payload), robot.fk(q, None, torques, payload), atol=1e-12)
+    assert not np.allclose(robot.fk(q, None, torques, payload), r.fk(q), atol=1e-3)  # the terms do act
+
+
+def test_a_gravity_table_alone_sets_the_direction():
+    text = GOOD + "[gravity]\ndirection = [0.0, 0.0, 1.0]  # a ceiling-mounted arm\n"
+    r = parse_robot(text)
+    np.testing.assert_array_equal(r.terms.gravity_direction, [0.0, 0.0, 1.0])
+    assert r.terms.empty and r.geometric
+    assert "[gravity]" in robot_to_toml(r)

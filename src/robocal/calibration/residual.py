@@ -5,8 +5,13 @@ full-pose data, orientation rad, in the measuring frame), is regressed on the co
 angles with an anisotropic RBF kernel plus white noise, one kernel for the positions and one
 for the orientations.  Length scales are bounded below by :data:`MIN_LENGTH_SCALE` and the
 white noise by :data:`MIN_NOISE`, so that a process cannot memorise the measurement noise.
-Hyperparameters are fitted on at most :data:`HYPER_POINTS` poses and the process itself on at
-most :data:`MAX_POINTS` (both drawn with the seed); a kernel given for a block is used as it is.
+
+Hyperparameters are tuned by maximum marginal likelihood on at most :data:`HYPER_POINTS`
+poses (drawn with the seed; :data:`ORIENTATION_HYPER_POINTS` for the orientation block, which
+the choice of model does not judge), and the process is conditioned on at most
+:data:`MAX_POINTS`.  A kernel can be given per block: used as it is, or as the start of a
+short tuning (``iterations``), which is how cross-validation re-tunes the kernel of all the
+data on each fold's training poses at a fraction of the cost.
 """
 
 from __future__ import annotations
@@ -23,44 +28,67 @@ MAX_LENGTH_SCALE = 100.0
 #: smallest white-noise level of the standardised targets
 MIN_NOISE = 1e-2
 HYPER_POINTS = 1000
+ORIENTATION_HYPER_POINTS = 500
 MAX_POINTS = 2000
 
 
-def _block(q, y, pick, keep, kernel) -> tuple[Block, object]:
+def _limited(iterations: int):
+    """An optimizer for GaussianProcessRegressor: L-BFGS-B stopped after ``iterations``."""
+    from scipy.optimize import minimize
+
+    def optimizer(obj_func, initial_theta, bounds):
+        r = minimize(obj_func, initial_theta, jac=True, bounds=bounds, method="L-BFGS-B",
+                     options={"maxiter": iterations})
+        return r.x, r.fun
+
+    return optimizer
+
+
+def _tuned(q, y, start, iterations: int | None):
+    """The kernel of maximum marginal likelihood on (q, y): from scratch, or from ``start``
+    for at most ``iterations`` L-BFGS-B iterations."""
     from sklearn.gaussian_process import GaussianProcessRegressor
     from sklearn.gaussian_process.kernels import RBF, ConstantKernel, WhiteKernel
 
-    n = q.shape[1]
-    if kernel is None:
-        tuned = GaussianProcessRegressor(
-            ConstantKernel(1.0, (1e-3, 1e2)) * RBF(np.ones(n), (MIN_LENGTH_SCALE, MAX_LENGTH_SCALE))
-            + WhiteKernel(0.5, (MIN_NOISE, 10.0)), normalize_y=True, random_state=0)
-        with warnings.catch_warnings():  # a length scale at its upper bound just means "no dependence on this joint"
-            warnings.simplefilter("ignore")
-            tuned.fit(q[pick], y[pick])
-        kernel = tuned.kernel_
+    if start is None:
+        start = (ConstantKernel(1.0, (1e-3, 1e2)) * RBF(np.ones(q.shape[1]), (MIN_LENGTH_SCALE, MAX_LENGTH_SCALE))
+                 + WhiteKernel(0.5, (MIN_NOISE, 10.0)))
+    optimizer = "fmin_l_bfgs_b" if iterations is None else _limited(iterations)
+    gp = GaussianProcessRegressor(start, normalize_y=True, optimizer=optimizer, random_state=0)
+    with warnings.catch_warnings():  # a length scale at its upper bound just means "no dependence on this joint"
+        warnings.simplefilter("ignore")
+        gp.fit(q, y)
+    return gp.kernel_
+
+
+def _block(q, y, keep, kernel) -> Block:
+    from sklearn.gaussian_process import GaussianProcessRegressor
+
     final = GaussianProcessRegressor(kernel, normalize_y=True, optimizer=None).fit(q[keep], y[keep])
     signal = final.kernel_.k1  # ConstantKernel * RBF; the white noise acts on the training diagonal only
-    block = Block(alpha=np.asarray(final.alpha_, float).reshape(len(keep), -1),
-                  length_scales=np.atleast_1d(signal.k2.length_scale).astype(float),
-                  amplitude=float(signal.k1.constant_value),
-                  y_mean=np.atleast_1d(final._y_train_mean).astype(float),
-                  y_scale=np.atleast_1d(final._y_train_std).astype(float))
-    return block, kernel
+    return Block(alpha=np.asarray(final.alpha_, float).reshape(len(keep), -1),
+                 length_scales=np.atleast_1d(signal.k2.length_scale).astype(float),
+                 amplitude=float(signal.k1.constant_value),
+                 y_mean=np.atleast_1d(final._y_train_mean).astype(float),
+                 y_scale=np.atleast_1d(final._y_train_std).astype(float))
 
 
-def fit_residual(q: np.ndarray, errors: np.ndarray, seed: int | None = 0,
-                 kernels: tuple | None = None) -> tuple[ResidualModel, tuple]:
+def fit_residual(q: np.ndarray, errors: np.ndarray, seed: int | None = 0, kernels: tuple | None = None,
+                 iterations: int | None = None) -> tuple[ResidualModel, tuple]:
     """A :class:`ResidualModel` of ``errors`` (m, 3 or 6) at commanded joints ``q`` (m, n) rad,
-    and its kernels.  ``kernels``: one per block (positions, orientations), None to fit it."""
+    and its kernels.  kernels: one per block (positions, orientations), None to tune it from
+    scratch; a given kernel is used as it is, or, with ``iterations``, re-tuned from there."""
     rng = np.random.default_rng(seed)
     q, errors = np.asarray(q, float), np.asarray(errors, float)
-    pick = rng.permutation(len(q))[:HYPER_POINTS]
+    order = rng.permutation(len(q))
     keep = np.sort(rng.permutation(len(q))[:MAX_POINTS])
     blocks, fitted = [], []
     for k, cols in enumerate((slice(0, 3), slice(3, 6))[: errors.shape[1] // 3]):
         given = None if kernels is None or k >= len(kernels) else kernels[k]
-        block, kernel = _block(q, errors[:, cols], pick, keep, given)
-        blocks.append(block)
+        kernel = given
+        if given is None or iterations is not None:
+            pick = order[:HYPER_POINTS if k == 0 else ORIENTATION_HYPER_POINTS]
+            kernel = _tuned(q[pick], errors[pick, cols], given, None if given is None else iterations)
+        blocks.append(_block(q, errors[:, cols], keep, kernel))
         fitted.append(kernel)
     return ResidualModel(q[keep].copy(), tuple(blocks)), tuple(fitted)

@@ -143,10 +143,7 @@ class CalibrationResult:
             "model": self.model,
             "model_selection": list(self.model_selection),
             "error_budget": list(self.error_budget),
-            "residual_model": None if self.robot.residual is None else {
-                "kind": "gaussian process on the joint angles", "points": int(len(self.robot.residual.X)),
-                "length_scales_rad": self.robot.residual.length_scales.tolist(),
-                "outputs": "position" if self.robot.residual.alpha.shape[1] == 3 else "position and orientation"},
+            "residual_model": None if self.robot.residual is None else self.robot.residual.summary(),
             "frames": self.frames,
             "frames_requested": cfg.frames,
             "robot": self.nominal.name,
@@ -180,9 +177,10 @@ class CalibrationResult:
     def save(self, path: str | Path) -> None:
         atomic_write(path, json.dumps(self.to_dict(), indent=2, allow_nan=False) + "\n")
 
-    def export(self, path: str | Path) -> None:
-        """Write the calibrated robot as a robot file (loadable again)."""
-        from ..io.robotfile import robot_to_toml
+    def export(self, path: str | Path) -> list[Path]:
+        """Write the calibrated robot as a robot file (loadable again), with its residual model in
+        a sibling file when it has one; the paths written."""
+        from ..io.robotfile import save_robot
 
         comment = (f"Calibrated by robocal ({self.method}, objective {self.objective}, seed {self.seed}) from "
                    f"{self.data or 'measurements'}; {len(self.names)} parameters identified, "
@@ -190,7 +188,9 @@ class CalibrationResult:
         # what makes the model doubtful travels with it, not only on the terminal
         doubts = [w for w in self.warnings if w.startswith(("implausible", "model misfit"))]
         comment += "".join(f"\nWARNING: {w}" for w in doubts)
-        atomic_write(path, robot_to_toml(self.robot, comment=comment))
+        if self.model != "geometric":
+            comment += f"\nModel {self.model}: every robocal command uses its joint terms and residual model."
+        return save_robot(self.robot, path, comment)
 
 
 def _finite_or_none(v: float):
@@ -215,12 +215,15 @@ def _plain(d: dict) -> dict:
 
 
 def nominal_values(robot: Robot) -> dict[str, float]:
-    """Joint geometry of a robot by parameter name (mm, rad)."""
+    """Joint geometry and joint terms of a robot by parameter name (mm, rad, rad/(N·m))."""
     out: dict[str, float] = {}
     col = {"a": 0, "alpha": 1, "theta": 2, "d": 3, "beta": 4}
     for i in range(robot.n_joints):
         for k in joint_kinds(robot.convention):
             out[f"{k}{i + 1}"] = float(robot.geometry[i, col[k]])
+    if robot.terms is not None and not robot.terms.empty:
+        spec = robot.terms.spec()
+        out.update(zip(spec.names(robot.n_joints), map(float, robot.terms.vector(spec, robot.n_joints))))
     return out
 
 

@@ -4,16 +4,19 @@
 calibration data (K = 5, folds by ``pose_id``, so the reflectors of one pose stay together):
 
 1. geometric; 2. + harmonics; 3. + compliance; 4. + both;
-5. + residual (a Gaussian process) on the best of these.
+5. + residual (a Gaussian process) on the one chosen among these, and on geometry alone.
 
 Each rung is fitted on all the data; each fold then refits it on the other folds, from that
 fit (same parameters, same noise weights), and predicts the held-out poses.  The lowest
-cross-validated position RMS wins; a model within :data:`TIE` of a simpler one loses to it.
+cross-validated position RMS wins, unless a simpler model ties with it: within :data:`TIE`,
+or not worse on the held-out poses by a paired test at :data:`SIGNIFICANCE` (on noise alone
+the best of six candidates is better than geometry by luck, and a 1 % margin is within it).
+Simpler means earlier on the ladder; a residual process is the least simple.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -30,6 +33,10 @@ LADDER: tuple[tuple[str, ...], ...] = ((), ("harmonics",), ("compliance",), ("co
 K_FOLDS = 5
 #: relative difference of cross-validated RMS within which the simpler model is kept
 TIE = 0.01
+#: L-BFGS-B iterations with which each fold re-tunes the residual kernel on its own training poses
+FOLD_TUNING = 5
+#: a simpler model is kept unless the paired test says it predicts held-out poses worse at this level
+SIGNIFICANCE = 0.01
 
 
 def model_name(terms) -> str:
@@ -92,7 +99,7 @@ class CrossValidation:
 
     @property
     def rms(self) -> float:
-        return float(np.sqrt(np.mean(np.sum(self.errors**2, axis=1))))
+        return rms(self.errors)
 
 
 def cross_validate(fit: Fit, config: CalibrationConfig) -> CrossValidation:
@@ -114,34 +121,97 @@ def cross_validate(fit: Fit, config: CalibrationConfig) -> CrossValidation:
 
 def residual_errors(fit: Fit, x: np.ndarray, index: np.ndarray | None = None) -> tuple[Measurements, np.ndarray]:
     """The poses (all, or ``index``) and what the parametric model with estimate x leaves there,
-    (m, 3) mm or (m, 6) with orientations (rad)."""
+    (m, 3) mm or (m, 6) with orientations (rad), in the measuring frame."""
     problem = fit.estimate.problem
     meas = problem.meas if index is None else problem.meas.subset(index)
     dp, dr = problem.setup.with_measurements(meas).problem(problem.names).errors(x)
     return meas, dp if dr is None else np.concatenate([dp, dr], axis=1)
 
 
-def cross_validate_residual(fit: Fit, cv: CrossValidation, seed: int | None) -> tuple[float, tuple]:
-    """Held-out position RMS (mm) of the parametric model plus a residual process, and the
-    position kernel.  The kernel's hyperparameters are fitted once, on the residuals of the
-    fit on all data; each fold then conditions a process with that kernel on its training poses
-    and predicts its held-out ones (a choice of speed: re-optimising eight hyperparameters per
-    fold costs minutes on a thousand poses and moves the figure little)."""
+def cross_validate_residual(fit: Fit, cv: CrossValidation, seed: int | None) -> tuple[np.ndarray, tuple]:
+    """Held-out position errors (m, 3) mm of the parametric model plus a residual process, and
+    the position kernel tuned on all the poses.
+
+    Each fold tunes its own kernel on its training poses, so that the held-out poses judge a
+    process that never saw them: a kernel tuned on all the poses and only conditioned per fold
+    makes a process fitted to pure noise look better than none, and would be chosen.  The fold
+    starts from the kernel of all the poses and runs :data:`FOLD_TUNING` iterations (from
+    scratch, eight hyperparameters on a thousand poses take a minute per fold); on pure noise
+    that is enough to leave the held-out poses unexplained, as they should be.
+    """
     meas, e = residual_errors(fit, fit.estimate.x)
     _, kernels = fit_residual(meas.q, e[:, :3], seed)
     corrected = np.zeros_like(cv.errors)
     for test, x in zip(cv.folds, cv.estimates):
         train = np.setdiff1d(np.arange(len(cv.errors)), test)
         train_meas, e_train = residual_errors(fit, x, train)
-        gp, _ = fit_residual(train_meas.q, e_train[:, :3], seed, kernels)
+        gp, _ = fit_residual(train_meas.q, e_train[:, :3], seed, kernels, iterations=FOLD_TUNING)
         corrected[test] = cv.errors[test] - gp.predict(meas.q[test])
-    return float(np.sqrt(np.mean(np.sum(corrected**2, axis=1)))), kernels
+    return corrected, kernels
+
+
+def rms(errors: np.ndarray) -> float:
+    return float(np.sqrt(np.mean(np.sum(errors**2, axis=1))))
+
+
+def pose_groups(meas: Measurements) -> np.ndarray:
+    """Group index per row: the rows of one pose_id (its reflectors) form one group."""
+    labels = np.array(meas.pose_ids if meas.pose_ids is not None else [str(r) for r in meas.rows])
+    return np.unique(labels, return_inverse=True)[1]
+
+
+def worse_p_value(simple: np.ndarray, best: np.ndarray, groups: np.ndarray) -> float:
+    """One-sided p-value of "the simpler model predicts held-out poses worse than the best":
+    a paired t-test on the per-pose difference of squared held-out errors (reflectors of one
+    pose summed, since they share the pose's joint errors)."""
+    from scipy import stats
+
+    d = np.bincount(groups, np.sum(simple**2, axis=1) - np.sum(best**2, axis=1))
+    if len(d) < 3 or not np.any(d):
+        return 1.0
+    spread = d.std(ddof=1)
+    if spread == 0:
+        return 0.0 if d.mean() > 0 else 1.0
+    return float(stats.t.sf(d.mean() / (spread / np.sqrt(len(d))), len(d) - 1))
+
+
+@dataclass
+class Candidate:
+    """One rung of the ladder: its terms, whether a residual process is added, its parametric
+    fit, and its held-out errors."""
+
+    terms: tuple[str, ...]
+    residual: bool
+    fit: Fit
+    errors: np.ndarray
+    kernels: tuple | None = None
+
+    @property
+    def name(self) -> str:
+        return model_name(self.terms + (("residual",) if self.residual else ()))
+
+    @property
+    def cv_rms(self) -> float:
+        return rms(self.errors)
+
+
+def choose(candidates: list[Candidate], groups: np.ndarray) -> Candidate:
+    """The simplest candidate (the first, in ladder order) that predicts held-out poses as well
+    as the best one: within :data:`TIE` of its RMS, or not worse by the paired test at
+    :data:`SIGNIFICANCE`.  A richer model must earn its place beyond the luck of the folds."""
+    best = min(candidates, key=lambda c: c.cv_rms)
+    for c in candidates:
+        if c is best or c.cv_rms <= best.cv_rms * (1 + TIE) or \
+                worse_p_value(c.errors, best.errors, groups) >= SIGNIFICANCE:
+            return c
+    return best
 
 
 def residual_on_all(fit: Fit, seed: int | None, kernels: tuple | None = None) -> ResidualModel:
     """The residual model of a fit on all its poses (the position kernel reused when given)."""
     meas, e = residual_errors(fit, fit.estimate.x)
-    return fit_residual(meas.q, e, seed, kernels)[0]
+    model = fit_residual(meas.q, e, seed, kernels)[0]
+    return replace(model, axes=fit.robot.base[:3, :3].T.copy())  # the measuring axes, seen from the base
 
 
 def fit_model(inputs: Inputs, config: CalibrationConfig, progress=None) -> Chosen:
@@ -155,29 +225,25 @@ def fit_model(inputs: Inputs, config: CalibrationConfig, progress=None) -> Chose
         if terms - {"residual"} and inputs.validation is not None:  # for the error budget
             geometric = fit_parametric(inputs, config, term_spec((), meas, config))
         return Chosen(model_name(terms), fit, residual, geometric=geometric)
-    rows, fits = [], {}
+    groups = pose_groups(meas)
+    ladder = []
     for terms in LADDER:
         fit = fit_parametric(inputs, config, term_spec(terms, meas, config), progress)
         cv = cross_validate(fit, config)
-        fits[terms] = (fit, cv)
-        rows.append({"model": model_name(terms), "cv_rms_mm": cv.rms, "n_params": fit.n_params})
-    best = min(r["cv_rms_mm"] for r in rows)
-    chosen_terms = next(t for t, r in zip(LADDER, rows) if r["cv_rms_mm"] <= best * (1 + TIE))
-    # the residual process on the best parametric model, and on geometry alone: a process can
+        ladder.append((Candidate(terms, False, fit, cv.errors), cv))
+    parametric = choose([c for c, _ in ladder], groups)
+    # the residual process on the chosen parametric model, and on geometry alone: a process can
     # take structure that joint terms would have taken more coarsely
-    tried = {}
-    for terms in dict.fromkeys((chosen_terms, ())):
-        fit, cv = fits[terms]
-        tried[terms] = cross_validate_residual(fit, cv, config.seed)
-        rows.append({"model": model_name(terms + ("residual",)), "cv_rms_mm": tried[terms][0],
-                     "n_params": fit.n_params, "residual_points": int(min(len(cv.errors), MAX_POINTS))})
-    best_gp = min(tried, key=lambda t: (tried[t][0], len(t)))
-    fit, cv = fits[chosen_terms]
-    name, residual, chosen_cv = model_name(chosen_terms), None, cv.rms
-    if tried[best_gp][0] < cv.rms * (1 - TIE):
-        fit = fits[best_gp][0]
-        residual = residual_on_all(fit, config.seed, tried[best_gp][1])
-        name, chosen_cv = model_name(best_gp + ("residual",)), tried[best_gp][0]
-    notes = [f"model auto: {name} (cross-validated position RMS {chosen_cv:.4g} mm; geometric "
-             f"{rows[0]['cv_rms_mm']:.4g} mm)"]
-    return Chosen(name, fit, residual, rows, notes, geometric=fits[()][0])
+    candidates = [c for c, _ in ladder]
+    for c, cv in ladder:
+        if c.terms in dict.fromkeys((parametric.terms, ())):
+            errors, kernels = cross_validate_residual(c.fit, cv, config.seed)
+            candidates.append(Candidate(c.terms, True, c.fit, errors, kernels))
+    chosen = choose(candidates, groups)
+    rows = [{"model": c.name, "cv_rms_mm": c.cv_rms, "n_params": c.fit.n_params,
+             **({"residual_points": int(min(len(c.errors), MAX_POINTS))} if c.residual else {})} for c in candidates]
+    residual = residual_on_all(chosen.fit, config.seed, chosen.kernels) if chosen.residual else None
+    notes = [f"model auto: {chosen.name} (cross-validated position RMS {chosen.cv_rms:.4g} mm; geometric "
+             f"{candidates[0].cv_rms:.4g} mm; a richer model is kept only if it predicts held-out poses "
+             f"better, paired test p < {SIGNIFICANCE:g})"]
+    return Chosen(chosen.name, chosen.fit, residual, rows, notes, geometric=candidates[0].fit)

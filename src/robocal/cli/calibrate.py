@@ -37,9 +37,19 @@ def _print_summary(result, robot_name: str, data: Path) -> None:
     out.print(table("identified parameters (angles in degrees)", PARAMETER_COLUMNS, parameter_rows(result),
                     text_columns=(0, len(PARAMETER_COLUMNS) - 1)))
     out.print(table("frames", FRAME_COLUMNS, frame_rows(result), "left"))
+    if result.model_selection:
+        rows = [(r["model"], f"{r['cv_rms_mm']:.4f}", str(r["n_params"]),
+                 "chosen" if r["model"] == result.model else "") for r in result.model_selection]
+        out.print(table("model selection: 5-fold cross-validated position RMS (mm) on the calibration poses",
+                        ("model", "cv RMS", "parameters", ""), rows, text_columns=(0, 3)))
+    if result.error_budget:
+        rows = [(r["model"], f"{r['validation_rms_mm']:.4f}",
+                 "" if r["removed_mm"] is None else f"{r['removed_mm']:.4f}") for r in result.error_budget]
+        out.print(table("error budget on the validation poses: position RMS (mm)", ("model", "RMS", "removed"),
+                        rows, text_columns=(0,)))
     out.print(noise_line(result))
     ident, opt = result.identifiability, result.optimisation
-    out.print(f"{len(result.names)} parameters identified, {len(ident.dropped)} dropped"
+    out.print(f"model {result.model}: " + f"{len(result.names)} parameters identified, {len(ident.dropped)} dropped"
               + (f" ({', '.join(ident.dropped)})" if ident.dropped else "")
               + f"; condition number {ident.condition:.3g}; {opt.status} ({opt.method}) after {opt.nit} iterations, "
               f"{opt.nfev} evaluations, {result.time_s:.2f} s")
@@ -70,6 +80,11 @@ def calibrate_cmd(
     box: str | None = typer.Option(None, "--box", help="swarm search half-widths LEN_MM,ANGLE_RAD"),
     halton: str = typer.Option("scrambled", "--halton", help="IPSO start: scrambled | plain"),
     backend: str = typer.Option("auto", "--backend", help="swarm objectives: auto | numba | numpy"),
+    model: str = typer.Option("geometric", "--model", help="geometric | auto | TERM[+TERM…] with TERM compliance, "
+                              "harmonics, residual (auto: chosen by 5-fold cross-validation)"),
+    harmonics: int = typer.Option(2, "--harmonics", help="harmonics per joint of the harmonics term"),
+    payload: float | None = typer.Option(None, "--payload", help="payload mass, kg, for data without a payload "
+                                         "column (centre of mass: the robot file's [gravity] payload_com)"),
     out: Path | None = typer.Option(None, "--out", help="result JSON to write"),
     export: Path | None = typer.Option(None, "--export", help="calibrated robot TOML to write"),
     report: Path | None = typer.Option(None, "--report", help="self-contained HTML report to write"),
@@ -86,13 +101,14 @@ def calibrate_cmd(
     from ..calibration import CalibrationConfig, calibrate
     from ..calibration.methods import settings
     from ..io.robotfile import load_robot
-    from .common import print_warnings, progress_bar
+    from .common import console, print_warnings, progress_bar
 
     cfg = CalibrationConfig(method=method, frames=frames, params=params, seed=seed, objective=objective,
                             use_orientation=not position_only, loss=loss, f_scale=f_scale, particles=particles,
                             iterations=iterations, box=box, halton=halton, backend=backend, noise=noise,
                             angle_noise=None if angle_noise is None else math.radians(angle_noise), k=k,
-                            joint_unit=joint_unit, length_unit=length_unit)
+                            joint_unit=joint_unit, length_unit=length_unit, model=model, harmonics=harmonics,
+                            payload=payload)
     nominal = load_robot(robot)
     total = None if method == "lm" else settings(cfg)["iterations"]
     with progress_bar(not quiet and method != "lm", method, total) as callback, warnings.catch_warnings():
@@ -101,8 +117,7 @@ def calibrate_cmd(
                            progress=callback)
     if out is not None:
         result.save(out)
-    if export is not None:
-        result.export(export)
+    written = [] if export is None else result.export(export)
     if report is not None:
         from ..report.html import write_report
 
@@ -110,6 +125,8 @@ def calibrate_cmd(
     print_warnings(result.warnings)
     if not quiet:
         _print_summary(result, nominal.name, data)
+    if len(written) > 1:
+        console().print(f"wrote {written[0]} and, beside it, its residual model {written[1]} (keep them together)")
 
 
 def register(app: typer.Typer) -> None:

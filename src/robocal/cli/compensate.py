@@ -18,6 +18,8 @@ def compensate_cmd(
     position_only: bool = typer.Option(
         False, "--position-only", help="match positions only (use for models calibrated from position data)"
     ),
+    payload: float | None = typer.Option(None, "--payload", help="payload mass, kg, at goals without a payload "
+                                         "column"),
     as_json: Path | None = typer.Option(None, "--json", help="write the summary as JSON too"),
     column: list[str] | None = typer.Option(None, "--column", help="map file columns: FILE=ROBOCAL[,FILE=ROBOCAL…]"),
     quiet: bool = typer.Option(False, "--quiet", "-q"),
@@ -30,14 +32,15 @@ def compensate_cmd(
     from ..io.atomic import atomic_write
     from ..io.goals import load_goals
     from ..io.robotfile import load_robot
-    from .common import console, metrics_table
+    from .common import console, metrics_table, print_warnings
 
     nom, cal = load_robot(nominal), load_robot(calibrated)
     tru = None if truth is None else load_robot(truth)
     g = load_goals(goals, n_joints=nom.n_joints, columns=opt.column_map(column))
-    result = compensate(nom, cal, g, truth=tru, position_only=position_only or None)
+    result = compensate(nom, cal, g, truth=tru, position_only=position_only or None, payload=payload)
     result.save(out)
     summary = result.summary()
+    print_warnings(result.warnings)
     if as_json is not None:
         atomic_write(as_json, json.dumps(summary, indent=2) + "\n")
     if not quiet:

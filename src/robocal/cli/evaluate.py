@@ -15,6 +15,8 @@ def evaluate_cmd(
     column: list[str] | None = typer.Option(None, "--column", help="map file columns: FILE=ROBOCAL[,FILE=ROBOCAL…]"),
     joint_unit: str | None = typer.Option(None, "--joint-unit", help="deg | rad (default: deg, checked)"),
     length_unit: str | None = typer.Option(None, "--length-unit", help="mm | m (default: mm)"),
+    payload: float | None = typer.Option(None, "--payload", help="payload mass, kg, for data without a payload "
+                                         "column"),
 ) -> None:
     """Error metrics (SPEC §8) of a robot model on measured data."""
     import json
@@ -24,7 +26,7 @@ def evaluate_cmd(
     from .common import console, metrics_table, print_warnings
 
     ev = evaluate(robot, data, columns=opt.column_map(column), frames=frames, joint_unit=joint_unit,
-                  length_unit=length_unit)
+                  length_unit=length_unit, payload=payload)
     print_warnings(ev.notes)
     if as_json:
         print(json.dumps(ev.to_dict(), indent=2))

@@ -22,6 +22,11 @@ def simulate_cmd(
     joint_range: str | None = typer.Option(None, "--range", help="LO,HI deg for every joint (within limits)"),
     base: str | None = typer.Option(None, "--base", help="true measuring frame → base: x,y,z[,rx,ry,rz] mm, deg"),
     tool: str | None = typer.Option(None, "--tool", help="true flange → point: x,y,z[,rx,ry,rz] mm, deg"),
+    compliance: str | None = typer.Option(
+        None, "--compliance", help="planted joint compliance J=C[,J=C…], rad/(N·m); torques go to the file"),
+    harmonic: list[str] | None = typer.Option(
+        None, "--harmonic", help="planted transmission harmonic J:H=A,B: A cos(H q_J) + B sin(H q_J), deg "
+        "(repeatable)"),
     out: Path = typer.Option(..., "--out", help="measurement CSV to write"),
     truth: Path | None = typer.Option(None, "--truth", help="true robot TOML to write"),
 ) -> None:
@@ -40,10 +45,13 @@ def simulate_cmd(
     sim = simulate(r, poses, deviations=errors, noise=noise, angle_noise=math.radians(angle_noise),
                    joint_noise=math.radians(joint_noise), joint_noise_uniform=math.radians(joint_noise_uniform),
                    measure=measure, seed=seed, joint_range=rng, base=opt.frame_values(base, "base"),
-                   tool=opt.frame_values(tool, "tool"))
+                   tool=opt.frame_values(tool, "tool"), compliance=opt.joint_values(compliance, "compliance"),
+                   harmonics=opt.harmonic_specs(harmonic))
     texts = {out: measurements_to_csv(sim.measurements)}
     if truth is not None:
         planted = ", ".join(f"{k}={v:+.6g}" for k, v in sim.deviations.items() if v) or "none"
+        if sim.truth.terms is not None:
+            planted += "; joint terms (torque form) as in the joints below"
         texts[truth] = robot_to_toml(sim.truth.replace(name=f"{r.name} (simulated truth)"), comment=(
             f"True robot simulated by robocal from {robot} with errors {errors!r}, seed {seed}.\n"
             f"Planted deviations (mm, rad): {planted}"))

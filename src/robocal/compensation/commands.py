@@ -10,17 +10,21 @@ kinematics produce q_c.
 Goals are joint sets (go where the nominal model says these joints go) or poses in the
 robot base frame (see :mod:`robocal.io.goals`).  A calibrated model with an identified base
 is in the measuring frame; goals are moved there with ``base_calibrated · base_nominal⁻¹``.
+
+The calibrated model is used whole: joint compliance (under gravity, or on the goals'
+``tau1..tauN`` columns), harmonics and the residual correction all act in the solve.
 """
 
 from __future__ import annotations
 
 import csv
 import io
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from .. import options as opt
 from ..exceptions import InputError
 from ..io.atomic import atomic_write
 from ..io.goals import Goals
@@ -28,6 +32,7 @@ from ..math.se3 import homogeneous, invert
 from ..math.so3 import matrix_to_rpy, orientation_error
 from ..model.metrics import Metrics
 from ..model.robot import Robot
+from ..model.terms import missing_torques
 from .ik import ROT_WEIGHT, STATUSES, solve_ik
 
 
@@ -53,6 +58,7 @@ class CompensationResult:
     true_after: np.ndarray | None = None
     true_rot_before: np.ndarray | None = None
     true_rot_after: np.ndarray | None = None
+    warnings: list[str] = field(default_factory=list)
 
     def counts(self) -> dict[str, int]:
         return {s: self.status.count(s) for s in STATUSES if s in self.status}
@@ -79,7 +85,8 @@ class CompensationResult:
 
     def summary(self) -> dict:
         """Counts per status and, with a true robot, its metrics: the JSON summary."""
-        out = {"goals": self.goals.n, "status": self.counts(), "full_pose": self.full_pose}
+        out = {"goals": self.goals.n, "status": self.counts(), "full_pose": self.full_pose,
+               "warnings": list(self.warnings)}
         val = self.validation()
         if val is not None:
             out["validation"] = {k: v.to_dict() for k, v in val.items()}
@@ -130,12 +137,14 @@ def _nominal_commands(nominal: Robot, goals: Goals, position_only: bool | None, 
 
 
 def compensate(nominal: Robot, calibrated: Robot, goals: Goals, *, truth: Robot | None = None,
-               position_only: bool | None = None, rot_weight: float = ROT_WEIGHT) -> CompensationResult:
+               position_only: bool | None = None, rot_weight: float = ROT_WEIGHT,
+               payload: float | None = None) -> CompensationResult:
     """Compensated commands for every goal (see the module docstring).
 
     position_only: solve for the position alone (default: for pose goals without
     orientation columns; joint goals use the full nominal pose).  truth: a simulated true
-    robot; its errors at the nominal and the compensated commands are returned.
+    robot; its errors at the nominal and the compensated commands are returned.  payload:
+    kg at every goal, where the goals file has no ``payload`` column.
     """
     if nominal.n_joints != calibrated.n_joints or (truth is not None and truth.n_joints != nominal.n_joints):
         raise InputError("nominal, calibrated and true robots must have the same number of joints",
@@ -143,15 +152,20 @@ def compensate(nominal: Robot, calibrated: Robot, goals: Goals, *, truth: Robot 
     T_des, q_nom, full = _nominal_commands(nominal, goals, position_only, rot_weight)
     full = full and not position_only
     T_cal = calibrated.base @ invert(nominal.base) @ T_des
-    sol = solve_ik(calibrated, T_cal[:, :3, 3], T_cal[:, :3, :3] if full else None, q_nom, rot_weight=rot_weight)
+    load = goals.payload
+    if load is None and payload is not None:
+        load = np.full(goals.n, opt.number(payload, "payload", minimum=0.0))
+    sol = solve_ik(calibrated, T_cal[:, :3, 3], T_cal[:, :3, :3] if full else None, q_nom, rot_weight=rot_weight,
+                   torques=goals.torques, payload=load)
+    notes = [w for w in (missing_torques(calibrated.terms, goals.torques, goals.source),) if w]
     result = CompensationResult(
         goals=goals, q_nominal=q_nom, q=sol.q, cartesian=nominal.fk(sol.q), residual_mm=sol.position_error,
-        residual_deg=np.degrees(sol.rotation_error), status=sol.status, full_pose=full,
+        residual_deg=np.degrees(sol.rotation_error), status=sol.status, full_pose=full, warnings=notes,
     )
     if truth is not None:
         T_true = truth.base @ invert(nominal.base) @ T_des
         for attr, q in (("before", q_nom), ("after", sol.q)):
-            Tq = truth.fk(q)
+            Tq = truth.fk(q, None, goals.torques, load)
             setattr(result, f"true_{attr}", T_true[:, :3, 3] - Tq[:, :3, 3])
             if full:
                 setattr(result, f"true_rot_{attr}", orientation_error(T_true[:, :3, :3], Tq[:, :3, :3]))

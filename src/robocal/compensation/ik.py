@@ -41,11 +41,13 @@ class IKSolution:
 class _Residual:
     """Pose error of a robot against the goals, weighted: (position mm, rot_weight × rotation)."""
 
-    def __init__(self, robot: Robot, position, rotation, rot_weight: float):
+    def __init__(self, robot: Robot, position, rotation, rot_weight: float, torques=None, payload=None):
         self.robot, self.position, self.rotation, self.w = robot, position, rotation, rot_weight
+        self.torques, self.payload = torques, payload
 
     def __call__(self, q, rows=slice(None)):
-        T = self.robot.fk(q)
+        T = self.robot.fk(q, None, None if self.torques is None else self.torques[rows],
+                          None if self.payload is None else self.payload[rows])
         dp = self.position[rows] - T[:, :3, 3]
         dr = None if self.rotation is None else orientation_error(self.rotation[rows], T[:, :3, :3])
         e = dp if dr is None else np.concatenate([dp, self.w * dr], axis=1)
@@ -88,7 +90,8 @@ def _statuses(reached, moved, cond, at_limit, stalled) -> list[str]:
 
 
 def solve_ik(robot: Robot, position: np.ndarray, rotation: np.ndarray | None, q0: np.ndarray, *,
-             rot_weight: float = ROT_WEIGHT, max_iter: int = 100, limits: bool = True) -> IKSolution:
+             rot_weight: float = ROT_WEIGHT, max_iter: int = 100, limits: bool = True, torques=None,
+             payload=None) -> IKSolution:
     """Joints reaching each goal pose (or position when rotation is None), batched.
 
     Positions in mm and rotations in the robot's measuring frame; q0 (m, n) rad starts each
@@ -97,6 +100,11 @@ def solve_ik(robot: Robot, position: np.ndarray, rotation: np.ndarray | None, q0
     exceeds SINGULAR_CONDITION, or the solution moved beyond BRANCH_TOLERANCE); ``limit``
     (not reached, a joint held at its limit); ``unreachable`` (not reached, stalled away
     from the goal); ``no_convergence``.
+
+    The pose is the robot's whole model (:meth:`Robot.fk`): joint terms, at the goals' joint
+    torques (m, n) N·m and payload (m,) kg where they need them, and the residual correction.
+    The step uses the geometric joint Jacobian, which the terms change by a few hundredths of
+    a percent: the solve converges on the full model's pose all the same.
     """
     full = rotation is not None
     q = np.array(q0, dtype=float, copy=True)
@@ -106,7 +114,7 @@ def solve_ik(robot: Robot, position: np.ndarray, rotation: np.ndarray | None, q0
     start = q.copy()
     lam = np.full(m, 1e-6)
     iters = np.zeros(m, dtype=int)
-    residual = _Residual(robot, position, rotation, rot_weight)
+    residual = _Residual(robot, position, rotation, rot_weight, torques, payload)
     dp, dr, cost, e = residual(q)
     done = np.zeros(m, bool)
     stalled = np.zeros(m, bool)

@@ -3,6 +3,8 @@
 Columns ``q1..qn`` (deg: go where the nominal model says these joints go) and/or
 ``x, y, z[, rx, ry, rz]`` (mm, deg: a pose in the robot base frame, with the optional
 joints as starting guess and configuration branch); optional ``pose_id`` names the rows.
+For a model with joint terms, ``tau1..tauN`` (N·m) give the joint torques at each goal and
+``payload`` (kg) its payload, as in measurement files.
 """
 
 from __future__ import annotations
@@ -26,6 +28,8 @@ class Goals:
     rotation: np.ndarray | None
     ids: list[str]
     source: str = "<goals>"
+    torques: np.ndarray | None = None
+    payload: np.ndarray | None = None
 
     @property
     def n(self) -> int:
@@ -43,6 +47,8 @@ def parse_goals(text: str, *, source: str = "<goals>", **options) -> Goals:
         rotation=None if t.rpy is None else rpy_to_matrix(np.radians(t.rpy)),
         ids=list(ids),
         source=source,
+        torques=t.torques,
+        payload=t.payload,
     )
 
 

@@ -4,6 +4,13 @@ Files hold mm and degrees; a loaded :class:`~robocal.model.robot.Robot` holds mm
 Loading validates every key and names the file, the joint and the key on error.  Saving
 writes the shortest decimal degrees that convert back to the exact same radians, so
 ``load(save(robot))`` reproduces the robot bit for bit.
+
+Joint terms beyond geometry (SPEC §10, :mod:`robocal.model.terms`) are per-joint keys:
+``compliance`` (rad/(N·m)), ``harmonics = [[a1, b1], [a2, b2], …]`` (degrees: the amplitude
+of cos(h q) and sin(h q)) and ``gravity_deflection = [[x, y, z], …]`` (degrees, one triple per
+link from this joint's own to the last); a ``[gravity]`` table gives ``direction`` (base
+frame, default [0, 0, -1]) and ``payload_com`` (mm, flange frame).  A learned residual
+correction lives in a sibling JSON file named by the top-level key ``residual``.
 """
 
 from __future__ import annotations
@@ -18,12 +25,17 @@ from ..exceptions import InputError
 from ..math.se3 import frame_from_values
 from ..math.so3 import matrix_to_rpy
 from ..model.kinematics import CONVENTIONS
+from ..model.residual import ResidualModel
 from ..model.robot import Robot
+from ..model.terms import JointTerms
 from .atomic import atomic_write, read_text
 from .builtins import builtin_names, builtin_text
 
-TOP_KEYS = {"name", "convention", "joint", "base", "tool", "targets", "source"}
-JOINT_KEYS = {"a", "alpha", "d", "theta", "beta", "limits"}
+TOP_KEYS = {"name", "convention", "joint", "base", "tool", "targets", "source", "gravity", "residual"}
+GEOMETRY_KEYS = {"a", "alpha", "d", "theta", "beta", "limits"}
+TERM_KEYS = {"compliance", "harmonics", "gravity_deflection"}
+JOINT_KEYS = GEOMETRY_KEYS | TERM_KEYS
+GRAVITY_KEYS = {"direction", "payload_com"}
 FRAME_KEYS = {"xyz", "rpy"}
 _RADIAN_LOOKALIKES = (math.pi / 2, math.pi, math.pi / 4)
 
@@ -36,7 +48,8 @@ def load_robot(spec: str | Path | Robot) -> Robot:
     if path.suffix.lower() == ".toml" or path.exists():
         if not path.is_file():
             raise InputError("no such robot file", source=path)
-        return parse_robot(read_text(path, "robot file"), source=str(path), default_name=path.stem)
+        return parse_robot(read_text(path, "robot file"), source=str(path), default_name=path.stem,
+                           directory=path.parent)
     text = builtin_text(str(spec))
     if text is None:
         raise InputError(f"no robot file and no built-in robot of that name (built-in: {', '.join(builtin_names())})",
@@ -122,8 +135,86 @@ def _header(data: dict, source: str) -> tuple[str, str]:
     return name, conv
 
 
-def parse_robot(text: str, *, source: str = "<robot>", default_name: str = "robot") -> Robot:
-    """A robot from TOML text; every problem is an InputError naming ``source`` and the key."""
+def _pairs(value, width, source, where) -> np.ndarray:
+    if not isinstance(value, list) or not value:
+        raise InputError(f"expected a list of [{', '.join('xyz'[:width] if width == 3 else 'ab')}] lists, got "
+                         f"{value!r}", source=source, where=where)
+    return np.array([_vector(v, width, source, where) for v in value])
+
+
+def _terms(joints: list[dict], data: dict, n: int, source: str) -> JointTerms | None:
+    """The joint terms of a robot file, or None when it has none (and no [gravity] table)."""
+    compliance, gravity, harmonics = np.zeros(n), np.zeros((n, n, 3)), []
+    has = set()
+    for i, j in enumerate(joints):
+        where = f"joint {i + 1}"
+        if "compliance" in j:
+            compliance[i] = _number(j["compliance"], source, f"{where}, key 'compliance'")
+            has.add("compliance")
+        if "gravity_deflection" in j:
+            rows = _pairs(j["gravity_deflection"], 3, source, f"{where}, key 'gravity_deflection'")
+            if len(rows) != n - i:
+                raise InputError(f"expected {n - i} [x, y, z] triples (links {i + 1}..{n}), got {len(rows)}",
+                                 source=source, where=f"{where}, key 'gravity_deflection'")
+            gravity[i, i:] = np.radians(rows)
+            has.add("gravity")
+        h = _pairs(j["harmonics"], 2, source, f"{where}, key 'harmonics'") if "harmonics" in j else np.zeros((0, 2))
+        harmonics.append(np.radians(h))
+        has |= {"harmonics"} if len(h) else set()
+    table = data.get("gravity")
+    if not has and table is None:
+        return None
+    direction, com = np.array([0.0, 0.0, -1.0]), np.zeros(3)
+    if isinstance(table, list):  # gravity = [x, y, z]: the direction alone
+        table = {"direction": table}
+    if table is not None:
+        if not isinstance(table, dict):
+            raise InputError("expected a [gravity] table with direction and payload_com", source=source,
+                             where="key 'gravity'")
+        unknown = set(table) - GRAVITY_KEYS
+        if unknown:
+            raise InputError(f"unknown key '{sorted(unknown)[0]}' (allowed: {', '.join(sorted(GRAVITY_KEYS))})",
+                             source=source, where="[gravity]")
+        direction = np.array(_vector(table.get("direction", [0.0, 0.0, -1.0]), 3, source, "[gravity] direction"))
+        if not np.linalg.norm(direction) > 0:
+            raise InputError("the gravity direction must not be zero", source=source, where="[gravity] direction")
+        com = np.array(_vector(table.get("payload_com", [0.0, 0.0, 0.0]), 3, source, "[gravity] payload_com"))
+    width = max(len(h) for h in harmonics)
+    padded = np.zeros((n, width, 2))
+    for i, h in enumerate(harmonics):
+        padded[i, :len(h)] = h
+    return JointTerms(compliance if "compliance" in has else None, gravity if "gravity" in has else None,
+                      padded if width else None, direction / np.linalg.norm(direction), com)
+
+
+def _residual(value, n: int, source: str, directory: Path | None) -> ResidualModel:
+    where = "key 'residual'"
+    if not isinstance(value, str) or not value:
+        raise InputError(f"expected the name of a residual-model JSON file, got {value!r}", source=source, where=where)
+    path = Path(value)
+    if not path.is_absolute() and directory is not None:
+        path = directory / path
+    if not path.is_file():
+        raise InputError(f"no such residual-model file {str(path)!r} (it is looked for beside the robot file)",
+                         source=source, where=where)
+    import json
+
+    try:
+        model = ResidualModel.from_dict(json.loads(read_text(path, "residual-model file")))
+    except InputError:
+        raise
+    except (ValueError, KeyError, TypeError) as exc:
+        raise InputError(f"not a robocal residual model ({exc.__class__.__name__}: {exc})", source=path) from None
+    if model.X.ndim != 2 or model.X.shape[1] != n:
+        raise InputError(f"residual model is for {model.X.shape[-1]} joints, the robot has {n}", source=path)
+    return model
+
+
+def parse_robot(text: str, *, source: str = "<robot>", default_name: str = "robot",
+                directory: Path | None = None) -> Robot:
+    """A robot from TOML text; every problem is an InputError naming ``source`` and the key.
+    directory: where a ``residual`` file named in the text is looked for (default: the
+    working directory)."""
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
@@ -146,8 +237,10 @@ def parse_robot(text: str, *, source: str = "<robot>", default_name: str = "robo
         if not isinstance(data["targets"], dict):
             raise InputError("expected tables [targets.NAME]", source=source, where="key 'targets'")
         targets = {str(t): _frame(table, source, f"targets.{t}") for t, table in data["targets"].items()}
+    terms = _terms(joints, data, len(joints), source)
+    residual = None if "residual" not in data else _residual(data["residual"], len(joints), source, directory)
     return Robot(conv, geom, np.radians(limits), base=base, tool=tool, targets=targets, name=name or default_name,
-                 source=source)
+                 source=source, terms=terms, residual=residual)
 
 
 def _deg(x_rad: float) -> str:
@@ -184,9 +277,51 @@ def _quote(s: str) -> str:
     return '"' + s.replace("\\", "\\\\").replace('"', '\\"') + '"'
 
 
-def robot_to_toml(robot: Robot, comment: str | None = None) -> str:
+def _list(values, fmt=_num) -> str:
+    return "[" + ", ".join(fmt(v) for v in values) + "]"
+
+
+def _term_lines(terms: JointTerms | None, i: int) -> list[str]:
+    if terms is None:
+        return []
+    lines = []
+    if terms.compliance is not None and terms.compliance[i] != 0:
+        lines.append(f"compliance = {_num(terms.compliance[i])}  # rad/(N·m)")
+    if terms.gravity is not None:
+        rows = np.degrees(terms.gravity[i, i:])
+        lines.append(f"gravity_deflection = [{', '.join(_list(r) for r in rows)}]  # deg, links {i + 1}..")
+    if terms.harmonics is not None and np.any(terms.harmonics[i]):
+        lines.append(f"harmonics = [{', '.join(_list(r) for r in np.degrees(terms.harmonics[i]))}]  "
+                     "# deg: [cos(h q), sin(h q)], h = 1, 2, …")
+    return lines
+
+
+def _gravity_lines(terms: JointTerms | None) -> list[str]:
+    if terms is None:
+        return []
+    default = np.allclose(terms.gravity_direction, [0, 0, -1]) and not np.any(terms.payload_com)
+    if default and terms.gravity is None and terms.compliance is None:
+        return []
+    return ["[gravity]", f"direction = {_list(terms.gravity_direction)}  # base frame",
+            f"payload_com = {_list(terms.payload_com)}  # mm, flange frame", ""]
+
+
+def residual_path(path: str | Path) -> Path:
+    """Where a robot file's residual model is written: beside it, ``NAME.residual.json``."""
+    path = Path(path)
+    return path.with_name(f"{path.stem}.residual.json")
+
+
+def robot_to_toml(robot: Robot, comment: str | None = None, residual_file: str | None = None) -> str:
+    """The robot file's text.  residual_file: the name under which the robot's residual model
+    is saved beside it (see :func:`save_robot`); without it a residual model is left out, and
+    the file says so."""
     lines = [f"# {c}" for c in comment.splitlines()] if comment else []
-    lines += [f"name = {_quote(robot.name)}", f'convention = "{robot.convention}"', ""]
+    lines += [f"name = {_quote(robot.name)}", f'convention = "{robot.convention}"']
+    if robot.residual is not None:
+        lines.append(f"residual = {_quote(residual_file)}  # Gaussian-process correction of the pose"
+                     if residual_file else "# this robot's residual model was not saved with it")
+    lines.append("")
     for i in range(robot.n_joints):
         a, al, th, d, be = robot.geometry[i]
         lines += ["[[joint]]", f"a = {_num(a)}", f"alpha = {_deg(al)}", f"d = {_num(d)}", f"theta = {_deg(th)}"]
@@ -195,7 +330,9 @@ def robot_to_toml(robot: Robot, comment: str | None = None) -> str:
         lo, hi = robot.limits[i]
         if np.isfinite(lo) and np.isfinite(hi):
             lines.append(f"limits = [{_deg(lo)}, {_deg(hi)}]")
+        lines += _term_lines(robot.terms, i)
         lines.append("")
+    lines += _gravity_lines(robot.terms)
     lines += _frame_text("[base]", robot.base) + [""]
     lines += _frame_text("[tool]", robot.tool) + [""]
     for name, T in robot.targets.items():
@@ -203,5 +340,17 @@ def robot_to_toml(robot: Robot, comment: str | None = None) -> str:
     return "\n".join(lines)
 
 
-def save_robot(robot: Robot, path: str | Path, comment: str | None = None) -> None:
-    atomic_write(path, robot_to_toml(robot, comment))
+def save_robot(robot: Robot, path: str | Path, comment: str | None = None) -> list[Path]:
+    """Write the robot file, and its residual model beside it when it has one; the paths written."""
+    import json
+
+    path = Path(path)
+    written = []
+    name = None
+    if robot.residual is not None:
+        side = residual_path(path)
+        atomic_write(side, json.dumps(robot.residual.to_dict()) + "\n")
+        written.append(side)
+        name = side.name
+    atomic_write(path, robot_to_toml(robot, comment, name))
+    return [path, *written]

@@ -1,9 +1,14 @@
 """A learned correction of what the parametric model leaves: Gaussian processes in joint space.
 
-The correction δ(q) = [δp (3) mm, δr (3) rad] is added to the model's pose in the measuring
-frame: p ← p + δp, R ← Exp(δr) R.  It is fitted by :mod:`robocal.calibration.residual`
-(scikit-learn's GaussianProcessRegressor); predicting needs only what is stored here,
-without pickle: the training inputs, the dual coefficients, and the kernels' parameters.
+The correction δ(q) = [δp (3) mm, δr (3) rad] is learnt in the axes of the measuring frame
+it was fitted in (a tracker's own systematic errors live there, and on real data that fits
+better than the base axes); it keeps the orientation of those axes in the robot's base
+frame, R_o, so that it turns with the base when the robot is measured from elsewhere.  It is
+added to the model's pose in the measuring frame as p ← p + R_b R_o δp, R ← Exp(R_b R_o δr) R,
+with R_b the base frame's rotation (R_b R_o = I in the calibration's own frame).  It is fitted
+by :mod:`robocal.calibration.residual` (scikit-learn's GaussianProcessRegressor); predicting
+needs only what is stored here, without pickle: the training inputs, the dual coefficients,
+and the kernels' parameters.
 
 Each block of outputs (positions; orientations for full-pose data) has its own kernel
 c² · exp(−½ Σ_i ((q_i − q'_i)/ℓ_i)²) on the commanded joint angles (rad), one length scale per
@@ -12,9 +17,7 @@ joint, and its targets standardised (mean, scale) before the fit.
 
 from __future__ import annotations
 
-import json
-from dataclasses import dataclass
-from pathlib import Path
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -50,10 +53,12 @@ class Block:
 @dataclass(frozen=True, eq=False)
 class ResidualModel:
     """X (N, n) training joints rad; blocks: the position block (3 outputs, mm) and, for
-    full-pose data, the orientation block (3 outputs, rad)."""
+    full-pose data, the orientation block (3 outputs, rad); axes (3, 3): the orientation of the
+    outputs' axes in the robot's base frame."""
 
     X: np.ndarray
     blocks: tuple[Block, ...]
+    axes: np.ndarray = field(default_factory=lambda: np.eye(3))
 
     @property
     def outputs(self) -> int:
@@ -68,23 +73,29 @@ class ResidualModel:
             out[start:start + 4096] = np.concatenate([b.predict(self.X, chunk) for b in self.blocks], axis=1)
         return out
 
-    def correct(self, q: np.ndarray, R: np.ndarray, p: np.ndarray):
-        """The pose (R (m, 3, 3), p (m, 3) mm) with the correction at q added."""
+    def correct(self, q: np.ndarray, R: np.ndarray, p: np.ndarray, base_rotation: np.ndarray):
+        """The pose (R (m, 3, 3), p (m, 3) mm, measuring frame) with the correction at q added;
+        base_rotation (3, 3): the robot base's orientation in the measuring frame."""
         d = self.predict(q)
-        p = p + d[:, :3]
+        turn = base_rotation @ self.axes
+        p = p + d[:, :3] @ turn.T
         if d.shape[1] == 6:
-            R = exp_so3(d[:, 3:]) @ R
+            R = exp_so3(d[:, 3:] @ turn.T) @ R
         return R, p
+
+    def summary(self) -> dict:
+        """What the result JSON says of the model (the model itself goes to a file of its own)."""
+        return {"kind": "gaussian process on the joint angles", "points": int(len(self.X)),
+                "outputs": "position" if self.outputs == 3 else "position and orientation",
+                "length_scales_rad": [b.length_scales.tolist() for b in self.blocks]}
 
     def to_dict(self) -> dict:
         return {"kind": "gaussian processes, RBF on the joint angles (rad)", "X": self.X.tolist(),
-                "blocks": [b.to_dict() for b in self.blocks]}
+                "axes_in_base": self.axes.tolist(), "blocks": [b.to_dict() for b in self.blocks]}
 
     @classmethod
     def from_dict(cls, d: dict) -> ResidualModel:
-        return cls(np.array(d["X"], float), tuple(Block.from_dict(b) for b in d["blocks"]))
-
-    def save(self, path: str | Path) -> None:
-        from ..io.atomic import atomic_write
-
-        atomic_write(path, json.dumps(self.to_dict()) + "\n")
+        axes = np.array(d.get("axes_in_base", np.eye(3)), float)
+        if axes.shape != (3, 3):
+            raise ValueError(f"axes_in_base must be 3×3, got shape {axes.shape}")
+        return cls(np.array(d["X"], float), tuple(Block.from_dict(b) for b in d["blocks"]), axes)

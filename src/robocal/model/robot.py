@@ -87,12 +87,12 @@ class Robot:
     def fk(self, q, targets: Sequence[str] | None = None, torques=None, payload=None) -> np.ndarray:
         """End poses (m, 4, 4) in the measuring frame for commanded joints q (m, n) rad, with the
         robot's joint terms (torques (m, n) N·m and payload (m,) kg where they need them) and
-        its residual correction."""
+        its residual correction (:mod:`robocal.model.residual`)."""
         q = np.atleast_2d(np.asarray(q, float))
         R, p = chain_pose(self.convention, self.geometry, self.effective_joints(q, torques, payload), self.base,
                           self.tool_frames(targets))
         if self.residual is not None:
-            R, p = self.residual.correct(q, R, p)
+            R, p = self.residual.correct(q, R, p, self.base[:3, :3])
         return homogeneous(R, p)
 
     def positions(self, q, targets: Sequence[str] | None = None, torques=None, payload=None) -> np.ndarray:

@@ -71,6 +71,47 @@ def payload_torque(convention: str, geom: np.ndarray, q: np.ndarray, direction: 
     return np.einsum("mia,mia->mi", axes, np.cross(arm, force[:, None, :]))
 
 
+def mass_torques(convention: str, geom: np.ndarray, q: np.ndarray, direction: np.ndarray, masses: np.ndarray,
+                 centres: np.ndarray) -> np.ndarray:
+    """Gravity torque (m, n) N·m about each joint of point masses ``masses`` (n,) kg carried by the
+    links, at ``centres`` (n, 3) mm in each link's own frame (link j: the frame after joint j):
+    τ_i = a_i · Σ_{j ≥ i} (c_j − p_i) × m_j g, the load joint i holds (it gives way along it)."""
+    axes, points, links = joint_axes_and_links(convention, geom, q)
+    _, origins = chain_frames(convention, geom, q)
+    o = np.stack([np.broadcast_to(x, origins[-1].shape) for x in origins[1:]], -2)  # (m, n, 3)
+    c = o + np.einsum("mjab,jb->mja", links, np.asarray(centres, float))
+    weight = G * np.asarray(direction, float) / np.linalg.norm(direction)
+    force = np.asarray(masses, float)[:, None] * weight  # (n, 3) N
+    arm = (c[:, None, :, :] - points[:, :, None, :]) / 1000.0  # (m, i, j, 3) m
+    moment = np.cross(arm, force[None, None])  # (m, i, j, 3)
+    n = geom.shape[-2]
+    outboard = np.triu(np.ones((n, n)))[None, :, :, None]  # j ≥ i
+    return np.einsum("mia,mia->mi", axes, np.sum(moment * outboard, axis=2))
+
+
+def nominal_masses(convention: str, geom: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """A plausible mass model of an arm, for simulation: link j weighs 2 kg plus 15 kg per metre of
+    its a and d, with its centre half-way along them (mm, in link j's frame).  Not an identified
+    model: simulated torques need some load that varies with the pose as a real arm's does."""
+    a, d = np.abs(geom[:, 0]), np.abs(geom[:, 3])
+    masses = 2.0 + 15.0 * (a + d) / 1000.0
+    if convention == "craig":  # link j's frame sits at its joint; the link reaches towards the next
+        nxt = np.vstack([geom[1:], np.zeros((1, 5))])
+        centres = np.einsum("jab,jb->ja", _rx_inv(-nxt[:, 1]),
+                            np.column_stack([nxt[:, 0], np.zeros(len(geom)), nxt[:, 3]])) / 2
+    else:  # link j's frame sits at its far end: the link lies behind it, along −x and −z of joint j's motion
+        centres = np.column_stack([-geom[:, 0] / 2, np.zeros(len(geom)), np.zeros(len(geom))])
+        centres = centres - np.einsum("jab,jb->ja", _rx_inv(geom[:, 1]), np.column_stack(
+            [np.zeros(len(geom)), np.zeros(len(geom)), geom[:, 3] / 2]))
+    return masses, centres
+
+
+def _rx_inv(alpha: np.ndarray) -> np.ndarray:
+    c, s = np.cos(alpha), np.sin(alpha)
+    z, o = np.zeros_like(c), np.ones_like(c)
+    return np.stack([np.stack([o, z, z], -1), np.stack([z, c, s], -1), np.stack([z, -s, c], -1)], -2)
+
+
 @dataclass(frozen=True)
 class TermSpec:
     """Which joint terms a model has: compliance form (``torque``, ``gravity`` or None),
@@ -114,6 +155,11 @@ class JointTerms:
     @property
     def empty(self) -> bool:
         return self.compliance is None and self.gravity is None and self.harmonics is None
+
+    @property
+    def needs_torques(self) -> bool:
+        """Torque-form compliance: Δq acts on measured joint torques, which the data must give."""
+        return self.compliance is not None and self.gravity is None and bool(np.any(self.compliance))
 
     def spec(self) -> TermSpec:
         form = "gravity" if self.gravity is not None else ("torque" if self.compliance is not None else None)
@@ -200,3 +246,11 @@ def joint_offsets(terms: JointTerms | None, convention: str, geom: np.ndarray, q
     spec = terms.spec()
     return np.einsum("mit,t->mi", basis(spec, convention, geom, q, torques, payload, terms),
                      terms.vector(spec, q.shape[1]))
+
+
+def missing_torques(terms: JointTerms | None, torques, source: str) -> str | None:
+    """A warning when a model's compliance needs torques that ``source`` does not give."""
+    if terms is None or not terms.needs_torques or torques is not None:
+        return None
+    return (f"the model's joint compliance acts on joint torques, but {source} has no tau1..tauN columns: "
+            "its compliance is left out (zero torque)")

@@ -19,15 +19,25 @@ PARAMETER_COLUMNS = ("parameter", "unit", "nominal", "identified", "deviation", 
 FRAME_COLUMNS = ("frame", "identified xyz (mm)", "identified rpy (deg)", "change from registration", "note")
 
 
-def _number(value: float, angle: bool) -> str:
+def _number(value: float, angle: bool | None) -> str:
+    """mm (angle False), degrees (True), or a compliance in rad/(N·m) (None)."""
+    if angle is None:
+        return f"{value:.4g}"
     text = f"{math.degrees(value):.5f}" if angle else f"{value:.4f}"
     return text[1:] if text.startswith("-") and float(text) == 0 else text  # no "-0.0000"
 
 
-def _uncertainty(u: float | None, angle: bool) -> str:
+def _uncertainty(u: float | None, angle: bool | None) -> str:
     if u is None or not math.isfinite(u):
         return "—"
     return f"{math.degrees(u) if angle else u:.2g}"
+
+
+def _kind(name: str) -> tuple[bool | None, str]:
+    """How a parameter is shown: (angle flag for :func:`_number`, unit)."""
+    if name.startswith("compliance"):
+        return None, "rad/(N·m)"
+    return (True, "deg") if is_angle(name) else (False, "mm")
 
 
 def _absorbs(result: CalibrationResult, name: str) -> str:
@@ -39,20 +49,21 @@ def _absorbs(result: CalibrationResult, name: str) -> str:
 
 
 def parameter_rows(result: CalibrationResult) -> list[tuple[str, ...]]:
-    """One row per identified joint parameter: nominal, identified value, deviation and its
-    standard uncertainty (mm, or degrees for angles), and a note."""
+    """One row per identified joint parameter (joint terms included): nominal, identified value,
+    deviation and its standard uncertainty (mm, degrees for angles, rad/(N·m) for
+    compliances), and a note."""
     nominal = nominal_values(result.initial)
     rows = []
     for i, name in enumerate(result.names):
         if is_frame(name):
             continue
-        angle = is_angle(name)
+        angle, unit = _kind(name)
         x = float(result.x[i])
         u = None if result.uncertainty is None else float(result.uncertainty[i])
         notes = [n for n in (_absorbs(result, name),) if n]
         if result.significant(i) is False:
             notes.append(f"not significant (< {SIGNIFICANCE_SIGMAS:g} σ)")
-        rows.append((name, "deg" if angle else "mm", _number(nominal.get(name, 0.0), angle),
+        rows.append((name, unit, _number(nominal.get(name, 0.0), angle),
                      _number(nominal.get(name, 0.0) + x, angle), _number(x, angle), _uncertainty(u, angle),
                      "; ".join(notes)))
     return rows
