@@ -88,6 +88,10 @@ def load_inputs(robot, data, validate, config: CalibrationConfig, notes: list[st
     """Step 1: the nominal robot and the measurements, position-only when asked, checked; the
     frames mode (``auto`` decides here, and says what it decided)."""
     nominal = load_robot(robot)
+    if nominal.residual is not None:  # a calibration learns its own correction from what its fit leaves
+        notes.append(f"the residual model of {nominal.source or nominal.name} is not used as a starting point: a "
+                     "calibration fits its own (with --model residual or auto)")
+        nominal = nominal.replace(residual=None)
     meas = _measurements(data, nominal, config, columns)
     val = None if validate is None else _measurements(validate, nominal, config, columns)
     if not (meas.full_pose and config.use_orientation):
@@ -451,4 +455,5 @@ def calibrate(
         validation=inputs.validation, outliers=fit.screening.outliers, reexpression_gap_mm=est.reexpression_gap_mm,
         noise=fit.noise, goodness_of_fit=fit.goodness, covariance=fit.covariance, frames=inputs.frames,
         model=chosen.name, model_selection=chosen.table, error_budget=chosen.budget(calibrated, inputs.validation),
+        geometric=None if chosen.geometric in (None, fit) else chosen.geometric.robot,
     )

@@ -37,7 +37,10 @@ class CalibrationResult:
     robot: the calibrated robot (frames included); initial: nominal geometry with the
     registered frames; nominal: the robot as given; names/x/uncertainty: the identified
     parameters, their deviations from ``initial`` (mm, rad) and standard uncertainties
-    (None where not computed); optimisation: the optimiser's own result.
+    (None where not computed); optimisation: the optimiser's own result.  model: what the
+    model holds beyond geometry (``geometric``, ``compliance+harmonics``, …); model_selection:
+    the ladder of ``--model auto``; error_budget: what each part removes on the validation
+    poses; geometric: the geometric calibration beside a richer model, when one was fitted.
     """
 
     config: CalibrationConfig
@@ -66,6 +69,7 @@ class CalibrationResult:
     model: str = "geometric"
     model_selection: list[dict] = field(default_factory=list)
     error_budget: list[dict] = field(default_factory=list)
+    geometric: Robot | None = field(default=None, repr=False)
 
     @property
     def method(self) -> str:

@@ -16,6 +16,8 @@ def noise_line(result) -> str:
     text += f" ({n.source})"
     if g is not None and g.dof > 0:
         text += f"; χ² {g.chi2:.4g} on {g.dof} degrees of freedom (reduced {g.reduced_chi2:.3g}, p {g.p_value:.3g})"
+    if result.robot.residual is not None:
+        text += " — of the parametric fit; its residual correction is judged by cross-validation"
     return text
 
 

@@ -120,9 +120,11 @@ def workspace_errors(points: np.ndarray, errors: np.ndarray, title: str):
     return fig
 
 
-def residual_vs_joints(q: np.ndarray, errors: np.ndarray, title: str, bins: int = 12):
+def residual_vs_joints(q: np.ndarray, errors: np.ndarray, title: str, bins: int = 12,
+                       others: dict[str, np.ndarray] | None = None):
     """|δp| (mm) against each joint angle (deg), with the median per angle bin: a pattern here
-    is what geometry leaves to compliance or gear errors."""
+    is what geometry leaves to compliance or gear errors.  others: further models' |δp| on the
+    same poses, drawn as their medians only."""
     n = q.shape[1]
     cols = min(n, 3)
     rows = -(-n // cols)
@@ -137,7 +139,11 @@ def residual_vs_joints(q: np.ndarray, errors: np.ndarray, title: str, bins: int 
         edges = np.linspace(deg.min(), deg.max(), bins + 1)
         idx = np.clip(np.digitize(deg, edges) - 1, 0, bins - 1)
         med = [np.median(errors[idx == b]) if np.any(idx == b) else np.nan for b in range(bins)]
-        ax.plot(0.5 * (edges[1:] + edges[:-1]), med, color="tab:red", lw=1.5, label="median")
+        centres = 0.5 * (edges[1:] + edges[:-1])
+        ax.plot(centres, med, color="tab:red", lw=1.5, label="median")
+        for (label, other), colour in zip((others or {}).items(), ("tab:green", "tab:purple", "tab:orange")):
+            ax.plot(centres, [np.median(other[idx == b]) if np.any(idx == b) else np.nan for b in range(bins)],
+                    color=colour, lw=1.5, label=f"median, {label}")
         ax.set_xlabel(f"q{i + 1} (deg)")
         ax.grid(True, alpha=0.3)
         if i % cols == 0:
@@ -151,11 +157,14 @@ def residual_vs_joints(q: np.ndarray, errors: np.ndarray, title: str, bins: int 
 
 
 def parameter_bars(names: list[str], values: np.ndarray, sigmas: np.ndarray | None, angle: np.ndarray, title: str):
-    """Identified deviations with ±2σ bars: lengths in mm and angles in degrees, side by side."""
+    """Identified deviations with ±2σ bars: lengths in mm, angles in degrees and compliances in
+    rad/(N·m), side by side."""
     from matplotlib.figure import Figure
 
-    groups = [(np.flatnonzero(~angle), "deviation (mm)", 1.0), (np.flatnonzero(angle), "deviation (deg)",
-                                                                 180.0 / np.pi)]
+    compliance = np.array([n.startswith("compliance") for n in names], bool)
+    groups = [(np.flatnonzero(~angle & ~compliance), "deviation (mm)", 1.0),
+              (np.flatnonzero(angle), "deviation (deg)", 180.0 / np.pi),
+              (np.flatnonzero(compliance), "compliance (µrad/(N·m))", 1e6)]
     groups = [g for g in groups if g[0].size]
     fig = Figure(figsize=(11, 0.3 * max(len(g[0]) for g in groups) + 1.5))
     axes = np.atleast_1d(fig.subplots(1, len(groups)))

@@ -83,9 +83,21 @@ def _error_figures(result: CalibrationResult) -> list[str]:
     parts.append(f"<h2>Where the error is</h2><p>Measured points of the {label} poses in the measuring frame, "
                  "coloured by the calibrated model's position error.</p>")
     parts.append(_img(figures.workspace_errors(where.position, after, f"{label} poses after calibration")))
-    parts.append("<h2>Error against each joint angle</h2><p>What calibration left, against each joint: a trend "
-                 "or a wave here is a joint effect geometry cannot take (compliance, gear errors).</p>")
-    parts.append(_img(figures.residual_vs_joints(where.q, after, f"{label} poses after calibration")))
+    geometric = result.geometric or (result.robot if result.robot.geometric else None)
+    others = {}
+    what = "the geometric calibration"
+    if geometric is None:  # no geometric fit beside the model: its parametric part
+        geometric = result.robot.replace(residual=None)
+        if not geometric.geometric:
+            what = "the parametric part of the model (without its residual correction)"
+    if geometric is not result.robot:
+        others[f"model {result.model}"] = after
+    parts.append(f"<h2>Error against each joint angle</h2><p>What {what} left, against each joint: a trend or a "
+                 "wave here is a joint effect geometry cannot take (compliance, gear errors)"
+                 + (f"; the medians of the chosen model ({html.escape(result.model)}) beside it" if others else "")
+                 + ".</p>")
+    parts.append(_img(figures.residual_vs_joints(where.q, _norms(geometric, where),
+                                                 f"{label} poses, {what.replace('the ', '', 1)}", others=others)))
     if meas.n_poses <= PER_POSE_LIMIT:
         dp0, dr0 = pose_errors(result.initial, meas)
         dp1, dr1 = pose_errors(result.robot, meas)
@@ -94,6 +106,24 @@ def _error_figures(result: CalibrationResult) -> list[str]:
         parts.append(_img(figures.axis_errors(dp1, f"after {result.method}")))
         if dr0 is not None:
             parts.append(_img(figures.orientation_errors(dr0, dr1, "calibration poses")))
+    return parts
+
+
+def _model_tables(result: CalibrationResult) -> list[str]:
+    """The ladder of ``--model auto`` and the error budget on the validation poses."""
+    parts = []
+    if result.model_selection:
+        rows = [(r["model"], f"{r['cv_rms_mm']:.4f}", str(r["n_params"]),
+                 "chosen" if r["model"] == result.model else "") for r in result.model_selection]
+        parts += [f"<h2>Model selection</h2><p>Model {html.escape(result.model)}, chosen by 5-fold cross-validation "
+                  "on the calibration poses (folds by pose): each model refitted without a fold predicts it. A "
+                  "richer model is kept only if it predicts the held-out poses better than a simpler one.</p>",
+                  _table(("model", "cross-validated position RMS (mm)", "parameters", ""), rows)]
+    if result.error_budget:
+        rows = [(r["model"], f"{r['validation_rms_mm']:.4f}",
+                 "" if r["removed_mm"] is None else f"{r['removed_mm']:.4f}") for r in result.error_budget]
+        parts += ["<h2>Error budget</h2><p>Position RMS on the validation poses as each part of the model is "
+                  "added: what each removes.</p>", _table(("model", "validation RMS (mm)", "removed (mm)"), rows)]
     return parts
 
 
@@ -117,8 +147,8 @@ def _table(columns, rows, left: int = 1) -> str:
 
 
 def _parameter_tables(result: CalibrationResult, d: dict) -> list[str]:
-    parts = ["<h2>Identified parameters</h2><p>Lengths in mm, angles in degrees; ± σ is the standard "
-             "uncertainty. A regrouped parameter estimates the combination shown.</p>",
+    parts = ["<h2>Identified parameters</h2><p>Lengths in mm, angles in degrees, compliances in rad/(N·m); ± σ is "
+             "the standard uncertainty. A regrouped parameter estimates the combination shown.</p>",
              _table(PARAMETER_COLUMNS, parameter_rows(result))]
     joints = [i for i, n in enumerate(result.names) if not is_frame(n)]
     if joints:
@@ -158,6 +188,7 @@ def calibration_html(result: CalibrationResult) -> str:
                  + ".</p>")
     parts.append(_metrics_table(cols))
     parts += _per_target(result)
+    parts += _model_tables(result)
     parts += _error_figures(result)
     parts.append("<h2>Convergence</h2>")
     if result.noise is not None and result.noise.refits:
