@@ -142,3 +142,9 @@ def test_a_gravity_table_alone_sets_the_direction():
     np.testing.assert_array_equal(r.terms.gravity_direction, [0.0, 0.0, 1.0])
     assert r.terms.empty and r.geometric
     assert "[gravity]" in robot_to_toml(r)
+
+
+def test_a_folder_named_like_a_built_in_robot_does_not_hide_it(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "ur10").mkdir()  # e.g. the README's output folder
+    assert load_robot("ur10").source == "built-in ur10"

@@ -7,8 +7,11 @@ figures are of the work, not of numba's one-off compilation.
 
 from __future__ import annotations
 
+import statistics
+import time
 import warnings
 from collections.abc import Callable
+from pathlib import Path
 
 import numpy as np
 
@@ -167,20 +170,62 @@ def w5_pkm(repeats: int = 5) -> list[Row]:
     ]
 
 
+#: the real data of W6, in a source checkout
+UR10_DATA = Path("examples") / "ur10-ipa" / "series_c.csv"
+
+
+def w6_auto(repeats: int = 1, data: Path = UR10_DATA, poses: int = 1400) -> list[Row]:
+    """W6: ``--model auto`` on ``poses`` full poses of the UR10 (series C, frames base+tool), and
+    its ratio to a geometric LM calibration of the same poses, the two interleaved."""
+    from ..io.measurements import load_measurements
+
+    if not Path(data).is_file():
+        return [Row("W6 --model auto, UR10 1400 full poses", float("nan"), "s", "≤ 60 s", None,
+                    note=f"needs {data} (run from the source tree)")]
+    meas = load_measurements(data, n_joints=6)
+    meas = meas.subset(np.sort(np.random.default_rng(0).permutation(meas.n_poses)[:poses]))
+
+    def run(model):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            return calibrate("ur10", meas, "lm", frames="base+tool", model=model)
+
+    run("geometric")  # imports and caches outside the timing
+    geometric, auto = [], []
+    chosen = ""
+    for _ in range(repeats):
+        geometric.append(median_time(lambda: run("geometric"), 1))
+        t = time.perf_counter()
+        chosen = run("auto").model
+        auto.append(time.perf_counter() - t)
+    t_auto, t_geo = statistics.median(auto), statistics.median(geometric)
+    ratio = statistics.median(a / g for a, g in zip(auto, geometric))
+    return [
+        Row(f"W6 --model auto, UR10 {meas.n_poses} full poses", t_auto, "s", "≤ 60 s", t_auto <= 60.0,
+            note=f"chose {chosen}; 4 parametric models × 5 folds, 2 residual processes"),
+        Row("W6 geometric LM, same poses", t_geo, "s", "—", None),
+        Row("W6 time ratio auto / geometric LM", ratio, "×", "—", None, note="median of paired runs"),
+    ]
+
+
 WORKLOADS: dict[str, Callable[..., list[Row]]] = {"W1": w1_ipso, "W2": w2_swarms, "W3": w3_lm, "W4": w4_fk,
-                                                  "W5": w5_pkm}
+                                                  "W5": w5_pkm, "W6": w6_auto}
 
 
 def run_all(quick: bool = False, say: Callable[[str], None] = lambda s: None) -> list[Row]:
-    """W1–W5; quick: fewer repeats and no 100 000-pose LM."""
+    """W1–W6; quick: fewer repeats, no 100 000-pose LM and no W6 (a minute on real data)."""
     reps = 3 if quick else 5
     rows: list[Row] = []
     for name, fn in WORKLOADS.items():
+        if quick and name == "W6":
+            continue
         say(f"running {name}")
         if name == "W3":
             rows += fn(reps, large=not quick)
         elif name == "W4":
             rows += fn(repeats=3)
+        elif name == "W6":
+            rows += fn()
         else:
             rows += fn(reps)
     return rows

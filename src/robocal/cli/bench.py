@@ -21,10 +21,10 @@ def _load_peers(folder: Path):
 
 
 def bench_cmd(
-    quick: bool = typer.Option(False, "--quick", help="fewer repeats, no 100 000-pose LM"),
+    quick: bool = typer.Option(False, "--quick", help="fewer repeats, no 100 000-pose LM, no W6"),
     peers: Path = typer.Option(Path("benchmarks"), "--peers", help="folder of the peer benchmarks (source tree)"),
 ) -> None:
-    """Time the workloads W1–W5 (medians), with the peers side by side where they are installed."""
+    """Time the workloads W1–W6 (medians), with the peers side by side where they are installed."""
     from rich.console import Console
 
     from ..bench.timing import format_value

@@ -45,7 +45,7 @@ def load_robot(spec: str | Path | Robot) -> Robot:
     if isinstance(spec, Robot):
         return spec
     path = Path(spec)
-    if path.suffix.lower() == ".toml" or path.exists():
+    if path.suffix.lower() == ".toml" or path.is_file():  # a folder named like a built-in robot is not a file
         if not path.is_file():
             raise InputError("no such robot file", source=path)
         return parse_robot(read_text(path, "robot file"), source=str(path), default_name=path.stem,
