@@ -8,7 +8,8 @@ A σ that is not stated is estimated from the fit itself, block by block (varian
 components): with the whitened Jacobian J and its hat matrix H = J (JᵀJ)⁻¹ Jᵀ, the
 parameters use up tr(H) = k degrees of freedom, split between the blocks by the trace of
 H over each block's rows, so σ̂_b² = |r_b|² / (N_b − tr_b(H)).  The fit is repeated with
-the new weights until they settle (a few refits).  After that χ² equals its degrees of
+the new weights until their ratio settles (a few refits; position-only data need none, since
+a common scale of the residuals does not move the solution).  After that χ² equals its degrees of
 freedom by construction, and the standard uncertainties from (JᵀJ)⁻¹ carry each block's
 own noise, not one σ pooled over millimetres and radians.
 
@@ -28,6 +29,10 @@ from .problem import DEFAULT_K, Problem
 SETTLED = 1e-3
 #: refits allowed to the reweighting
 MAX_REWEIGHTS = 6
+#: the Gauss–Newton step is taken as the refit when the χ² it reaches misses the χ² it
+#: predicts by less than this (whitened, so in squared standard uncertainties): the problem is
+#: linear there to within a tenth of σ, and LM would only confirm the step
+LINEAR_CHI2 = 1e-2
 
 
 @dataclass(frozen=True)
@@ -90,10 +95,79 @@ def block_sigmas(problem: Problem, x: np.ndarray, model: NoiseModel) -> tuple[fl
     rss_p = float(np.sum(dp * dp))
     n_p = dp.size
     used_p, used_r = leverage_split(problem, x)
-    sp, sr = problem.setup.sigma_position, problem.setup.sigma_orientation
+    sr = problem.setup.sigma_orientation
     if dr is None:
         return (model.position if model.position is not None else _sigma(rss_p, n_p - used_p)), sr
-    rss_r, n_r = float(np.sum(dr * dr)), dr.size
+    return _block_values(rss_p, n_p, used_p, float(np.sum(dr * dr)), dr.size, used_r, model)
+
+
+@dataclass(frozen=True)
+class Settled:
+    """Weights that re-estimating would no longer change, and what the linearised problem says
+    of the solution under them: the Gauss–Newton step (k,) from x, the whitened χ² it predicts,
+    and the degrees of freedom the parameters use in each block."""
+
+    sigmas: tuple[float, float]
+    step: np.ndarray
+    chi2: float
+    used: tuple[float, float]
+
+
+def settle(problem: Problem, x: np.ndarray, model: NoiseModel, iterations: int = 100) -> Settled:
+    """σp, σr at which re-estimating would no longer change the weights, found on the
+    linearised problem at x: each round takes the Gauss–Newton step of the current weights
+    from one Jacobian, estimates the blocks' σ from the residuals it predicts (as
+    :func:`block_sigmas`), and stops when the ratio settles.  The step then is the refit a
+    chain of refits would end with, to first order (full-pose data; position-only data settle
+    at once, see :func:`settled`)."""
+    sp, sr = problem.setup.sigma_position, problem.setup.sigma_orientation
+    n_pos = problem.n_position_rows()
+    r = problem.residuals(x)
+    J = problem.residual_jacobian(x)
+    # back to millimetres and radians, so any weights can be applied
+    r_p, r_r, J_p, J_r = r[:n_pos] * sp, r[n_pos:] * sr, J[:n_pos] * sp, J[n_pos:] * sr
+    P_p, P_r = J_p.T @ J_p, J_r.T @ J_r
+    g_p, g_r = J_p.T @ r_p, J_r.T @ r_r
+    c_p, c_r = float(r_p @ r_p), float(r_r @ r_r)
+    n_r = r.size - n_pos
+    sigmas = (sp, sr)
+    for _ in range(iterations if n_r else 1):
+        wp, wr = sigmas[0] ** -2, (sigmas[1] ** -2 if n_r else 0.0)
+        inv = np.linalg.pinv(wp * P_p + wr * P_r)
+        step = -inv @ (wp * g_p + wr * g_r)
+        # |r + J δ|² per block from k×k products only, whatever the number of poses
+        rss_p = c_p + 2 * g_p @ step + step @ P_p @ step
+        rss_r = c_r + 2 * g_r @ step + step @ P_r @ step
+        used = float(np.sum(wp * P_p * inv.T)), float(np.sum(wr * P_r * inv.T))
+        if not n_r:
+            new = (_block_values(rss_p, n_pos, used[0], 0.0, 0, 0.0, model)[0], sr)
+        else:
+            new = _block_values(rss_p, n_pos, used[0], rss_r, n_r, used[1], model)
+        done = settled(sigmas, new, bool(n_r))
+        sigmas = new
+        if done:
+            break
+    wp, wr = sigmas[0] ** -2, (sigmas[1] ** -2 if n_r else 0.0)
+    inv = np.linalg.pinv(wp * P_p + wr * P_r)
+    step = -inv @ (wp * g_p + wr * g_r)
+    chi2 = wp * (c_p + 2 * g_p @ step + step @ P_p @ step) + wr * (c_r + 2 * g_r @ step + step @ P_r @ step)
+    used = float(np.sum(wp * P_p * inv.T)), float(np.sum(wr * P_r * inv.T))
+    return Settled(sigmas, step, float(chi2), used)
+
+
+def confirmed(problem: Problem, x: np.ndarray, target: Settled, model: NoiseModel) -> bool:
+    """Whether the residuals at x (the refit under ``target``'s weights) show those weights
+    again, with the degrees of freedom of the linearised fit (no Jacobian needed)."""
+    dp, dr = problem.errors(x)
+    if dr is None:
+        return True
+    again = _block_values(float(np.sum(dp * dp)), dp.size, target.used[0], float(np.sum(dr * dr)), dr.size,
+                          target.used[1], model)
+    return settled(target.sigmas, again, True)
+
+
+def _block_values(rss_p, n_p, used_p, rss_r, n_r, used_r, model: NoiseModel) -> tuple[float, float]:
+    """σp, σr from the blocks' residual sums of squares and the degrees of freedom the fit used."""
     if model.k is not None:  # a fixed ratio: one pooled σ in position units
         pooled = model.position if model.position is not None else _sigma(rss_p + model.k * rss_r,
                                                                            n_p + n_r - used_p - used_r)
@@ -108,5 +182,10 @@ def _sigma(rss: float, dof: float) -> float:
     return max(math.sqrt(rss / dof) if dof > 0 else 0.0, 1e-12)
 
 
-def settled(old: tuple[float, float], new: tuple[float, float]) -> bool:
-    return all(abs(n - o) <= SETTLED * max(abs(o), 1e-300) for o, n in zip(old, new))
+def settled(old: tuple[float, float], new: tuple[float, float], full_pose: bool) -> bool:
+    """Whether new weights would change the fit: only the ratio σp/σr does (a common scale of
+    all residuals leaves the least-squares solution where it is), so position-only data settle
+    at once."""
+    if not full_pose:
+        return True
+    return abs(new[0] / new[1] - old[0] / old[1]) <= SETTLED * old[0] / old[1]

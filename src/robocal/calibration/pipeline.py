@@ -38,13 +38,13 @@ from ..model.metrics import Metrics
 from ..model.parameters import ParameterSpace, is_term
 from ..model.robot import Robot
 from ..model.terms import TermSpec
-from ..optimize.result import Progress
+from ..optimize.result import OptimizeResult, Progress
 from . import checks
 from .config import CalibrationConfig, resolve_params
 from .diagnostics import GoodnessOfFit, goodness_of_fit, implausible_deviations, joint_patterns, misfit_message
 from .identifiability import NO_EFFECT, SECOND_ORDER, Identifiability, Reason, analyse
 from .methods import Estimate, fit_lm, optimise
-from .noise import MAX_REWEIGHTS, NoiseEstimate, block_sigmas, settled
+from .noise import LINEAR_CHI2, MAX_REWEIGHTS, NoiseEstimate, block_sigmas, confirmed, settle, settled
 from .problem import Setup
 from .registration import choose_frames, fit_frames
 from .result import CalibrationResult
@@ -286,20 +286,33 @@ def reweigh(est: Estimate, config: CalibrationConfig) -> tuple[Estimate, NoiseEs
     refits = 0
     refit = config.method in ("lm", "hybrid") and est.optimisation.status == "converged"
     if source == "estimated" and problem.n_residuals > problem.n_params:
-        for _ in range(MAX_REWEIGHTS if refit else 1):
-            new = block_sigmas(problem, est.x, model)
-            if settled(sigmas, new):
-                break
-            sigmas, problem = new, problem.setup.with_noise(*new).problem(problem.names)
-            if not refit:
+        if not refit:  # a swarm keeps its answer: σ is estimated once, for the report
+            sigmas = block_sigmas(problem, est.x, model)
+            return est.replace(problem=problem.setup.with_noise(*sigmas).problem(problem.names)), NoiseEstimate(
+                sigmas[0], sigmas[1] if full else None, source, 0)
+        for _ in range(MAX_REWEIGHTS):
+            target = settle(problem, est.x, model)
+            moved = not settled(sigmas, target.sigmas, full)
+            sigmas, problem = target.sigmas, problem.setup.with_noise(*target.sigmas).problem(problem.names)
+            if not moved:  # the same solution, now weighed by the σ it shows
                 est = est.replace(problem=problem)
                 break
-            lm = fit_lm(problem, est.x, config)
+            x = est.x + target.step
+            r = problem.residuals(x)
+            chi2 = float(r @ r)
+            if config.loss == "linear" and abs(chi2 - target.chi2) <= LINEAR_CHI2:
+                # linear there: the Gauss–Newton step is the refit, and LM would only confirm it
+                step = OptimizeResult("gauss-newton", x, chi2, np.array([chi2]), 1, 1, "converged",
+                                      "one Gauss–Newton step", 0.0)
+            else:
+                step = fit_lm(problem, est.x, config)
             refits += 1
             # χ² under new weights is another scale: the history stays that of the first weights
-            est = Estimate(problem, est.optimisation.then(lm, method=est.optimisation.method, message=(
-                f"{est.optimisation.message}; reweighted (σp {sigmas[0]:.3g} mm): {lm.message}"),
-                history=est.optimisation.history), lm.x, est.reexpression_gap_mm)
+            est = Estimate(problem, est.optimisation.then(step, method=est.optimisation.method, message=(
+                f"{est.optimisation.message}; reweighted (σp {sigmas[0]:.3g} mm): {step.message}"),
+                history=est.optimisation.history), step.x, est.reexpression_gap_mm)
+            if step.status != "converged" or confirmed(problem, est.x, target, model):
+                break
     return est, NoiseEstimate(sigmas[0], sigmas[1] if full else None, source, refits)
 
 

@@ -49,8 +49,8 @@ def register_frames(robot: Robot, meas: Measurements, mode: str, iterations: int
     base = robot.base
     for _ in range(iterations if mode == "base+tool" else 1):
         stack = np.stack([tools[t] for t in targets])[tidx]
-        base = rigid_registration(p_f + (R_f @ stack[:, :3, 3:])[..., 0], meas.position)
-        if mode != "base+tool":
+        previous, base = base, rigid_registration(p_f + (R_f @ stack[:, :3, 3:])[..., 0], meas.position)
+        if mode != "base+tool" or np.abs(base - previous).max() < 1e-9:  # settled (LM refines it anyway)
             break
         Rb, pb = base[:3, :3], base[:3, 3]
         for k, t in enumerate(targets):
@@ -112,6 +112,10 @@ def choose_frames(robot: Robot, meas: Measurements) -> FrameChoice:
         _check_spread(meas.position, meas.source)
     except InputError:
         return FrameChoice("none", reason="too few or collinear poses to register a frame; frames as given")
+    if not unknown:
+        given = _rms(robot, meas, targets)
+        if given < AUTO_MIN_GAIN_MM:  # no registration can gain a millimetre
+            return FrameChoice("none", given, None)
     both = _rms(register_frames(robot, meas, "base+tool"), meas, meas.targets)
     if unknown:
         return FrameChoice("base+tool", None, both, f"reflector '{unknown[0]}' has no tool frame in the robot file, "

@@ -1,0 +1,35 @@
+"""The noise model's reweighting: the linearised settling lands where a chain of full refits does."""
+
+import math
+
+import numpy as np
+
+from robocal.calibration.config import CalibrationConfig
+from robocal.calibration.methods import fit_lm
+from robocal.calibration.noise import NoiseModel, block_sigmas, settle
+from robocal.calibration.problem import Setup
+from robocal.io.robotfile import load_robot
+from robocal.model.parameters import ParameterSpace
+from robocal.simulation import simulate
+
+
+def test_settle_matches_a_chain_of_refits():
+    robot = load_robot("er10l-c10")
+    sim = simulate(robot, 60, deviations="paper", noise=0.03, angle_noise=math.radians(0.002), seed=3)
+    names = [n for n in ParameterSpace.of(robot).names if n not in ("d2",)][:24]
+    cfg = CalibrationConfig()
+    problem = Setup(ParameterSpace.of(robot), sim.measurements, 1.0, 0.01).problem(names)
+    x0 = fit_lm(problem, np.zeros(problem.n_params), cfg).x
+    # the reference: re-estimate and refit by LM until nothing moves any more
+    chain, x = problem, x0
+    for _ in range(60):
+        sigmas = block_sigmas(chain, x, NoiseModel())
+        chain = chain.setup.with_noise(*sigmas).problem(names)
+        x_new = fit_lm(chain, x, cfg).x
+        if np.abs(x_new - x).max() < 1e-14:
+            break
+        x = x_new
+    target = settle(problem, x0, NoiseModel())
+    np.testing.assert_allclose(target.sigmas, sigmas, rtol=2e-3)
+    covariance = np.linalg.inv(chain.residual_jacobian(x).T @ chain.residual_jacobian(x))
+    assert np.abs((x0 + target.step - x) / np.sqrt(np.diag(covariance))).max() < 0.05
