@@ -10,13 +10,14 @@ from robocal.calibration.noise import NoiseModel, block_sigmas, settle
 from robocal.calibration.problem import Setup
 from robocal.io.robotfile import load_robot
 from robocal.model.parameters import ParameterSpace
+from robocal.papers import wen2019
 from robocal.simulation import simulate
 
 
 def test_settle_matches_a_chain_of_refits():
     robot = load_robot("er10l-c10")
     sim = simulate(robot, 60, deviations="paper", noise=0.03, angle_noise=math.radians(0.002), seed=3)
-    names = [n for n in ParameterSpace.of(robot).names if n not in ("d2",)][:24]
+    names = list(wen2019.PARAMETERS)  # identifiable from full poses
     cfg = CalibrationConfig()
     problem = Setup(ParameterSpace.of(robot), sim.measurements, 1.0, 0.01).problem(names)
     x0 = fit_lm(problem, np.zeros(problem.n_params), cfg).x
