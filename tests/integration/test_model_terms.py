@@ -214,3 +214,73 @@ def test_simulate_plants_terms_and_the_command_line_recovers_them(tmp_path, run_
     assert math.degrees(values["harmonic1_cos1"]) == pytest.approx(0.02, rel=0.15)
     assert [r["model"] for r in result["model_selection"]][:4] == ["geometric", "harmonics", "compliance",
                                                                    "compliance+harmonics"]
+
+
+IIWA = """
+name = "7-joint arm (iiwa-like)"
+convention = "dh"
+[[joint]]
+a = 0.0
+alpha = -90.0
+d = 340.0
+theta = 0.0
+limits = [-170.0, 170.0]
+[[joint]]
+a = 0.0
+alpha = 90.0
+d = 0.0
+theta = 0.0
+limits = [-120.0, 120.0]
+[[joint]]
+a = 0.0
+alpha = 90.0
+d = 400.0
+theta = 0.0
+limits = [-170.0, 170.0]
+[[joint]]
+a = 0.0
+alpha = -90.0
+d = 0.0
+theta = 0.0
+limits = [-120.0, 120.0]
+[[joint]]
+a = 0.0
+alpha = -90.0
+d = 400.0
+theta = 0.0
+limits = [-170.0, 170.0]
+[[joint]]
+a = 0.0
+alpha = 90.0
+d = 0.0
+theta = 0.0
+limits = [-120.0, 120.0]
+[[joint]]
+a = 0.0
+alpha = 0.0
+d = 126.0
+theta = 0.0
+limits = [-175.0, 175.0]
+[tool]
+xyz = [30.0, -20.0, 60.0]
+"""
+
+
+@pytest.mark.parametrize("measure", ["pose", "position"])
+def test_a_seven_joint_arm_with_torque_columns(tmp_path, measure, quiet):
+    """The same machinery, untuned, on a redundant arm whose controller reports joint torques."""
+    path = tmp_path / "arm7.toml"
+    path.write_text(IIWA)
+    robot = load_robot(path)
+    planted = {2: 4e-6, 4: 6e-6}
+    kw = dict(deviations="uniform:0.2,0.002", compliance=planted, noise=0.02, angle_noise=math.radians(0.001),
+              measure=measure)
+    meas = simulate(robot, 500, seed=11, **kw).measurements
+    fresh = meas.subset(np.arange(300, 500))
+    res = calibrate(robot, meas.subset(np.arange(300)), "lm", frames="none", model="auto", validate=fresh)
+    assert res.model == "compliance"
+    for j, c in planted.items():
+        assert res.parameter(f"compliance{j}") == pytest.approx(c, rel=0.15)
+    geometric = res.error_budget[1]["validation_rms_mm"]
+    assert res.metrics["validation_after"].position["rms"] < 0.5 * geometric
+    assert res.metrics["validation_after"].position["rms"] < 1.3 * NOISE * math.sqrt(3)
