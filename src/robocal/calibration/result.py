@@ -24,8 +24,10 @@ from .noise import NoiseEstimate
 
 #: version of the result JSON; 2 added ``schema_version``, the structured ``dropped`` reasons
 #: (kind, related), ``optimiser.method`` naming the solver that ran, status ``completed``,
-#: ``noise``, ``goodness_of_fit``, and per parameter ``absorbs`` and ``significant``
-SCHEMA_VERSION = 2
+#: ``noise``, ``goodness_of_fit``, and per parameter ``absorbs`` and ``significant``; 3 added
+#: ``model``, ``model_selection``, ``error_budget``, ``residual_model`` and joint-term
+#: parameters (``compliance1``, ``gravity2_3x``, ``harmonic1_cos1``, …, with their units)
+SCHEMA_VERSION = 3
 #: a deviation smaller than this many standard uncertainties is "not significant"
 SIGNIFICANCE_SIGMAS = 2.0
 
