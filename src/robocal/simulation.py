@@ -13,8 +13,9 @@ from .exceptions import InputError
 from .math.se3 import frame_from_values
 from .math.so3 import exp_so3
 from .model.candidates import parallel_pairs
+from .model.kinematics import joint_parameter_names
 from .model.measurements import Measurements
-from .model.parameters import ParameterSpace
+from .model.parameters import ParameterSpace, is_angle
 from .model.robot import Robot
 from .model.terms import JointTerms, mass_torques, nominal_masses
 from .papers import wen2019
@@ -24,8 +25,9 @@ MEASURES = ("pose", "position")
 
 def planted_deviations(robot: Robot, spec: str, rng: np.random.Generator) -> dict[str, float]:
     """Joint-geometry deviations from a spec: ``none``, ``paper`` (Wen 2019 Table 2, ER10L-C10),
-    or ``uniform:LEN_MM,ANGLE_RAD`` (uniform in ±LEN on a, d and ±ANGLE on α, θ, and on β of
-    hayati joints whose axis is parallel to the next)."""
+    or ``uniform:LEN_MM,ANGLE_RAD`` (uniform in ±LEN on lengths — a, d; x, y, z of urdf origins
+    — and ±ANGLE on angles — α, θ; rx, ry, rz — and on β of hayati joints whose axis is
+    parallel to the next)."""
     spec = spec.strip().lower()
     if spec == "none":
         return {}
@@ -42,11 +44,10 @@ def planted_deviations(robot: Robot, spec: str, rng: np.random.Generator) -> dic
         if not (math.isfinite(length) and math.isfinite(angle)) or length < 0 or angle < 0:
             raise InputError("uniform bounds must be finite and ≥ 0", option="errors")
         out: dict[str, float] = {}
-        for i in range(robot.n_joints):
-            out[f"a{i + 1}"] = rng.uniform(-length, length)
-            out[f"alpha{i + 1}"] = rng.uniform(-angle, angle)
-            out[f"theta{i + 1}"] = rng.uniform(-angle, angle)
-            out[f"d{i + 1}"] = rng.uniform(-length, length)
+        for names in joint_parameter_names(robot.convention, robot.geometry):
+            for name in names:
+                if not name.startswith("beta"):
+                    out[name] = rng.uniform(-angle, angle) if is_angle(name) else rng.uniform(-length, length)
         if robot.convention == "hayati":
             for i in parallel_pairs(robot):
                 out[f"beta{i + 1}"] = rng.uniform(-angle, angle)

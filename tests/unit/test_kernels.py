@@ -6,7 +6,8 @@ import pytest
 from robocal.backend import numba_installed
 from robocal.calibration.problem import Setup
 from robocal.math.se3 import xyz_rpy_to_transform
-from robocal.model.kinematics import CONVENTIONS, chain_points
+from robocal.model.dh import CONVENTIONS  # the DH family: the kernels chain these
+from robocal.model.kinematics import chain_points
 from robocal.model.measurements import Measurements
 from robocal.model.parameters import ParameterSpace
 from robocal.model.robot import Robot

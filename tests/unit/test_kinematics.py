@@ -6,7 +6,8 @@ import pytest
 from robocal.io.robotfile import load_robot
 from robocal.math.se3 import homogeneous, xyz_rpy_to_transform
 from robocal.math.so3 import rot_x, rot_y, rot_z
-from robocal.model.kinematics import CONVENTIONS, chain_pose
+from robocal.model.dh import CONVENTIONS  # the DH family (urdf: tests/unit/test_urdf.py)
+from robocal.model.kinematics import chain_pose
 from robocal.model.robot import Robot
 
 # Poses worked out by hand, frame by frame, from the DH tables (see comments in each case): the

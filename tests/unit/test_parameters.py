@@ -5,7 +5,7 @@ import numpy as np
 from robocal.io.robotfile import load_robot
 from robocal.math.se3 import xyz_rpy_to_transform
 from robocal.math.so3 import orientation_error
-from robocal.model.kinematics import CONVENTIONS
+from robocal.model.dh import CONVENTIONS  # the DH family (urdf: tests/unit/test_urdf.py)
 from robocal.model.parameters import ParameterSpace, is_angle
 from robocal.model.robot import Robot
 

@@ -132,7 +132,7 @@ class Problem:
             raise ValueError(f"unknown objective {kind!r}")
         X = np.asarray(X, dtype=float)
         compiled = (self._backend if backend is None else resolve(backend)) == "numba"
-        if X.ndim == 2 and compiled and self.joints is None:  # the kernels move no joints
+        if X.ndim == 2 and compiled and self.joints is None and self._kernels_apply:  # the kernels move no joints
             return self._compiled_objective(X, kind)
         dp, dr = self.errors(X)
         if kind == "sum_norms":
@@ -141,6 +141,14 @@ class Problem:
         if dr is not None:
             f = f + self.k * np.sum(dr * dr, axis=(-1, -2))
         return f
+
+    @cached_property
+    def _kernels_apply(self) -> bool:
+        """The compiled kernels chain turning DH-family joints; others take the numpy path."""
+        from ..model.kernels import CONVENTION_CODE
+
+        robot = self.space.robot
+        return robot.convention in CONVENTION_CODE and not robot.prismatic.any()
 
     @cached_property
     def _kernel_inputs(self):
@@ -155,8 +163,9 @@ class Problem:
             "tools": tools,
             "kernels": kernels,
             "conv": kernels.CONVENTION_CODE[self.space.robot.convention],
-            # positions of the estimated joint parameters in the flat (n, 5) geometry
-            "geom_cols": ((self.active // kinds) * 5 + self.active % kinds).astype(np.int64),
+            # positions of the estimated joint parameters in the flat (n, width) geometry
+            "geom_cols": ((self.active // kinds) * self.space.robot.geometry.shape[1]
+                          + self.active % kinds).astype(np.int64),
             "qtrig": kernels.joint_trig(self.meas.q),
             "tidx": tidx,
             # numba compiles one specialisation per array layout: contiguous inputs always, so that

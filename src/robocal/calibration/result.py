@@ -11,7 +11,7 @@ import numpy as np
 
 from ..io.atomic import atomic_write
 from ..math.se3 import transform_to_xyz_rpy
-from ..model.kinematics import joint_kinds
+from ..model.kinematics import joint_parameter_names
 from ..model.measurements import Measurements
 from ..model.metrics import Metrics
 from ..model.parameters import is_frame, unit
@@ -223,10 +223,8 @@ def _plain(d: dict) -> dict:
 def nominal_values(robot: Robot) -> dict[str, float]:
     """Joint geometry and joint terms of a robot by parameter name (mm, rad, rad/(N·m))."""
     out: dict[str, float] = {}
-    col = {"a": 0, "alpha": 1, "theta": 2, "d": 3, "beta": 4}
-    for i in range(robot.n_joints):
-        for k in joint_kinds(robot.convention):
-            out[f"{k}{i + 1}"] = float(robot.geometry[i, col[k]])
+    for i, names in enumerate(joint_parameter_names(robot.convention, robot.geometry)):
+        out.update(zip(names, map(float, robot.geometry[i, :len(names)])))
     if robot.terms is not None and not robot.terms.empty:
         spec = robot.terms.spec()
         out.update(zip(spec.names(robot.n_joints), map(float, robot.terms.vector(spec, robot.n_joints))))

@@ -33,8 +33,30 @@ for module in (robots, simulate, evaluate, calibrate, compensate, plan, reproduc
 app.add_typer(pkm.app, name="pkm")
 
 
+def _one_line_warnings(python_show):
+    """A warning printer for the command line: robocal's own as one line on stderr, others as
+    Python prints them."""
+    from ..exceptions import RobocalWarning
+
+    def show(message, category, filename, lineno, file=None, line=None) -> None:
+        if issubclass(category, RobocalWarning):
+            print(f"robocal: warning: {one_line(message)}", file=sys.stderr)
+        else:
+            python_show(message, category, filename, lineno, file, line)
+
+    return show
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point: runs the app and turns input errors into one line and exit code 2."""
+    import warnings
+
+    with warnings.catch_warnings():  # restores Python's printer on the way out
+        warnings.showwarning = _one_line_warnings(warnings.showwarning)
+        return _run(argv)
+
+
+def _run(argv: list[str] | None) -> int:
     try:
         result = app(args=argv, prog_name="robocal", standalone_mode=False)
     except InputError as exc:

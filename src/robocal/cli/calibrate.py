@@ -6,6 +6,8 @@ from pathlib import Path
 
 import typer
 
+from .common import base_link_option, tip_link_option
+
 
 def noise_line(result) -> str:
     """σ used and the goodness of fit, in one line."""
@@ -93,6 +95,8 @@ def calibrate_cmd(
     column: list[str] | None = typer.Option(None, "--column", help="map file columns: FILE=ROBOCAL[,FILE=ROBOCAL…]"),
     joint_unit: str | None = typer.Option(None, "--joint-unit", help="deg | rad (default: deg, checked)"),
     length_unit: str | None = typer.Option(None, "--length-unit", help="mm | m (default: mm, checked)"),
+    base_link: str | None = base_link_option(),
+    tip_link: str | None = tip_link_option(),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="no table, no progress bar"),
 ) -> None:
     """Identify a robot's geometric parameters from measured poses."""
@@ -111,7 +115,7 @@ def calibrate_cmd(
                             angle_noise=None if angle_noise is None else math.radians(angle_noise), k=k,
                             joint_unit=joint_unit, length_unit=length_unit, model=model, harmonics=harmonics,
                             payload=payload)
-    nominal = load_robot(robot)
+    nominal = load_robot(robot, base_link=base_link, tip_link=tip_link)
     total = None if method == "lm" else settings(cfg)["iterations"]
     with progress_bar(not quiet and method != "lm", method, total) as callback, warnings.catch_warnings():
         warnings.simplefilter("ignore")

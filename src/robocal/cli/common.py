@@ -77,3 +77,24 @@ def say_on_stderr(quiet: bool):
 
     err = Console(stderr=True)
     return lambda message: err.print(f"[dim]{message}[/dim]")
+
+
+def base_link_option():
+    import typer
+
+    return typer.Option(None, "--base-link", help="URDF robot: the chain's first link (default: the root)")
+
+
+def tip_link_option():
+    import typer
+
+    return typer.Option(None, "--tip-link", help="URDF robot: the chain's last link (default: the leaf with the "
+                                                 "most movable joints, said on stderr)")
+
+
+def load(robot, base_link=None, tip_link=None):
+    """A robot argument of the command line: a robot TOML, a URDF (with its chain's links) or a
+    built-in name."""
+    from ..io.robotfile import load_robot
+
+    return load_robot(robot, base_link=base_link, tip_link=tip_link)

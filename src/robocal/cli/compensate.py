@@ -6,6 +6,8 @@ from pathlib import Path
 
 import typer
 
+from .common import base_link_option, tip_link_option
+
 
 def compensate_cmd(
     nominal: str = typer.Argument(..., help="nominal robot (what the controller runs): file or built-in name"),
@@ -22,6 +24,8 @@ def compensate_cmd(
                                          "column"),
     as_json: Path | None = typer.Option(None, "--json", help="write the summary as JSON too"),
     column: list[str] | None = typer.Option(None, "--column", help="map file columns: FILE=ROBOCAL[,FILE=ROBOCAL…]"),
+    base_link: str | None = base_link_option(),
+    tip_link: str | None = tip_link_option(),
     quiet: bool = typer.Option(False, "--quiet", "-q"),
 ) -> None:
     """Corrected joint commands and Cartesian goals that make the calibrated robot reach its goals."""
@@ -34,8 +38,10 @@ def compensate_cmd(
     from ..io.robotfile import load_robot
     from .common import console, metrics_table, print_warnings
 
-    nom, cal = load_robot(nominal), load_robot(calibrated)
-    tru = None if truth is None else load_robot(truth)
+    # the chain's links choose the nominal's chain (and the truth's); a calibrated URDF export
+    # runs from its measuring_frame to its target, robocal's defaults
+    nom, cal = load_robot(nominal, base_link=base_link, tip_link=tip_link), load_robot(calibrated)
+    tru = None if truth is None else load_robot(truth, base_link=base_link, tip_link=tip_link)
     g = load_goals(goals, n_joints=nom.n_joints, columns=opt.column_map(column))
     result = compensate(nom, cal, g, truth=tru, position_only=position_only or None, payload=payload)
     result.save(out)

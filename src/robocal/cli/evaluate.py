@@ -6,10 +6,14 @@ from pathlib import Path
 
 import typer
 
+from .common import base_link_option, tip_link_option
+
 
 def evaluate_cmd(
     robot: str = typer.Argument(..., help="robot file or built-in name"),
     data: Path = typer.Argument(..., help="measurement CSV"),
+    base_link: str | None = base_link_option(),
+    tip_link: str | None = tip_link_option(),
     as_json: bool = typer.Option(False, "--json", help="print the metrics as JSON"),
     frames: str = typer.Option("none", "--frames", help="none | auto | base | base+tool: fit frames first"),
     column: list[str] | None = typer.Option(None, "--column", help="map file columns: FILE=ROBOCAL[,FILE=ROBOCAL…]"),
@@ -23,10 +27,10 @@ def evaluate_cmd(
 
     from .. import options as opt
     from ..evaluation import evaluate
-    from .common import console, metrics_table, print_warnings
+    from .common import console, load, metrics_table, print_warnings
 
-    ev = evaluate(robot, data, columns=opt.column_map(column), frames=frames, joint_unit=joint_unit,
-                  length_unit=length_unit, payload=payload)
+    ev = evaluate(load(robot, base_link, tip_link), data, columns=opt.column_map(column), frames=frames,
+                  joint_unit=joint_unit, length_unit=length_unit, payload=payload)
     print_warnings(ev.notes)
     if as_json:
         print(json.dumps(ev.to_dict(), indent=2))

@@ -6,6 +6,8 @@ from pathlib import Path
 
 import typer
 
+from .common import base_link_option, tip_link_option
+
 
 def _print_plan(p, r, poses: int, candidates: int, criterion: str, measure: str, noise: float, angle_noise: float):
     import numpy as np
@@ -39,6 +41,8 @@ def plan_cmd(
     noise: float = typer.Option(0.02, "--noise", help="position noise σ, mm"),
     angle_noise: float = typer.Option(0.001, "--angle-noise", help="orientation noise σ, deg"),
     seed: int = typer.Option(0, "--seed"),
+    base_link: str | None = base_link_option(),
+    tip_link: str | None = tip_link_option(),
     out: Path = typer.Option(..., "--out", help="measurement-file skeleton to write (pose_id, q1..qn)"),
     report: Path | None = typer.Option(None, "--json", help="write the plan report as JSON"),
     quiet: bool = typer.Option(False, "--quiet", "-q"),
@@ -55,7 +59,7 @@ def plan_cmd(
     from ..plan import plan_poses
     from .common import console
 
-    r = load_robot(robot)
+    r = load_robot(robot, base_link=base_link, tip_link=tip_link)
     jr = opt.joint_limits(limits, r.n_joints)
     if jr is None and joint_range is not None:
         jr = tuple(math.radians(v) for v in opt.floats(joint_range, "range", (2,)))

@@ -6,6 +6,8 @@ from pathlib import Path
 
 import typer
 
+from .common import base_link_option, tip_link_option
+
 
 def simulate_cmd(
     robot: str = typer.Argument(..., help="robot file or built-in name"),
@@ -27,6 +29,8 @@ def simulate_cmd(
     harmonic: list[str] | None = typer.Option(
         None, "--harmonic", help="planted transmission harmonic J:H=A,B: A cos(H q_J) + B sin(H q_J), deg "
         "(repeatable)"),
+    base_link: str | None = base_link_option(),
+    tip_link: str | None = tip_link_option(),
     out: Path = typer.Option(..., "--out", help="measurement CSV to write"),
     truth: Path | None = typer.Option(None, "--truth", help="true robot TOML to write"),
 ) -> None:
@@ -40,7 +44,7 @@ def simulate_cmd(
     from ..simulation import simulate
     from .common import console
 
-    r = load_robot(robot)
+    r = load_robot(robot, base_link=base_link, tip_link=tip_link)
     rng = None if joint_range is None else tuple(math.radians(v) for v in opt.floats(joint_range, "range", (2,)))
     sim = simulate(r, poses, deviations=errors, noise=noise, angle_noise=math.radians(angle_noise),
                    joint_noise=math.radians(joint_noise), joint_noise_uniform=math.radians(joint_noise_uniform),

@@ -24,7 +24,8 @@ import numpy as np
 from ..exceptions import InputError
 from ..math.se3 import frame_from_values
 from ..math.so3 import matrix_to_rpy
-from ..model.kinematics import CONVENTIONS
+from ..model import urdf
+from ..model.kinematics import CONVENTIONS, prismatic_mask
 from ..model.residual import ResidualModel
 from ..model.robot import Robot
 from ..model.terms import JointTerms
@@ -32,19 +33,30 @@ from .atomic import atomic_write, read_text
 from .builtins import builtin_names, builtin_text
 
 TOP_KEYS = {"name", "convention", "joint", "base", "tool", "targets", "source", "gravity", "residual"}
-GEOMETRY_KEYS = {"a", "alpha", "d", "theta", "beta", "limits"}
+GEOMETRY_KEYS = {"a", "alpha", "d", "theta", "beta", "limits", "type", "name"}
 TERM_KEYS = {"compliance", "harmonics", "gravity_deflection"}
 JOINT_KEYS = GEOMETRY_KEYS | TERM_KEYS
+#: a urdf-convention robot's joints: origin xyz (mm) and rpy (deg), axis, type, zero offset
+URDF_JOINT_KEYS = {"xyz", "rpy", "axis", "type", "offset", "limits", "name"} | TERM_KEYS
+JOINT_TYPES = ("revolute", "prismatic")
 GRAVITY_KEYS = {"direction", "payload_com"}
 FRAME_KEYS = {"xyz", "rpy"}
 _RADIAN_LOOKALIKES = (math.pi / 2, math.pi, math.pi / 4)
 
 
-def load_robot(spec: str | Path | Robot) -> Robot:
-    """A robot from a file path or a built-in name (see :func:`builtin_names`)."""
+def load_robot(spec: str | Path | Robot, *, base_link: str | None = None, tip_link: str | None = None) -> Robot:
+    """A robot from a file path (robot TOML, or URDF: its chain from ``base_link`` to
+    ``tip_link``, see :mod:`robocal.io.urdf`) or a built-in name (see :func:`builtin_names`)."""
     if isinstance(spec, Robot):
         return spec
     path = Path(spec)
+    if path.suffix.lower() == ".urdf":
+        from .urdf import load_urdf
+
+        return load_urdf(path, base_link, tip_link)
+    for option, value in (("base_link", base_link), ("tip_link", tip_link)):
+        if value is not None:
+            raise InputError(f"applies to URDF robots only, not {spec}", option=option)
     if path.suffix.lower() == ".toml" or path.is_file():  # a folder named like a built-in robot is not a file
         if not path.is_file():
             raise InputError("no such robot file", source=path)
@@ -90,14 +102,29 @@ def _frame(table, source, key) -> np.ndarray:
     return frame_from_values(xyz + [math.radians(v) for v in rpy])
 
 
-def _joint(j: dict, i: int, conv: str, source: str) -> tuple[np.ndarray, tuple[float, float]]:
-    """One [[joint]] table → geometry row (mm, deg as written) and limits (deg)."""
+def _joint_type(j: dict, where: str, source: str) -> bool:
+    """True for ``type = "prismatic"``; revolute (the default) otherwise."""
+    kind = j.get("type", "revolute")
+    if kind not in JOINT_TYPES:
+        raise InputError(f"unknown joint type {kind!r} (expected {' | '.join(JOINT_TYPES)})", source=source,
+                         where=f"{where}, key 'type'")
+    return kind == "prismatic"
+
+
+def _limits(j: dict, where: str, source: str) -> tuple[float, float]:
+    if "limits" not in j:
+        return -math.inf, math.inf
+    lo, hi = _vector(j["limits"], 2, source, f"{where}, key 'limits'")
+    if not lo < hi:
+        raise InputError(f"limits must be [low, high] with low < high, got {[lo, hi]}", source=source,
+                         where=f"{where}, key 'limits'")
+    return lo, hi
+
+
+def _dh_joint(j: dict, i: int, conv: str, source: str) -> np.ndarray:
+    """One [[joint]] table of the DH family → geometry row (mm, rad)."""
     where = f"joint {i + 1}"
-    unknown = set(j) - JOINT_KEYS
-    if unknown:
-        raise InputError(f"unknown key '{sorted(unknown)[0]}' (allowed: {', '.join(sorted(JOINT_KEYS))})",
-                         source=source, where=where)
-    row = np.zeros(5)
+    row = np.zeros(6)
     for k, key in enumerate(("a", "alpha", "theta", "d")):
         if key not in j:
             raise InputError(f"missing key '{key}'", source=source, where=where)
@@ -109,14 +136,42 @@ def _joint(j: dict, i: int, conv: str, source: str) -> tuple[np.ndarray, tuple[f
         row[4] = _number(j["beta"], source, f"{where}, key 'beta'")
     for k in (1, 2, 4):
         _check_degrees(row[k], source, f"{where}, key '{('a', 'alpha', 'theta', 'd', 'beta')[k]}'")
-    limits = (-math.inf, math.inf)
-    if "limits" in j:
-        lo, hi = _vector(j["limits"], 2, source, f"{where}, key 'limits'")
-        if not lo < hi:
-            raise InputError(f"limits must be [low, high] with low < high, got {[lo, hi]}", source=source,
-                             where=f"{where}, key 'limits'")
-        limits = (lo, hi)
-    return row, limits
+    row[[1, 2, 4]] = np.radians(row[[1, 2, 4]])
+    row[5] = _joint_type(j, where, source)
+    return row
+
+
+def _urdf_joint(j: dict, i: int, source: str) -> np.ndarray:
+    """One [[joint]] table of a urdf-convention robot → geometry row (mm, rad)."""
+    where = f"joint {i + 1}"
+    row = np.zeros(urdf.WIDTH)
+    row[urdf.X:urdf.Z + 1] = _vector(j.get("xyz", [0.0, 0.0, 0.0]), 3, source, f"{where}, key 'xyz'")
+    rpy = _vector(j.get("rpy", [0.0, 0.0, 0.0]), 3, source, f"{where}, key 'rpy'")
+    for v in rpy:
+        _check_degrees(v, source, f"{where}, key 'rpy'")
+    row[urdf.ROLL:urdf.YAW + 1] = np.radians(rpy)
+    if "axis" not in j:
+        raise InputError("missing key 'axis'", source=source, where=where)
+    axis = np.array(_vector(j["axis"], 3, source, f"{where}, key 'axis'"))
+    if not np.linalg.norm(axis) > 0:
+        raise InputError("the joint axis must not be zero", source=source, where=f"{where}, key 'axis'")
+    row[urdf.AX:urdf.AZ + 1] = axis / np.linalg.norm(axis)
+    row[urdf.PRISMATIC] = _joint_type(j, where, source)
+    offset = _number(j.get("offset", 0.0), source, f"{where}, key 'offset'")
+    row[urdf.OFFSET] = offset if row[urdf.PRISMATIC] else math.radians(offset)
+    return row
+
+
+def _joint(j: dict, i: int, conv: str, source: str) -> tuple[np.ndarray, tuple[float, float]]:
+    """One [[joint]] table → geometry row (mm, rad) and limits as written (deg, or mm)."""
+    where = f"joint {i + 1}"
+    allowed = URDF_JOINT_KEYS if conv == "urdf" else JOINT_KEYS
+    unknown = set(j) - allowed
+    if unknown:
+        raise InputError(f"unknown key '{sorted(unknown)[0]}' (allowed: {', '.join(sorted(allowed))})",
+                         source=source, where=where)
+    row = _urdf_joint(j, i, source) if conv == "urdf" else _dh_joint(j, i, conv, source)
+    return row, _limits(j, where, source)
 
 
 def _header(data: dict, source: str) -> tuple[str, str]:
@@ -225,11 +280,16 @@ def parse_robot(text: str, *, source: str = "<robot>", default_name: str = "robo
         raise InputError("needs at least one [[joint]] table", source=source)
     rows, limits = zip(*(_joint(j, i, conv, source) for i, j in enumerate(joints)))
     geom, limits = np.array(rows), np.array(limits)
-    finite = limits[np.isfinite(limits)]
+    slide = prismatic_mask(conv, geom)
+    names = [j.get("name") for j in joints]
+    for i, nm in enumerate(names):
+        if nm is not None and not isinstance(nm, str):
+            raise InputError(f"expected a string, got {nm!r}", source=source, where=f"joint {i + 1}, key 'name'")
+    finite = limits[~slide][np.isfinite(limits[~slide])]
     if finite.size >= 4 and np.all(np.abs(finite) <= math.pi + 1e-6) and np.any(np.abs(finite) > 1.0):
         raise InputError("joint limits all lie within ±π: they look like radians; robot files give limits in "
                          "degrees", source=source, where="key 'limits'")
-    geom[:, [1, 2, 4]] = np.radians(geom[:, [1, 2, 4]])
+    limits = np.where(slide[:, None], limits, np.radians(limits))  # a slide's limits are in mm
     base = _frame(data["base"], source, "base") if "base" in data else np.eye(4)
     tool = _frame(data["tool"], source, "tool") if "tool" in data else np.eye(4)
     targets = {}
@@ -239,7 +299,8 @@ def parse_robot(text: str, *, source: str = "<robot>", default_name: str = "robo
         targets = {str(t): _frame(table, source, f"targets.{t}") for t, table in data["targets"].items()}
     terms = _terms(joints, data, len(joints), source)
     residual = None if "residual" not in data else _residual(data["residual"], len(joints), source, directory)
-    return Robot(conv, geom, np.radians(limits), base=base, tool=tool, targets=targets, name=name or default_name,
+    return Robot(conv, geom, limits, joint_names=tuple(nm or f"joint{i + 1}" for i, nm in enumerate(names))
+                 if any(names) else None, base=base, tool=tool, targets=targets, name=name or default_name,
                  source=source, terms=terms, residual=residual)
 
 
@@ -306,6 +367,25 @@ def _gravity_lines(terms: JointTerms | None) -> list[str]:
             f"payload_com = {_list(terms.payload_com)}  # mm, flange frame", ""]
 
 
+def _geometry_lines(robot: Robot, i: int) -> list[str]:
+    """A joint's geometry keys: a, alpha, d, theta (beta) for the DH family; xyz, rpy, axis
+    (offset) for urdf, with an identified origin rotation folded into rpy."""
+    g = robot.geometry[i]
+    kind = ['type = "prismatic"'] if robot.prismatic[i] else []
+    if robot.convention == "urdf":
+        rpy = matrix_to_rpy(urdf.origin_rotation(g[None])[0])
+        lines = [f"xyz = {_list(g[urdf.X:urdf.Z + 1])}  # mm", f"rpy = [{', '.join(_deg(v) for v in rpy)}]  # deg",
+                 f"axis = {_list(g[urdf.AX:urdf.AZ + 1])}"] + kind
+        if g[urdf.OFFSET]:
+            lines.append(f"offset = {_num(g[urdf.OFFSET]) if robot.prismatic[i] else _deg(g[urdf.OFFSET])}")
+        return lines
+    a, al, th, d, be = g[:5]
+    lines = [f"a = {_num(a)}", f"alpha = {_deg(al)}", f"d = {_num(d)}", f"theta = {_deg(th)}"]
+    if robot.convention == "hayati":
+        lines.append(f"beta = {_deg(be)}")
+    return lines + kind
+
+
 def residual_path(path: str | Path) -> Path:
     """Where a robot file's residual model is written: beside it, ``NAME.residual.json``."""
     path = Path(path)
@@ -323,13 +403,13 @@ def robot_to_toml(robot: Robot, comment: str | None = None, residual_file: str |
                      if residual_file else "# this robot's residual model was not saved with it")
     lines.append("")
     for i in range(robot.n_joints):
-        a, al, th, d, be = robot.geometry[i]
-        lines += ["[[joint]]", f"a = {_num(a)}", f"alpha = {_deg(al)}", f"d = {_num(d)}", f"theta = {_deg(th)}"]
-        if robot.convention == "hayati":
-            lines.append(f"beta = {_deg(be)}")
+        lines += ["[[joint]]"] + ([f"name = {_quote(robot.joint_names[i])}"] if robot.joint_names else [])
+        lines += _geometry_lines(robot, i)
         lo, hi = robot.limits[i]
         if np.isfinite(lo) and np.isfinite(hi):
-            lines.append(f"limits = [{_deg(lo)}, {_deg(hi)}]")
+            slide = robot.prismatic[i]
+            lines.append(f"limits = [{_num(lo) if slide else _deg(lo)}, {_num(hi) if slide else _deg(hi)}]"
+                         + ("  # mm" if slide else ""))
         lines += _term_lines(robot.terms, i)
         lines.append("")
     lines += _gravity_lines(robot.terms)

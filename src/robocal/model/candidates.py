@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 
-from .kinematics import joint_kinds
+from .kinematics import joint_parameter_names
 from .parameters import FRAME_AXES, tool_prefix
 from .robot import Robot
 
@@ -16,7 +16,10 @@ FRAME_CHOICES = ("auto",) + FRAME_MODES
 
 
 def parallel_pairs(robot: Robot) -> list[int]:
-    """0-based joints whose axis is nominally parallel to the next one (α ≡ 0 mod π, dh/hayati)."""
+    """0-based joints whose axis is nominally parallel to the next one (α ≡ 0 mod π, dh/hayati;
+    none for urdf, whose origins carry all six errors already)."""
+    if robot.convention == "urdf":
+        return []
     if robot.convention == "craig":
         # row i+1 holds α_i, the twist between axes i and i+1
         return [i for i in range(robot.n_joints - 1) if abs(math.remainder(robot.alpha[i + 1], math.pi)) < 1e-9]
@@ -34,9 +37,10 @@ def complete(robot: Robot) -> Robot:
 
 def joint_candidates(robot: Robot) -> list[str]:
     """Default candidate joint parameters: a, α, θ, d of every joint, plus β of hayati joints
-    whose axis is parallel to the next one (where β replaces the ill-defined d)."""
-    kinds = [k for k in joint_kinds(robot.convention) if k != "beta"]
-    names = [f"{k}{i + 1}" for i in range(robot.n_joints) for k in kinds]
+    whose axis is parallel to the next one (where β replaces the ill-defined d); for urdf the
+    six errors of every joint origin and the joint's zero (identifiability drops what merges)."""
+    names = [n for joint in joint_parameter_names(robot.convention, robot.geometry) for n in joint
+             if not n.startswith("beta")]
     if robot.convention == "hayati":
         names += [f"beta{i + 1}" for i in parallel_pairs(robot)]
     return names

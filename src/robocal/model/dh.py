@@ -8,10 +8,11 @@ joint offset ``theta_i``:
 - ``craig``  ``A_i = Rx(α_{i-1}) · Tx(a_{i-1}) · Rz(q_i+θ_i) · Tz(d_i)``; row i holds
   ``(a_{i-1}, α_{i-1}, θ_i, d_i)``.
 
-The geometry of a chain is one array ``geom`` of shape (..., n, 5) whose last axis holds
-:data:`KINDS` = (a, alpha, theta, d, beta).  Leading axes are free: a swarm passes
-(particles, n, 5) with joint values (poses, n) and gets (particles, poses, …) in one
-call; the only Python loop is over the joints.
+The geometry of a chain is one array ``geom`` of shape (..., n, 6) whose last axis holds
+:data:`KINDS` = (a, alpha, theta, d, beta) and 1.0 for a prismatic joint, whose joint
+value (mm) adds to d instead of θ (linear tracks, gantry axes).  Leading axes are free: a
+swarm passes (particles, n, 6) with joint values (poses, n) and gets (particles, poses, …)
+in one call; the only Python loop is over the joints.
 """
 
 from __future__ import annotations
@@ -20,7 +21,17 @@ import numpy as np
 
 KINDS: tuple[str, ...] = ("a", "alpha", "theta", "d", "beta")
 CONVENTIONS: tuple[str, ...] = ("dh", "hayati", "craig")
-A, ALPHA, THETA, D, BETA = range(5)
+A, ALPHA, THETA, D, BETA, PRISMATIC = range(6)
+WIDTH = 6
+
+
+def _joint_values(g: np.ndarray, q: np.ndarray):
+    """(q + θ, d) for a revolute joint, (θ, d + q) for a prismatic one; a geometry of five
+    columns has turning joints only."""
+    if g.shape[-1] <= PRISMATIC:
+        return q + g[..., THETA], g[..., D] + 0 * q
+    slide = g[..., PRISMATIC]
+    return q * (1 - slide) + g[..., THETA], g[..., D] + q * slide
 
 
 def joint_kinds(convention: str) -> tuple[str, ...]:
@@ -35,8 +46,8 @@ def _joint_rotation_translation(convention: str, g: np.ndarray, q: np.ndarray):
     so that it broadcasts against q (..., m).  Entries are written into preallocated
     arrays, which broadcast by themselves (cheap for small batches).
     """
-    a, al, th, d, be = (g[..., k] for k in range(5))
-    t = q + th
+    a, al, be = g[..., A], g[..., ALPHA], g[..., BETA]
+    t, d = _joint_values(g, q)
     ct, st = np.cos(t), np.sin(t)
     ca, sa = np.cos(al), np.sin(al)
     shape = np.broadcast_shapes(ct.shape, ca.shape, a.shape)
@@ -99,9 +110,9 @@ def apply_chain(convention: str, geom: np.ndarray, q: np.ndarray, V: np.ndarray)
     e[-1] = 1.0  # translations act on the last column only
     for i in range(n - 1, -1, -1):
         g = geom[..., i, :]
-        a, d = g[..., A, None], g[..., D, None]  # (..., 1): broadcast over poses
+        a = g[..., A, None]  # (..., 1): broadcast over poses
         ca, sa = np.cos(g[..., ALPHA])[..., None, None], np.sin(g[..., ALPHA])[..., None, None]
-        t = q[..., i] + g[..., THETA, None]
+        t, d = _joint_values(g[..., None, :], q[..., i])
         ct, st = np.cos(t)[..., None], np.sin(t)[..., None]
         if convention == "craig":
             # Rx(α) · Tx(a) · Rz(t) · Tz(d)
@@ -129,7 +140,8 @@ def twist_jacobian(convention: str, geom: np.ndarray, q: np.ndarray, base=None, 
     parameter) and the angular velocity (rad per unit) in the measuring frame, so that
     a small change ε of parameter k moves the point by ``J[:3] ε`` and rotates the end
     frame by ``Exp(J[3:] ε)`` applied on the left.  Columns for ``beta`` are zero unless
-    the convention is hayati.  The ``theta`` column is also the column of the joint value.
+    the convention is hayati.  The ``theta`` column (``d`` for a prismatic joint) is also the
+    column of the joint value.
     """
     Rs, origins = chain_frames(convention, geom, q, base)
     R_f, o_f = Rs[-1], origins[-1]
@@ -166,7 +178,7 @@ def twist_jacobian(convention: str, geom: np.ndarray, q: np.ndarray, base=None, 
             z0 = R0[..., :, 2]
             rotation_column(i, THETA, z0, o0)
             translation_column(i, D, z0)
-            t = q[..., i] + geom[..., None, i, THETA]
+            t, _ = _joint_values(geom[..., None, i, :], q[..., i])
             # x axis after Rz(q+θ): the direction of Tx(a) and the axis of Rx(α)
             xp = R0[..., :, 0] * np.cos(t)[..., None] + R0[..., :, 1] * np.sin(t)[..., None]
             translation_column(i, A, xp)

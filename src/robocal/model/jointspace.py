@@ -4,8 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .dh import THETA
-from .kinematics import chain_twist_jacobian
+from .kinematics import chain_twist_jacobian, joint_value_columns
 from .robot import Robot
 
 
@@ -15,7 +14,8 @@ def joint_jacobian(robot: Robot, q: np.ndarray, full: bool, rot_weight: float) -
     rot_weight (mm per rad) makes the rotation rows comparable to the position rows.
     """
     Jt, _, _, _ = chain_twist_jacobian(robot.convention, robot.geometry, q, robot.base, robot.tool[None])
-    J = np.moveaxis(Jt[:, THETA], 0, -1)  # the θ column is the joint value's column
+    cols = joint_value_columns(robot.convention, robot.geometry)
+    J = np.moveaxis(Jt[np.arange(robot.n_joints), cols], 0, -1)  # the joint value's own column
     return np.concatenate([J[:, :3], rot_weight * J[:, 3:]], axis=1) if full else J[:, :3]
 
 

@@ -87,7 +87,7 @@ def _chain(conv, g, q, base, tool, V, ncol):
 
 @njit(cache=True, inline="always")
 def _constants_one(geom, g):
-    """In-kernel :func:`chain_constants` of one particle: geom (n, 5) → g (n, 8)."""
+    """In-kernel :func:`chain_constants` of one particle: geom (n, ≥ 5) → g (n, 8)."""
     for i in range(geom.shape[0]):
         g[i, 0] = geom[i, 0]
         g[i, 1] = math.cos(geom[i, 1])
@@ -160,7 +160,7 @@ def objective_joints(conv, geom0, cols, X, base, tools, q, tidx, pm, Rm, use_rot
     for p in prange(P):
         V = np.empty((3, 4))
         geom = geom0.copy()
-        flat = geom.reshape(n * 5)
+        flat = geom.reshape(n * geom.shape[1])
         for c in range(cols.shape[0]):
             flat[cols[c]] += X[p, c]
         g = np.empty((n, 8))

@@ -26,8 +26,14 @@ import numpy as np
 
 from ..math.se3 import homogeneous
 from ..math.so3 import exp_so3, left_jacobian
-from .dh import THETA
-from .kinematics import chain_points, chain_pose, chain_twist_jacobian, joint_kinds
+from .kinematics import (
+    chain_points,
+    chain_pose,
+    chain_twist_jacobian,
+    joint_kinds,
+    joint_parameter_names,
+    joint_value_columns,
+)
 from .robot import Robot
 from .terms import JointTerms, TermSpec, basis, joint_offsets
 
@@ -104,8 +110,7 @@ class ParameterSpace:
         own targets), and the joint terms of ``terms``."""
         targets = tuple(robot.target_names if targets is None else dict.fromkeys(targets))
         terms = terms or TermSpec()
-        kinds = joint_kinds(robot.convention)
-        names = [f"{k}{i + 1}" for i in range(robot.n_joints) for k in kinds]
+        names = [n for joint in joint_parameter_names(robot.convention, robot.geometry) for n in joint]
         names += [f"base_{ax}" for ax in FRAME_AXES]
         for t in targets:
             names += [f"{tool_prefix(t)}_{ax}" for ax in FRAME_AXES]
@@ -189,7 +194,7 @@ class ParameterSpace:
         return np.stack([self.robot.tool_frames([t])[0] for t in self.targets])
 
     def expand(self, deviation: np.ndarray):
-        """(…, k) → geometry (…, n, 5), base (…, 4, 4), tools (…, T, 4, 4)."""
+        """(…, k) → geometry (…, n, width), base (…, 4, 4), tools (…, T, 4, 4)."""
         deviation = np.asarray(deviation, dtype=float)
         joints, db, dt = self._split(deviation)
         r = self.robot
@@ -269,7 +274,9 @@ class ParameterSpace:
         nj = self.n_joint_params
         J[:nj] = Jj[:, :kinds].reshape(nj, m, 6)
         if self.n_term_params:
-            J[self.size - self.n_term_params:] = np.einsum("imk,mit->tmk", Jj[:, THETA], joints.basis)
+            cols = joint_value_columns(self.robot.convention, self.robot.geometry)
+            Jq = Jj[np.arange(self.robot.n_joints), cols]
+            J[self.size - self.n_term_params:] = np.einsum("imk,mit->tmk", Jq, joints.basis)
         if frames:
             _, db, dt = self._split(deviation)
             self._base_columns(J[nj : nj + 6], db, p_e - base[:3, 3])

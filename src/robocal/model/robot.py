@@ -9,7 +9,8 @@ import numpy as np
 
 from ..math.se3 import homogeneous
 from .dh import ALPHA, BETA, THETA, A, D
-from .kinematics import chain_pose, check_convention
+from .kinematics import chain_pose, check_convention, geometry_width, prismatic_mask
+from .kinematics import reach as chain_reach
 from .residual import ResidualModel
 from .terms import JointTerms, joint_offsets
 
@@ -18,12 +19,15 @@ from .terms import JointTerms, joint_offsets
 class Robot:
     """A serial arm.
 
-    geometry: (n, 5) array of (a mm, alpha rad, theta rad, d mm, beta rad) per joint.
-    limits: (n, 2) rad, ±inf where a joint has none.  base: measuring frame → robot base
+    geometry: per joint, (a mm, alpha rad, theta rad, d mm, beta rad, prismatic) for the DH
+    family ((n, 5) is taken as all revolute), or the 14 columns of :mod:`robocal.model.urdf`.
+    limits: (n, 2) rad (mm for a prismatic joint), ±inf where a joint has none.  base: measuring frame → robot base
     (4×4, mm).  tool: flange → measured point (4×4).  targets: further named tool frames,
     one per reflector on the flange (the unnamed target "" is ``tool``).  terms: joint terms
     beyond geometry (:mod:`robocal.model.terms`); residual: a learned correction of the pose
-    in the measuring frame (:mod:`robocal.model.residual`).
+    in the measuring frame (:mod:`robocal.model.residual`).  joint_names: as a URDF or robot
+    file names them; urdf: what a robot read from a URDF keeps of it for a faithful export
+    (:class:`robocal.io.urdf.UrdfChain`).
     """
 
     convention: str
@@ -36,24 +40,34 @@ class Robot:
     source: str = ""  # where it was loaded from (file path or "built-in NAME"), for messages
     terms: JointTerms | None = None
     residual: ResidualModel | None = None
+    joint_names: tuple[str, ...] | None = None
+    urdf: object | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
         check_convention(self.convention)
         g = np.array(self.geometry, dtype=float)
-        if g.ndim != 2 or g.shape[1] != 5:
-            raise ValueError("geometry must have shape (n, 5)")
+        width = geometry_width(self.convention)
+        if g.ndim == 2 and self.convention != "urdf" and g.shape[1] == 5:  # all joints turn
+            g = np.column_stack([g, np.zeros(len(g))])
+        if g.ndim != 2 or g.shape[1] != width:
+            raise ValueError(f"geometry of a {self.convention} robot must have shape (n, {width})")
         object.__setattr__(self, "geometry", g)
         lim = np.tile([-np.inf, np.inf], (g.shape[0], 1)) if self.limits is None else np.array(self.limits, float)
         object.__setattr__(self, "limits", lim)
         object.__setattr__(self, "base", np.array(self.base, dtype=float))
         object.__setattr__(self, "tool", np.array(self.tool, dtype=float))
         object.__setattr__(self, "targets", {k: np.array(v, float) for k, v in self.targets.items()})
+        if self.joint_names is not None:
+            object.__setattr__(self, "joint_names", tuple(self.joint_names))
+            if len(self.joint_names) != g.shape[0]:
+                raise ValueError(f"{len(self.joint_names)} joint names for {g.shape[0]} joints")
 
     @classmethod
-    def from_dh(cls, convention: str, a, alpha, theta, d, beta=None, **kw) -> Robot:
-        """Build from per-joint sequences (mm, rad)."""
+    def from_dh(cls, convention: str, a, alpha, theta, d, beta=None, prismatic=None, **kw) -> Robot:
+        """Build from per-joint sequences (mm, rad); prismatic: per joint, True where it slides."""
         beta = np.zeros(len(a)) if beta is None else beta
-        return cls(convention, np.column_stack([a, alpha, theta, d, beta]), **kw)
+        slide = np.zeros(len(a)) if prismatic is None else np.asarray(prismatic, float)
+        return cls(convention, np.column_stack([a, alpha, theta, d, beta, slide]), **kw)
 
     @property
     def n_joints(self) -> int:
@@ -64,6 +78,16 @@ class Robot:
     theta = property(lambda self: self.geometry[:, THETA])
     d = property(lambda self: self.geometry[:, D])
     beta = property(lambda self: self.geometry[:, BETA])
+
+    @property
+    def prismatic(self) -> np.ndarray:
+        """(n,) True where a joint slides: its values are in mm, not rad."""
+        return prismatic_mask(self.convention, self.geometry)
+
+    @property
+    def dh_family(self) -> bool:
+        """Whether a, α, θ, d, β describe the joints (not urdf origins)."""
+        return self.convention != "urdf"
 
     @property
     def target_names(self) -> tuple[str, ...]:
@@ -108,5 +132,5 @@ class Robot:
         return replace(self, **changes)
 
     def reach(self) -> float:
-        """A length scale of the arm (mm): sum of |a| and |d|, at least 1."""
-        return float(max(1.0, np.abs(self.a).sum() + np.abs(self.d).sum()))
+        """A length scale of the arm (mm): sum of |a| and |d| (urdf: of the origins), at least 1."""
+        return chain_reach(self.convention, self.geometry)

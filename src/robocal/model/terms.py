@@ -28,7 +28,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from .kinematics import chain_frames
+from .kinematics import chain_frames, joint_axes, prismatic_mask
 
 #: standard gravity, m/s²
 G = 9.80665
@@ -38,15 +38,9 @@ COMPLIANCE_FORMS = ("torque", "gravity")
 def joint_axes_and_links(convention: str, geom: np.ndarray, q: np.ndarray):
     """Joint axes (m, n, 3), points on them (m, n, 3) mm, and link orientations (m, n, 3, 3),
     all in the robot's base frame at joints q (m, n) rad.  Link j is the frame after joint j."""
-    Rs, origins = chain_frames(convention, geom, q)
-    n = geom.shape[-2]
-    if convention == "craig":  # Rx(α) Tx(a) Rz(q): the joint turns about z of its own frame
-        axes = [Rs[i + 1][..., :, 2] for i in range(n)]
-        points = [origins[i + 1] for i in range(n)]
-    else:  # Rz(q) first: the joint turns about z of the frame before it
-        axes = [np.broadcast_to(Rs[i], Rs[-1].shape)[..., :, 2] for i in range(n)]
-        points = [np.broadcast_to(origins[i], origins[-1].shape) for i in range(n)]
-    return np.stack(axes, -2), np.stack(points, -2), np.stack(Rs[1:], -3)
+    axes, points = joint_axes(convention, geom, q)
+    Rs, _ = chain_frames(convention, geom, q)
+    return axes, points, np.stack(Rs[1:], -3)
 
 
 def gravity_basis(convention: str, geom: np.ndarray, q: np.ndarray, direction: np.ndarray) -> np.ndarray:
@@ -57,6 +51,7 @@ def gravity_basis(convention: str, geom: np.ndarray, q: np.ndarray, direction: n
     phi = np.einsum("mjab,mia->mijb", links, lever)  # R_jᵀ (g × a_i)
     n = geom.shape[-2]
     phi *= np.tril(np.ones((n, n))).T[None, :, :, None]  # only links at or beyond the joint
+    phi[:, prismatic_mask(convention, geom)] = 0.0  # the terms model turning joints
     return phi
 
 
@@ -68,7 +63,9 @@ def payload_torque(convention: str, geom: np.ndarray, q: np.ndarray, direction: 
     p = origins[-1] + np.einsum("mab,b->ma", Rs[-1], np.asarray(com, float))  # mm
     force = (G * np.asarray(direction, float) / np.linalg.norm(direction))[None, :] * np.asarray(mass)[:, None]
     arm = (p[:, None, :] - points) / 1000.0  # m
-    return np.einsum("mia,mia->mi", axes, np.cross(arm, force[:, None, :]))
+    tau = np.einsum("mia,mia->mi", axes, np.cross(arm, force[:, None, :]))
+    tau[:, prismatic_mask(convention, geom)] = 0.0
+    return tau
 
 
 def mass_torques(convention: str, geom: np.ndarray, q: np.ndarray, direction: np.ndarray, masses: np.ndarray,
@@ -86,17 +83,22 @@ def mass_torques(convention: str, geom: np.ndarray, q: np.ndarray, direction: np
     moment = np.cross(arm, force[None, None])  # (m, i, j, 3)
     n = geom.shape[-2]
     outboard = np.triu(np.ones((n, n)))[None, :, :, None]  # j ≥ i
-    return np.einsum("mia,mia->mi", axes, np.sum(moment * outboard, axis=2))
+    tau = np.einsum("mia,mia->mi", axes, np.sum(moment * outboard, axis=2))
+    tau[:, prismatic_mask(convention, geom)] = 0.0
+    return tau
 
 
 def nominal_masses(convention: str, geom: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """A plausible mass model of an arm, for simulation: link j weighs 2 kg plus 15 kg per metre of
     its a and d, with its centre half-way along them (mm, in link j's frame).  Not an identified
     model: simulated torques need some load that varies with the pose as a real arm's does."""
+    if convention == "urdf":  # link j reaches to the next joint's origin, given in link j's frame
+        nxt = np.vstack([geom[1:, 0:3], np.zeros((1, 3))])
+        return 2.0 + 15.0 * np.linalg.norm(nxt, axis=1) / 1000.0, nxt / 2
     a, d = np.abs(geom[:, 0]), np.abs(geom[:, 3])
     masses = 2.0 + 15.0 * (a + d) / 1000.0
     if convention == "craig":  # link j's frame sits at its joint; the link reaches towards the next
-        nxt = np.vstack([geom[1:], np.zeros((1, 5))])
+        nxt = np.vstack([geom[1:], np.zeros((1, geom.shape[1]))])
         centres = np.einsum("jab,jb->ja", _rx_inv(-nxt[:, 1]),
                             np.column_stack([nxt[:, 0], np.zeros(len(geom)), nxt[:, 3]])) / 2
     else:  # link j's frame sits at its far end: the link lies behind it, along −x and −z of joint j's motion
@@ -222,6 +224,7 @@ def basis(spec: TermSpec, convention: str, geom: np.ndarray, q: np.ndarray, torq
     if spec.harmonics:
         h = np.arange(1, spec.harmonics + 1)
         trig = np.stack([np.cos(q[..., None] * h), np.sin(q[..., None] * h)], -1)  # (m, n, H, 2)
+        trig[:, prismatic_mask(convention, geom)] = 0.0  # periodic in an angle: turning joints only
         b = np.zeros((m, n, n, spec.harmonics, 2))
         b[:, np.arange(n), np.arange(n)] = trig
         cols.append(b.reshape(m, n, -1))
@@ -232,7 +235,7 @@ def _torque_input(spec, convention, geom, q, torques, payload, terms) -> np.ndar
     if spec.compliance == "torque":
         if torques is None:
             return np.zeros(q.shape)
-        return np.asarray(torques, float)
+        return np.where(prismatic_mask(convention, geom), 0.0, np.asarray(torques, float))
     mass = np.zeros(len(q)) if payload is None else np.asarray(payload, float)
     return payload_torque(convention, geom, q, terms.gravity_direction, mass, terms.payload_com)
 
