@@ -57,7 +57,7 @@ def evaluate(robot: str | Path | Robot, data: str | Path | Measurements, *, colu
     r = load_robot(robot)
     meas = data if isinstance(data, Measurements) else load_measurements(
         data, n_joints=r.n_joints, columns=columns, joint_unit=joint_unit, length_unit=length_unit,
-        robot_label=r.source)
+        robot_label=r.source, prismatic=tuple(map(bool, r.prismatic)) if r.prismatic.any() else None)
     if length_unit is None:
         check_units(r, meas, "none")
     if payload is not None and meas.payload is None:

@@ -94,3 +94,20 @@ def test_auto_model_beats_geometry_on_the_held_out_half_and_travels_with_the_exp
     code, out, err = run_cli("evaluate", written[0], tmp_path / "val.csv", "--json")
     assert code == 0, err
     assert json.loads(out)["position"]["rms"] == pytest.approx(auto, rel=1e-9)
+
+
+@pytest.mark.slow
+def test_calibrating_through_a_urdf_equals_the_dh_model(split, tmp_path, run_cli):
+    """The UR10 as a URDF (robocal's export of its DH table): the same accuracy on real data."""
+    cal, val = split
+    code, out, err = run_cli("robots", "--urdf", "ur10")
+    assert code == 0
+    (tmp_path / "ur10.urdf").write_text(out)
+    dh, _ = _run(cal, val, frames="base+tool")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        via = calibrate(tmp_path / "ur10.urdf", cal, "lm", validate=val, frames="base+tool")
+    assert via.robot.convention == "urdf"
+    assert via.metrics["validation_after"].position["rms"] == pytest.approx(
+        dh.metrics["validation_after"].position["rms"], abs=1e-4)
+    assert any(n.startswith("rz") for n in via.identifiability.dropped)  # merged with the joint zeros

@@ -129,8 +129,10 @@ class CalibrationConfig:
 
     def read_options(self, robot, columns=None) -> dict:
         """How to read data files for ``robot``: the keywords of the measurement loaders."""
+        slide = tuple(bool(p) for p in robot.prismatic)
         return asdict(ReadOptions(n_joints=robot.n_joints, columns=columns, joint_unit=self.joint_unit,
-                                  length_unit=self.length_unit, robot_label=robot.source))
+                                  length_unit=self.length_unit, robot_label=robot.source,
+                                  prismatic=slide if any(slide) else None))
 
     @classmethod
     def build(cls, config: CalibrationConfig | None = None, **options) -> CalibrationConfig:

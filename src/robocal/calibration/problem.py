@@ -209,8 +209,10 @@ class Problem:
         if self._Rm is not None:
             dr = orientation_error(self._Rm, R)
             w = np.ascontiguousarray(Jc[:, :, 3:])
-            if self._backend == "numba":
-                Jr = self._kernel_inputs["kernels"].apply_right_jacobian_inv(dr, w)
+            if self._backend == "numba":  # this kernel is convention-free
+                from ..model import kernels
+
+                Jr = kernels.apply_right_jacobian_inv(dr, w)
             else:
                 Jr = apply_right_jacobian_inv(dr, w)
             out[:, 3 * m :] = -self._wr * Jr.reshape(k, 3 * m)

@@ -185,7 +185,9 @@ class CalibrationResult:
 
     def export(self, path: str | Path) -> list[Path]:
         """Write the calibrated robot as a robot file (loadable again), with its residual model in
-        a sibling file when it has one; the paths written."""
+        a sibling file when it has one; the paths written.  A ``.urdf`` path writes a URDF (see
+        :mod:`robocal.io.urdf`); joint terms and a residual model cannot live in one, so the
+        whole model goes to a robot TOML beside it, ``NAME.robocal.toml``, as well."""
         from ..io.robotfile import save_robot
 
         comment = (f"Calibrated by robocal ({self.method}, objective {self.objective}, seed {self.seed}) from "
@@ -196,7 +198,17 @@ class CalibrationResult:
         comment += "".join(f"\nWARNING: {w}" for w in doubts)
         if self.model != "geometric":
             comment += f"\nModel {self.model}: every robocal command uses its joint terms and residual model."
-        return save_robot(self.robot, path, comment)
+        path = Path(path)
+        if path.suffix.lower() != ".urdf":
+            return save_robot(self.robot, path, comment)
+        from ..io.urdf import urdf_text
+
+        written = []
+        if not self.robot.geometric:  # the sidecar first: the URDF alone would be an incomplete model
+            written = save_robot(self.robot, path.with_name(f"{path.stem}.robocal.toml"), comment)
+        atomic_write(path, urdf_text(self.robot, comment + "\nLengths in m, angles in rad; measuring_frame carries "
+                                                           "the identified base frame, target the tool."))
+        return [path, *written]
 
 
 def _finite_or_none(v: float):

@@ -131,7 +131,10 @@ def calibrate_cmd(
     print_warnings(result.warnings)
     if not quiet:
         _print_summary(result, nominal.name, data)
-    if len(written) > 1:
+    if written and written[0].suffix.lower() == ".urdf" and len(written) > 1:
+        console().print(f"wrote {written[0]}; the model's joint terms and residual correction cannot live in a URDF: "
+                        f"the whole model is in {written[1]} (every robocal command reads it)")
+    elif len(written) > 1:
         console().print(f"wrote {written[0]} and, beside it, its residual model {written[1]} (keep them together)")
 
 

@@ -42,7 +42,8 @@ def compensate_cmd(
     # runs from its measuring_frame to its target, robocal's defaults
     nom, cal = load_robot(nominal, base_link=base_link, tip_link=tip_link), load_robot(calibrated)
     tru = None if truth is None else load_robot(truth, base_link=base_link, tip_link=tip_link)
-    g = load_goals(goals, n_joints=nom.n_joints, columns=opt.column_map(column))
+    g = load_goals(goals, n_joints=nom.n_joints, columns=opt.column_map(column),
+                   prismatic=tuple(map(bool, nom.prismatic)) if nom.prismatic.any() else None)
     result = compensate(nom, cal, g, truth=tru, position_only=position_only or None, payload=payload)
     result.save(out)
     summary = result.summary()

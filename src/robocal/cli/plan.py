@@ -51,10 +51,9 @@ def plan_cmd(
     import json
     import math
 
-    import numpy as np
-
     from .. import options as opt
     from ..io.atomic import atomic_write
+    from ..io.measurements import joints_to_file
     from ..io.robotfile import load_robot
     from ..plan import plan_poses
     from .common import console
@@ -66,7 +65,8 @@ def plan_cmd(
     p = plan_poses(r, poses, candidates=candidates, criterion=criterion, measure=measure, frames=frames,
                    joint_range=jr, noise=noise, angle_noise=math.radians(angle_noise), seed=seed)
     lines = ["pose_id," + ",".join(f"q{i + 1}" for i in range(r.n_joints))]
-    lines += [f"P{j + 1:03d}," + ",".join(f"{v:.6f}" for v in np.degrees(q)) for j, q in enumerate(p.q)]
+    lines += [f"P{j + 1:03d}," + ",".join(f"{v:.6f}" for v in joints_to_file(q, r.prismatic))
+              for j, q in enumerate(p.q)]
     atomic_write(out, "\n".join(lines) + "\n")
     if report is not None:
         atomic_write(report, json.dumps(p.to_dict(), indent=1) + "\n")

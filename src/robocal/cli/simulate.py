@@ -51,7 +51,7 @@ def simulate_cmd(
                    measure=measure, seed=seed, joint_range=rng, base=opt.frame_values(base, "base"),
                    tool=opt.frame_values(tool, "tool"), compliance=opt.joint_values(compliance, "compliance"),
                    harmonics=opt.harmonic_specs(harmonic))
-    texts = {out: measurements_to_csv(sim.measurements)}
+    texts = {out: measurements_to_csv(sim.measurements, prismatic=r.prismatic)}
     if truth is not None:
         planted = ", ".join(f"{k}={v:+.6g}" for k, v in sim.deviations.items() if v) or "none"
         if sim.truth.terms is not None:

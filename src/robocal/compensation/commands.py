@@ -28,6 +28,7 @@ from .. import options as opt
 from ..exceptions import InputError
 from ..io.atomic import atomic_write
 from ..io.goals import Goals
+from ..io.measurements import joints_to_file
 from ..math.se3 import homogeneous, invert
 from ..math.so3 import matrix_to_rpy, orientation_error
 from ..model.metrics import Metrics
@@ -59,6 +60,7 @@ class CompensationResult:
     true_rot_before: np.ndarray | None = None
     true_rot_after: np.ndarray | None = None
     warnings: list[str] = field(default_factory=list)
+    prismatic: np.ndarray | None = None
 
     def counts(self) -> dict[str, int]:
         return {s: self.status.count(s) for s in STATUSES if s in self.status}
@@ -101,9 +103,9 @@ class CompensationResult:
         out = io.StringIO()
         w = csv.writer(out, lineterminator="\n")
         w.writerow(header)
-        qd = np.degrees(self.q)
+        qd = joints_to_file(self.q, self.prismatic)
         rpy = np.degrees(matrix_to_rpy(self.cartesian[:, :3, :3]))
-        dq = np.degrees(np.abs(self.q - self.q_nominal).max(axis=1))
+        dq = np.abs(joints_to_file(self.q - self.q_nominal, self.prismatic)).max(axis=1)
         for j in range(len(qd)):
             row = [self.goals.ids[j]] + [repr(float(v)) for v in qd[j]]
             row += [repr(float(v)) for v in self.cartesian[j, :3, 3]] + [repr(float(v)) for v in rpy[j]]
@@ -161,6 +163,7 @@ def compensate(nominal: Robot, calibrated: Robot, goals: Goals, *, truth: Robot 
     result = CompensationResult(
         goals=goals, q_nominal=q_nom, q=sol.q, cartesian=nominal.fk(sol.q), residual_mm=sol.position_error,
         residual_deg=np.degrees(sol.rotation_error), status=sol.status, full_pose=full, warnings=notes,
+        prismatic=nominal.prismatic,
     )
     if truth is not None:
         T_true = truth.base @ invert(nominal.base) @ T_des

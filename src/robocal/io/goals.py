@@ -16,7 +16,7 @@ import numpy as np
 
 from ..math.so3 import rpy_to_matrix
 from .atomic import read_text
-from .measurements import ReadOptions, read_pose_table
+from .measurements import ReadOptions, joints_from_file, read_pose_table
 
 
 @dataclass
@@ -38,11 +38,11 @@ class Goals:
 
 def parse_goals(text: str, *, source: str = "<goals>", **options) -> Goals:
     """Goals from CSV text; options are those of :class:`~robocal.io.measurements.ReadOptions`."""
-    t = read_pose_table(text, source=source, options=ReadOptions(**options), require_joints=False,
-                        require_position=False)
+    read = ReadOptions(**options)
+    t = read_pose_table(text, source=source, options=read, require_joints=False, require_position=False)
     ids = t.pose_ids if t.pose_ids is not None else [str(r) for r in t.rows]
     return Goals(
-        q=None if t.q is None else np.radians(t.q),
+        q=None if t.q is None else joints_from_file(t.q, read.prismatic),
         position=t.position,
         rotation=None if t.rpy is None else rpy_to_matrix(np.radians(t.rpy)),
         ids=list(ids),

@@ -1,6 +1,6 @@
 """Measurement files (CSV, SPEC §6): joint values and measured poses.
 
-Columns: ``q1 … qn`` (deg), ``x, y, z`` (mm), optionally ``rx, ry, rz`` (deg, rpy with
+Columns: ``q1 … qn`` (deg; mm for a prismatic joint), ``x, y, z`` (mm), optionally ``rx, ry, rz`` (deg, rpy with
 ``R = Rz(rz) Ry(ry) Rx(rx)``) for full-pose data, ``pose_id`` (rows sharing one are
 repeated measurements of one pose and are averaged) and ``target`` (which point on the
 flange).  Positions and orientations are in the measuring device's frame.
@@ -106,7 +106,8 @@ class ReadOptions:
     robot in that message.  columns: file column → robocal column (``{"A1": "q1"}``).
     joint_unit / length_unit: ``deg``/``rad`` and ``mm``/``m`` as the file has them; None
     means robocal's degrees and millimetres, with a check that rejects joints that all look
-    like radians.
+    like radians.  prismatic: per joint, True where it slides: its column holds a length (mm,
+    or the length unit), not an angle.
     """
 
     n_joints: int | None = None
@@ -114,6 +115,7 @@ class ReadOptions:
     joint_unit: str | None = None
     length_unit: str | None = None
     robot_label: str = ""
+    prismatic: tuple[bool, ...] | None = None
 
     def __post_init__(self) -> None:
         if self.joint_unit is not None:
@@ -126,7 +128,8 @@ def read_pose_table(text: str, *, source: str, options: ReadOptions = ReadOption
                     require_position: bool = True) -> PoseTable:
     """Read and validate a CSV with columns q1..qn, x, y, z, rx, ry, rz, pose_id, target.
 
-    Joints come back in degrees and lengths in mm, whatever units the options state.
+    Joints come back in degrees (prismatic ones in mm) and lengths in mm, whatever units the
+    options state.
     """
     table = read_csv(text, source=source, columns=options.columns)
     known = set(POSITION) | set(ORIENTATION) | set(OPTIONAL)
@@ -137,12 +140,16 @@ def read_pose_table(text: str, *, source: str, options: ReadOptions = ReadOption
     qcols = _joint_columns(table, options.n_joints, require_joints, options.robot_label)
     has_pos, has_rot = _pose_columns(table, bool(qcols), require_position)
     q = numbers(table, qcols) if qcols else None
-    if q is not None and options.joint_unit == "rad":
-        q = np.degrees(q)
-    elif q is not None and options.joint_unit is None and len(q) >= 3 and 0 < np.abs(q).max() <= math.pi + 1e-9:
-        raise InputError("all joint values lie within ±π: they look like radians; files give joints in degrees "
-                         "(state the unit with joint unit deg or rad)", source=source)
     scale = 1000.0 if options.length_unit == "m" else 1.0
+    if q is not None:
+        slide = np.zeros(q.shape[1], bool) if options.prismatic is None else np.array(options.prismatic, bool)
+        turn = q[:, ~slide]
+        if options.joint_unit == "rad":
+            q[:, ~slide] = np.degrees(turn)
+        elif options.joint_unit is None and len(q) >= 3 and turn.size and 0 < np.abs(turn).max() <= math.pi + 1e-9:
+            raise InputError("all joint values lie within ±π: they look like radians; files give joints in degrees "
+                             "(state the unit with joint unit deg or rad)", source=source)
+        q[:, slide] *= scale
     taus = _torque_columns(table, len(qcols)) if qcols else None
     payload = numbers(table, ["payload"])[:, 0] if "payload" in table else None
     if payload is not None and np.any(payload < 0):
@@ -163,9 +170,10 @@ def read_pose_table(text: str, *, source: str, options: ReadOptions = ReadOption
 def parse_measurements(text: str, *, source: str = "<data>", average: bool = True,
                        repeat_tolerance: float = REPEAT_TOLERANCE_MM, **options) -> Measurements:
     """Parse CSV text; see :func:`load_measurements`."""
-    t = read_pose_table(text, source=source, options=ReadOptions(**options))
+    read = ReadOptions(**options)
+    t = read_pose_table(text, source=source, options=read)
     meas = Measurements(
-        q=np.radians(t.q),
+        q=joints_from_file(t.q, read.prismatic),
         position=t.position,
         rotation=None if t.rpy is None else rpy_to_matrix(np.radians(t.rpy)),
         targets=None if t.targets is None else tuple(t.targets),
@@ -243,8 +251,22 @@ def load_measurements(path: str | Path, *, average: bool = True, repeat_toleranc
                               repeat_tolerance=repeat_tolerance, **options)
 
 
-def measurements_to_csv(meas: Measurements, *, extra: Mapping[str, Sequence] | None = None) -> str:
-    """CSV text of measurements (deg and mm, shortest round-trip decimals)."""
+def joints_from_file(q: np.ndarray, prismatic=None) -> np.ndarray:
+    """Joint values as files hold them (deg; mm where a joint slides) → robocal's (rad; mm)."""
+    return np.where(np.zeros(q.shape[-1], bool) if prismatic is None else np.array(prismatic, bool), q,
+                    np.radians(q))
+
+
+def joints_to_file(q: np.ndarray, prismatic=None) -> np.ndarray:
+    """robocal's joint values (rad; mm where a joint slides) → as files hold them (deg; mm)."""
+    return np.where(np.zeros(q.shape[-1], bool) if prismatic is None else np.array(prismatic, bool), q,
+                    np.degrees(q))
+
+
+def measurements_to_csv(meas: Measurements, *, extra: Mapping[str, Sequence] | None = None,
+                        prismatic=None) -> str:
+    """CSV text of measurements (deg and mm, shortest round-trip decimals); prismatic: per joint,
+    True where it slides (its values stay in mm)."""
     header = (["pose_id"] if meas.pose_ids is not None else []) + (["target"] if meas.targets is not None else [])
     header += [f"q{i + 1}" for i in range(meas.n_joints)] + list(POSITION)
     if meas.rotation is not None:
@@ -255,7 +277,7 @@ def measurements_to_csv(meas: Measurements, *, extra: Mapping[str, Sequence] | N
         header.append("payload")
     extra = dict(extra or {})
     header += list(extra)
-    qdeg = np.degrees(meas.q)
+    qdeg = joints_to_file(meas.q, prismatic)
     rpy = None if meas.rotation is None else np.degrees(matrix_to_rpy(meas.rotation))
     out = io.StringIO()
     w = csv.writer(out, lineterminator="\n")
@@ -276,5 +298,5 @@ def measurements_to_csv(meas: Measurements, *, extra: Mapping[str, Sequence] | N
     return out.getvalue()
 
 
-def save_measurements(meas: Measurements, path: str | Path) -> None:
-    atomic_write(path, measurements_to_csv(meas))
+def save_measurements(meas: Measurements, path: str | Path, prismatic=None) -> None:
+    atomic_write(path, measurements_to_csv(meas, prismatic=prismatic))

@@ -131,8 +131,9 @@ def joint_axes(geom: np.ndarray, q: np.ndarray, base=None):
     """Each joint's axis (..., m, n, 3) and a point on it (..., m, n, 3) mm, in the base frame."""
     _, _, Rp, op = chain_frames(geom, q, base, pre=True)
     axes = [(Rp[i] @ geom[..., None, i, AX:AZ + 1, None])[..., 0] for i in range(geom.shape[-2])]
-    points = [np.broadcast_to(op[i], axes[i].shape) for i in range(geom.shape[-2])]
-    return np.stack(axes, -2), np.stack(points, -2)
+    shape = np.broadcast_shapes(*(a.shape for a in axes), *(o.shape for o in op))
+    return (np.stack([np.broadcast_to(a, shape) for a in axes], -2),
+            np.stack([np.broadcast_to(o, shape) for o in op], -2))
 
 
 def reach(geom: np.ndarray) -> float:
