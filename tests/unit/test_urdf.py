@@ -212,3 +212,48 @@ def test_a_prismatic_dh_joint_is_a_slide_along_z(rng, tmp_path):
     _, pp = space.pose(e, q[:5])
     _, pm = space.pose(-e, q[:5])
     np.testing.assert_allclose(J[:, :3, space.names.index("d1")], (pp - pm) / (2 * h), atol=1e-6)
+
+
+@pytest.mark.parametrize("which", ["arm", "irb120"])
+def test_evaluate_agrees_with_the_independent_reader_from_the_command_line(which, tmp_path, run_cli, rng):
+    """`robocal evaluate FILE.urdf data.csv --json` on poses the independent reader computed:
+    nothing left but rounding (1e-6 mm, 1e-6°)."""
+    text = ARM if which == "arm" else "\n" + (DATA / "irb120_ros_industrial.urdf").read_text()
+    path = tmp_path / f"{which}.urdf"
+    path.write_text(text)
+    ref = ind.Urdf(text)
+    base, tip = ("world", "tool0") if which == "arm" else ("base_link", "tool0")
+    names = ref.movable(base, tip)
+    slide = [ref.joints[link]["type"] == "prismatic" for link in ref._path(base, tip)
+             if ref.joints[link]["type"] != "fixed"]
+    q = rng.uniform(-1.5, 1.5, (30, len(names)))
+    q[:, slide] = rng.uniform(-0.3, 0.5, (30, sum(slide)))  # m
+    rows = ["," .join([f"q{i + 1}" for i in range(len(names))] + ["x", "y", "z", "rx", "ry", "rz"])]
+    from scipy.spatial.transform import Rotation
+
+    for qi in q:
+        T = ref.transform(base, tip, dict(zip(names, qi)))
+        rz, ry, rx = Rotation.from_matrix(T[:3, :3]).as_euler("ZYX", degrees=True)
+        values = [v * 1000 if s else math.degrees(v) for v, s in zip(qi, slide)]
+        rows.append(",".join(repr(float(v)) for v in [*values, *(1000 * T[:3, 3]), rx, ry, rz]))
+    (tmp_path / "data.csv").write_text("\n".join(rows) + "\n")
+    code, out, err = run_cli("evaluate", path, tmp_path / "data.csv", "--json")
+    assert code == 0, err
+    import json
+
+    metrics = json.loads(out)
+    assert metrics["position"]["max"] < 1e-6
+    assert max(metrics["orientation"][a]["max"] for a in "xyz") < 1e-6
+
+
+def test_a_urdf_robot_round_trips_through_a_robot_file(rng):
+    from robocal.io.robotfile import parse_robot, robot_to_toml
+
+    robot, _ = _load(ARM)
+    space = ParameterSpace.of(robot)
+    calibrated = space.apply(rng.normal(size=space.size) * 0.01)  # identified rotations and zeros too
+    back = parse_robot(robot_to_toml(calibrated))
+    assert back.convention == "urdf" and back.joint_names == robot.joint_names
+    q = rng.uniform(-1, 1, (30, 4)) * [1, 300, 1, 1]
+    np.testing.assert_allclose(back.fk(q), calibrated.fk(q), atol=1e-9)
+    np.testing.assert_allclose(back.limits, robot.limits)
