@@ -49,17 +49,19 @@ def table(title: str, columns, rows, justify: str = "right", text_columns: tuple
 
 
 @contextlib.contextmanager
-def progress_bar(enabled: bool, label: str, total: int | None):
-    """Yields a progress callback (iteration, total, best) drawing a bar on a TTY, or None."""
+def progress_bar(enabled: bool, label: str, total: int | None, best: bool = True):
+    """Yields a progress callback (iteration, total, best) drawing a bar on a TTY, or None;
+    best=False leaves out the best-objective column."""
     if not enabled or not sys.stderr.isatty():
         yield None
         return
     from rich.console import Console
     from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 
-    bar = Progress(TextColumn(f"[bold]{label}"), BarColumn(), TextColumn("{task.completed}/{task.total}"),
-                   TextColumn("best {task.fields[best]:.6g}"), TimeRemainingColumn(), console=Console(stderr=True),
-                   transient=True)
+    columns = [TextColumn(f"[bold]{label}"), BarColumn(), TextColumn("{task.completed}/{task.total}")]
+    if best:
+        columns.append(TextColumn("best {task.fields[best]:.6g}"))
+    bar = Progress(*columns, TimeRemainingColumn(), console=Console(stderr=True), transient=True)
     with bar:
         task = bar.add_task(label, total=total, best=float("nan"))
 

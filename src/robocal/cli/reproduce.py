@@ -13,13 +13,18 @@ def reproduce_cmd(
     quick: bool = typer.Option(False, "--quick", help="shortened settings (a smoke test, not the paper's)"),
     runs: int = typer.Option(10, "--runs", help="runs per swarm method (kou2022)"),
     seed: int = typer.Option(0, "--seed"),
+    workers: int | None = typer.Option(None, "--workers", help="local worker processes for the repeated runs "
+                                       "(default: this process, the fairest timing)"),
+    scheduler: str | None = typer.Option(None, "--scheduler", help="a Dask scheduler's address for the repeated "
+                                         "runs, tcp://HOST:PORT"),
     quiet: bool = typer.Option(False, "--quiet", "-q"),
 ) -> None:
     """Re-run a paper's experiment and write what it published beside what robocal measures."""
     from ..papers.reproduce import reproduce
     from .common import console, say_on_stderr
 
-    reproduce(scenario, out, quick=quick, runs=runs, seed=seed, say=say_on_stderr(quiet))
+    reproduce(scenario, out, quick=quick, runs=runs, seed=seed, say=say_on_stderr(quiet), workers=workers,
+              scheduler=scheduler)
     if not quiet:
         console().print(f"wrote {out}")
 

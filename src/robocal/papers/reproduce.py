@@ -11,14 +11,18 @@ from .common import Say, quiet
 
 
 def reproduce(name: str, out: str | Path, *, quick: bool = False, runs: int = 10, seed: int = 0,
-              say: Say = quiet) -> dict:
+              say: Say = quiet, workers: int | None = None, scheduler: str | None = None) -> dict:
     """Run one scenario (or ``all``) into folder ``out`` (subfolders per scenario for ``all``).
 
     quick: shortened settings, a smoke test only.  runs: repeated runs per swarm (kou2022).
+    workers / scheduler: where Kou's repeated runs go (see :func:`robocal.study.engine.map_runs`;
+    default: this process, interleaved, the fairest timing).
     Each writes ``summary.md``, ``results.json`` and PNG figures.
     """
     names = SCENARIOS if name == "all" else (opt.choice(name, SCENARIOS + ("all",), "scenario", "scenario"),)
     opt.integer(runs, "runs", minimum=1)
+    if workers is not None:
+        opt.integer(workers, "workers", minimum=1)
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise InputError("exists and is not a folder", source=out)
@@ -33,7 +37,8 @@ def reproduce(name: str, out: str | Path, *, quick: bool = False, runs: int = 10
         elif n == "kou2022":
             from .kou2022.reproduce import kou2022
 
-            done[n] = kou2022(folder, quick=quick, runs=runs, seed=seed, say=say)
+            done[n] = kou2022(folder, quick=quick, runs=runs, seed=seed, say=say, workers=workers,
+                              scheduler=scheduler)
         else:
             from .chen2023.reproduce import chen2023_study
 

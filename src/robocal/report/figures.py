@@ -267,3 +267,47 @@ def per_pose_errors(errors: dict[str, np.ndarray], title: str, ylabel: str = "|p
     ax.grid(True, which="major", alpha=0.3)
     ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     return fig
+
+
+def study_boxes(rows: list[dict], study, column: str, ylabel: str):
+    """Box plots of one column of a study's runs: one box per method, grouped by cell (poses,
+    noise); log scale when the values span more than a decade."""
+    import itertools
+    import math
+
+    from matplotlib.figure import Figure
+
+    cells = list(itertools.product(study.poses, study.noise))
+    fig = Figure(figsize=(max(5.0, 1.0 + 0.6 * len(cells) * len(study.methods)), 4.2))
+    ax = fig.subplots()
+    colours = ["tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple"]
+    labels, ticks = [], []
+    all_values = []
+    for c, (p, n) in enumerate(cells):
+        for k, m in enumerate(study.methods):
+            values = [float(r[column]) for r in rows if r["method"] == m and int(r["poses"]) == p
+                      and math.isclose(float(r["noise"]), n, abs_tol=1e-12) and math.isfinite(float(r[column]))]
+            if not values:
+                continue
+            x = c * (len(study.methods) + 1) + k
+            box = ax.boxplot(values, positions=[x], widths=0.7, patch_artist=True, showfliers=True)
+            for patch in box["boxes"]:
+                patch.set_facecolor(colours[k % len(colours)])
+                patch.set_alpha(0.6)
+            all_values += values
+        ticks.append(c * (len(study.methods) + 1) + (len(study.methods) - 1) / 2)
+        labels.append(f"{p} poses\nnoise {n:g} mm")
+    positive = [v for v in all_values if v > 0]
+    if positive and max(positive) / min(positive) > 10:
+        ax.set_yscale("log")
+        _log_axis(ax.yaxis, positive)
+    ax.set_xticks(ticks, labels)
+    ax.set_ylabel(ylabel)
+    ax.grid(True, axis="y", alpha=0.3)
+    from matplotlib.patches import Patch
+
+    ax.legend(handles=[Patch(facecolor=colours[k % len(colours)], alpha=0.6, label=m)
+                       for k, m in enumerate(study.methods)], fontsize=8)
+    ax.set_title(f"{study.name}: {ylabel} over {study.seeds} seeds")
+    fig.tight_layout()
+    return fig

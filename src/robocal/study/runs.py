@@ -1,0 +1,132 @@
+"""One run of a study, and runs.csv.
+
+A run is one seed of one cell: the robot with deviations planted by that seed is measured at
+``poses`` + ``validate`` joint sets (noise drawn with the same seed), calibrated on the first
+``poses`` and validated on the rest.  Everything it draws comes from its seed, so its numbers
+are the same wherever it runs; they are written with 10 significant digits, so that the last
+bits of a machine's arithmetic do not show.
+"""
+
+from __future__ import annotations
+
+import csv
+import functools
+import io
+import math
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from ..exceptions import InputError
+from .spec import RunKey, Study, number_key
+
+COLUMNS = ("method", "poses", "noise", "seed", "status", "before_rms", "after_rms", "validation_rms", "iterations",
+           "evaluations", "time_s")
+#: columns that depend on where and when a run ran
+TIME_COLUMNS = ("time_s",)
+#: statuses of a run that ended by its own criterion
+SUCCESS = ("converged", "completed")
+
+
+@functools.lru_cache(maxsize=8)
+def _robot(spec: str):
+    from ..io.robotfile import load_robot
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return load_robot(spec)
+
+
+def run(study: Study, key: RunKey) -> dict:
+    """Simulate, calibrate and validate one run; a row of runs.csv (a failed run has status
+    ``error: …`` and empty figures, and does not stop the study)."""
+    from ..calibration import calibrate
+    from ..simulation import simulate
+
+    robot = _robot(study.robot)
+    start = time.perf_counter()
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            sim = simulate(robot, key.poses + study.validate, deviations=study.errors, noise=key.noise,
+                           angle_noise=math.radians(study.angle_noise), joint_noise=math.radians(study.joint_noise),
+                           measure=study.measure, seed=key.seed)
+            meas = sim.measurements
+            cal, val = meas.subset(np.arange(key.poses)), meas.subset(np.arange(key.poses, meas.n_poses))
+            res = calibrate(robot, cal, key.method, frames=study.frames, seed=key.seed, validate=val,
+                            **study.calibration)
+    except (ArithmeticError, ValueError, np.linalg.LinAlgError) as exc:  # a run's failure is a result
+        return row(key, f"error: {exc.__class__.__name__}", time_s=time.perf_counter() - start)
+    m = res.metrics
+    return row(key, res.optimisation.status, m["before"].position["rms"], m["after"].position["rms"],
+               m["validation_after"].position["rms"], res.optimisation.nit, res.optimisation.nfev, res.time_s)
+
+
+def row(key: RunKey, status: str, before=math.nan, after=math.nan, validation=math.nan, iterations=0, evaluations=0,
+        time_s=math.nan) -> dict:
+    return {"method": key.method, "poses": str(key.poses), "noise": number_key(key.noise), "seed": str(key.seed),
+            "status": status, "before_rms": number_key(before), "after_rms": number_key(after),
+            "validation_rms": number_key(validation), "iterations": str(iterations), "evaluations": str(evaluations),
+            "time_s": format(time_s, ".4g")}
+
+
+def key_of(r: dict) -> tuple[str, str, str, str]:
+    """The identity of a row: method, poses, noise and seed as written."""
+    return r["method"], r["poses"], r["noise"], r["seed"]
+
+
+def key_text(key: RunKey) -> tuple[str, str, str, str]:
+    return key.method, str(key.poses), number_key(key.noise), str(key.seed)
+
+
+def read_runs(path: Path) -> list[dict]:
+    """The complete rows of an existing runs.csv (a row cut short by a crash is left out)."""
+    if not path.is_file():
+        return []
+    text = path.read_text(encoding="utf-8")
+    rows = list(csv.DictReader(io.StringIO(text)))
+    if rows and list(rows[0].keys()) != list(COLUMNS):
+        raise InputError(f"not a runs.csv of robocal study (columns {', '.join(rows[0].keys())})", source=path)
+    return [r for r in rows if all(r.get(c) not in (None, "") for c in COLUMNS)]
+
+
+def csv_text(rows: list[dict], header: bool = True) -> str:
+    out = io.StringIO()
+    w = csv.DictWriter(out, COLUMNS, lineterminator="\n")
+    if header:
+        w.writeheader()
+    w.writerows(rows)
+    return out.getvalue()
+
+
+class RunsFile:
+    """runs.csv while a study runs: each finished run is appended and flushed, so that an
+    interrupted study resumes where it stopped; :meth:`finish` rewrites it in run order."""
+
+    def __init__(self, path: Path, rows: list[dict]):
+        self.path = path
+        self.rows = list(rows)
+        from ..io.atomic import atomic_write
+
+        atomic_write(path, csv_text(self.rows))  # drops a row a crash cut short
+        self._fh = path.open("a", encoding="utf-8", newline="")
+
+    def add(self, r: dict) -> None:
+        self.rows.append(r)
+        self._fh.write(csv_text([r], header=False))
+        self._fh.flush()
+
+    def finish(self, order: list[RunKey]) -> list[dict]:
+        from ..io.atomic import atomic_write
+
+        self._fh.close()
+        rank = {key_text(k): i for i, k in enumerate(order)}
+        self.rows.sort(key=lambda r: (rank.get(key_of(r), len(rank)), key_of(r)))
+        atomic_write(self.path, csv_text(self.rows))
+        return self.rows
+
+    def close(self) -> None:
+        if not self._fh.closed:
+            self._fh.close()
