@@ -108,3 +108,17 @@ def test_the_command_line_and_an_unreachable_scheduler(tmp_path, run_cli):
     assert code == 0 and "2 runs done" in " ".join(out.split())
     code, out, err = run_cli("study", path, "--out", tmp_path / "p", "--scheduler", "tcp://127.0.0.1:9")
     assert code == 2 and "cannot reach the Dask scheduler" in err
+
+
+@pytest.mark.slow
+def test_kou_repeated_runs_on_workers_give_the_runs_of_this_process(tmp_path):
+    from robocal.papers.kou2022.reproduce import kou2022
+
+    (tmp_path / "here").mkdir()
+    (tmp_path / "there").mkdir()
+    here = kou2022(tmp_path / "here", quick=True, runs=2)
+    there = kou2022(tmp_path / "there", quick=True, runs=2, workers=2)
+    for method in ("pso", "ldpso-bt"):
+        assert there["swarms"][method]["fitness_all"] == here["swarms"][method]["fitness_all"]
+    assert there["executor"] == "2 local worker processes"
+    assert "run on 2 local worker processes" in (tmp_path / "there" / "summary.md").read_text()
