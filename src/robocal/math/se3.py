@@ -49,3 +49,14 @@ def invert(T: np.ndarray) -> np.ndarray:
     R = T[..., :3, :3]
     Rt = np.swapaxes(R, -1, -2)
     return homogeneous(Rt, -(Rt @ T[..., :3, 3:])[..., 0])
+
+
+def end_frame(R_f: np.ndarray, o_f: np.ndarray, tool: np.ndarray | None):
+    """The tool frame (R_e (..., 3, 3), p_e (..., 3)) at a flange (R_f, o_f), or the flange
+    itself without a tool; and the broadcast shape of the chain's poses (..., m)."""
+    if tool is None:
+        p_e, R_e = o_f, R_f
+    else:
+        p_e = o_f + (R_f @ tool[..., :3, 3:])[..., 0]
+        R_e = R_f @ tool[..., :3, :3]
+    return R_e, p_e, np.broadcast_shapes(p_e.shape, R_f.shape[:-1])[:-1]

@@ -19,6 +19,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..math.se3 import end_frame
+
 KINDS: tuple[str, ...] = ("a", "alpha", "theta", "d", "beta")
 CONVENTIONS: tuple[str, ...] = ("dh", "hayati", "craig")
 A, ALPHA, THETA, D, BETA, PRISMATIC = range(6)
@@ -144,14 +146,9 @@ def twist_jacobian(convention: str, geom: np.ndarray, q: np.ndarray, base=None, 
     column of the joint value.
     """
     Rs, origins = chain_frames(convention, geom, q, base)
-    R_f, o_f = Rs[-1], origins[-1]
-    if tool is not None:
-        p_e = o_f + (R_f @ tool[..., :3, 3:])[..., 0]
-        R_e = R_f @ tool[..., :3, :3]
-    else:
-        p_e, R_e = o_f, R_f
+    R_f = Rs[-1]
+    R_e, p_e, shape = end_frame(R_f, origins[-1], tool)
     n = geom.shape[-2]
-    shape = np.broadcast_shapes(p_e.shape, R_f.shape[:-1])[:-1]
     J = np.zeros((n, 5) + shape + (6,))
 
     def rotation_column(i, kind, axis, point):

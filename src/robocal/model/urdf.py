@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..math.se3 import end_frame
 from ..math.so3 import exp_so3, left_jacobian, rpy_to_matrix
 
 COLUMNS: tuple[str, ...] = ("x", "y", "z", "rx", "ry", "rz", "offset", "roll", "pitch", "yaw", "ax", "ay", "az",
@@ -100,14 +101,9 @@ def twist_jacobian(geom: np.ndarray, q: np.ndarray, base=None, tool=None):
     rx, ry, rz turn it about its own axes through its origin, R Exp(r + ε) = R Exp(r)
     Exp(J_r(r) ε); the offset moves the joint (its column is the joint value's column)."""
     Rs, origins, Rp, op = chain_frames(geom, q, base, pre=True)
-    R_f, o_f = Rs[-1], origins[-1]
-    if tool is not None:
-        p_e = o_f + (R_f @ tool[..., :3, 3:])[..., 0]
-        R_e = R_f @ tool[..., :3, :3]
-    else:
-        p_e, R_e = o_f, R_f
+    R_f = Rs[-1]
+    R_e, p_e, shape = end_frame(R_f, origins[-1], tool)
     n = geom.shape[-2]
-    shape = np.broadcast_shapes(p_e.shape, R_f.shape[:-1])[:-1]
     J = np.zeros((n, len(KINDS)) + shape + (6,))
     for i in range(n):
         g = geom[..., None, i, :]
