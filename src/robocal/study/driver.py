@@ -39,9 +39,9 @@ def warm_up(study: Study) -> None:
 
     from ..calibration import calibrate
     from ..simulation import simulate
-    from .runs import _robot
+    from .runs import cached_robot
 
-    robot = _robot(study.robot)
+    robot = cached_robot(study.robot)
     for method in study.methods:
         if (study.robot, method) in _WARM:
             continue

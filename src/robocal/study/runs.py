@@ -31,7 +31,8 @@ SUCCESS = ("converged", "completed")
 
 
 @functools.lru_cache(maxsize=8)
-def _robot(spec: str):
+def cached_robot(spec: str):
+    """A robot argument, loaded once per process (a worker runs many runs of one robot)."""
     from ..io.robotfile import load_robot
 
     with warnings.catch_warnings():
@@ -45,7 +46,7 @@ def run(study: Study, key: RunKey) -> dict:
     from ..calibration import calibrate
     from ..simulation import simulate
 
-    robot = _robot(study.robot)
+    robot = cached_robot(study.robot)
     start = time.perf_counter()
     try:
         with warnings.catch_warnings():
