@@ -113,3 +113,25 @@ def test_the_command_line_round_trip_of_a_urdf_with_joint_terms(tmp_path, run_cl
     assert json.loads(whole)["position"]["rms"] == pytest.approx(after, rel=1e-9)
     code, geometry_only, _ = run_cli("evaluate", out, data, "--json")
     assert json.loads(geometry_only)["position"]["rms"] > 3 * after  # the URDF alone lacks the compliance
+
+
+def test_the_target_hangs_from_the_tip_link(tmp_path):
+    """SPEC §11: the target link's fixed joint starts at the tip link, and the chain read to it
+    is the calibrated robot's (here the tip is tool0, below the flange by fixed joints)."""
+    from robocal.io.urdf import parse_urdf, urdf_text
+    from robocal.math.se3 import xyz_rpy_to_transform
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        robot = parse_urdf(TRACK_ARM, source="arm.urdf")
+    assert robot.urdf.tip_link == "tool0"
+    robot = robot.replace(tool=xyz_rpy_to_transform([5, -7, 180], [0.1, 0.2, 0.3]),
+                          base=xyz_rpy_to_transform([1000, 200, -50], [0, 0, 0.5]))
+    text = urdf_text(robot)
+    joint = ET.fromstring(text).find("joint[@name='target_joint']")
+    assert joint.find("parent").get("link") == "tool0"
+    reader = ind.Urdf(text)
+    q = np.array([[300.0, 0.1, -0.4, 0.3, 1.0, -0.5, 0.7, 0.2]])
+    names = reader.movable("measuring_frame", "target")
+    T = reader.transform("measuring_frame", "target", dict(zip(names, [q[0, 0] / 1000, *q[0, 1:]])))
+    np.testing.assert_allclose(1000 * T[:3, 3], robot.fk(q)[0, :3, 3], atol=1e-6)

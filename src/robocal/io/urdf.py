@@ -12,7 +12,7 @@ inertials, collisions and other elements are kept for the export and otherwise i
 Writing (:func:`urdf_text`): a robot read from a URDF is written back as that file with its
 chain's joint origins corrected (an identified joint zero folds into its origin), a root link
 ``measuring_frame`` carrying the identified base, and a link ``target`` (``target_NAME`` for
-named reflectors) below the tip carrying the identified tool.  Links, visuals, inertials,
+named reflectors) on a fixed joint from the tip link, carrying the identified tool.  Links, visuals, inertials,
 joint names and limits stay as they were.  A DH, Hayati or Craig robot is written as a new
 URDF of the same kinematics.  The standard library's XML keeps the file faithful, comments
 included, where a URDF object model would re-serialise it.
@@ -363,9 +363,10 @@ def _write_targets(robot: Robot, root: ET.Element, joints: dict, chain: UrdfChai
             before = _fixed_before(root, chain.flange_link, joint.find("parent").get("link"), robot.source)
             _set_origin(joint, invert(before) @ T, "\n    ")
             continue
-        # below the flange (the last movable joint's child): the tool is relative to it
+        # a fixed joint from the tip link; the tool is relative to the flange (the last moving
+        # link), and the tip sits on it by the fixed joints folded into the tail
         _append(root, ET.Element("link", {"name": link}),
-                _fixed_joint(f"{link}_joint", chain.flange_link, link, T))
+                _fixed_joint(f"{link}_joint", chain.tip_link, link, invert(chain.tail) @ T))
     if chain.tip_link == TARGET and TARGET in chain.target_joints:
         # the chain to target ends in its own fixed joint: it alone carries the tool
         path_joint = joints[chain.target_joints[TARGET]]
