@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import importlib
 
-__version__ = "0.2.0"
+__version__ = "0.3.0"
 
 _EXPORTS = {
     "CalibrationConfig": "robocal.calibration.config",
@@ -41,6 +41,10 @@ _EXPORTS = {
     "reproduce": "robocal.papers.reproduce",
     "simulate": "robocal.simulation",
     "write_report": "robocal.report.html",
+    "parse_urdf": "robocal.io.urdf",
+    "urdf_text": "robocal.io.urdf",
+    "load_study": "robocal.study.spec",
+    "run_study": "robocal.study.driver",
 }
 
 __all__ = sorted(_EXPORTS)
