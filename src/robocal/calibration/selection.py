@@ -78,14 +78,20 @@ class Chosen:
         return rows
 
 
+def pose_groups(meas: Measurements) -> np.ndarray:
+    """Group index per row: the rows of one pose_id (its reflectors) form one group."""
+    labels = np.array(meas.pose_ids if meas.pose_ids is not None else [str(r) for r in meas.rows])
+    return np.unique(labels, return_inverse=True)[1]
+
+
 def folds(meas: Measurements, k: int, seed: int | None) -> list[np.ndarray]:
     """K folds of pose indices; poses sharing a pose_id (several reflectors) stay together."""
-    labels = np.array(meas.pose_ids if meas.pose_ids is not None else [str(r) for r in meas.rows])
-    groups = np.unique(labels)
-    k = max(2, min(k, len(groups)))
-    order = np.random.default_rng(seed).permutation(len(groups))
-    fold_of = dict(zip(groups[order], np.arange(len(groups)) % k))
-    assignment = np.array([fold_of[g] for g in labels])
+    groups = pose_groups(meas)
+    n = groups.max() + 1
+    k = max(2, min(k, n))
+    fold_of = np.empty(n, dtype=int)
+    fold_of[np.random.default_rng(seed).permutation(n)] = np.arange(n) % k
+    assignment = fold_of[groups]
     return [np.flatnonzero(assignment == f) for f in range(k)]
 
 
@@ -152,12 +158,6 @@ def cross_validate_residual(fit: Fit, cv: CrossValidation, seed: int | None) -> 
 
 def rms(errors: np.ndarray) -> float:
     return float(np.sqrt(np.mean(np.sum(errors**2, axis=1))))
-
-
-def pose_groups(meas: Measurements) -> np.ndarray:
-    """Group index per row: the rows of one pose_id (its reflectors) form one group."""
-    labels = np.array(meas.pose_ids if meas.pose_ids is not None else [str(r) for r in meas.rows])
-    return np.unique(labels, return_inverse=True)[1]
 
 
 def worse_p_value(simple: np.ndarray, best: np.ndarray, groups: np.ndarray) -> float:

@@ -32,6 +32,7 @@ from ..exceptions import InputError, RobocalWarning
 from ..math.se3 import homogeneous, invert
 from ..math.so3 import exp_so3, matrix_to_rpy, rpy_to_matrix
 from ..model import urdf
+from ..model.kinematics import chain_pose
 from ..model.robot import Robot
 
 MOVABLE = ("revolute", "continuous", "prismatic")
@@ -431,20 +432,13 @@ def _from_dh(robot: Robot) -> ET.Element:
 
 
 def _dh_split(convention: str, g: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """A DH-family joint transform A = B · M(q) · C: the fixed part before its motion and after."""
-    def rot(axis, t):
-        return homogeneous(exp_so3(np.eye(3)[axis] * t), np.zeros(3))
-
-    def trans(v):
-        return homogeneous(np.eye(3), v)
-
-    a, alpha, theta, d, beta = g[:5]
-    if convention == "craig":  # Rx(α) Tx(a) Rz(q+θ) Tz(d) = [Rx(α) Tx(a) Rz(θ) Tz(d)] · M(q)
-        return rot(0, alpha) @ trans([a, 0, 0]) @ rot(2, theta) @ trans([0, 0, d]), np.eye(4)
-    after = rot(2, theta) @ trans([0, 0, d]) @ trans([a, 0, 0]) @ rot(0, alpha)
-    if convention == "hayati":
-        after = after @ rot(1, beta)
-    return np.eye(4), after
+    """A DH-family joint transform A(q) = B · M(q) · C: the fixed part before its motion and after.
+    The motion (Rz(q), or Tz(q) when it slides) commutes with what the convention puts around it,
+    so A(0) is all of it: before the motion for craig (Rx(α) Tx(a) Rz(θ) Tz(d)), after it for dh
+    and hayati (Rz(θ) Tz(d) Tx(a) Rx(α) Ry(β))."""
+    R, p = chain_pose(convention, g[None], np.zeros((1, 1)))
+    fixed = homogeneous(R[0], p[0])
+    return (fixed, np.eye(4)) if convention == "craig" else (np.eye(4), fixed)
 
 
 def urdf_text(robot: Robot, comment: str | None = None) -> str:

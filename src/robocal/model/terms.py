@@ -28,6 +28,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from ..math.so3 import rot_x
 from .kinematics import chain_frames, joint_axes, prismatic_mask
 
 #: standard gravity, m/s²
@@ -99,19 +100,14 @@ def nominal_masses(convention: str, geom: np.ndarray) -> tuple[np.ndarray, np.nd
     masses = 2.0 + 15.0 * (a + d) / 1000.0
     if convention == "craig":  # link j's frame sits at its joint; the link reaches towards the next
         nxt = np.vstack([geom[1:], np.zeros((1, geom.shape[1]))])
-        centres = np.einsum("jab,jb->ja", _rx_inv(-nxt[:, 1]),
+        centres = np.einsum("jab,jb->ja", rot_x(nxt[:, 1]),
                             np.column_stack([nxt[:, 0], np.zeros(len(geom)), nxt[:, 3]])) / 2
     else:  # link j's frame sits at its far end: the link lies behind it, along −x and −z of joint j's motion
         centres = np.column_stack([-geom[:, 0] / 2, np.zeros(len(geom)), np.zeros(len(geom))])
-        centres = centres - np.einsum("jab,jb->ja", _rx_inv(geom[:, 1]), np.column_stack(
+        centres = centres - np.einsum("jab,jb->ja", rot_x(-geom[:, 1]), np.column_stack(
             [np.zeros(len(geom)), np.zeros(len(geom)), geom[:, 3] / 2]))
     return masses, centres
 
-
-def _rx_inv(alpha: np.ndarray) -> np.ndarray:
-    c, s = np.cos(alpha), np.sin(alpha)
-    z, o = np.zeros_like(c), np.ones_like(c)
-    return np.stack([np.stack([o, z, z], -1), np.stack([z, c, s], -1), np.stack([z, -s, c], -1)], -2)
 
 
 @dataclass(frozen=True)
