@@ -59,11 +59,17 @@ def evaluate(robot: str | Path | Robot, data: str | Path | Measurements, *, colu
         data, n_joints=r.n_joints, columns=columns, joint_unit=joint_unit, length_unit=length_unit,
         robot_label=r.source, prismatic=tuple(map(bool, r.prismatic)) if r.prismatic.any() else None)
     if length_unit is None:
-        check_units(r, meas, "none")
+        check_units(r, meas, frames)
     if payload is not None and meas.payload is None:
         meas = replace(meas, payload=np.full(meas.n_poses, opt.number(payload, "payload", minimum=0.0)))
-    notes: list[str] = [w for w in (missing_torques(r.terms, meas.torques, meas.source),) if w]
+    notes: list[str] = [w for w in (missing_torques(r.terms, meas.torques, meas.source), r.outside_note(meas.q)) if w]
     mode = frames
+    missing = [t for t in meas.target_names if t and t not in r.targets]
+    if missing and frames == "none":
+        # a reflector without a tool frame cannot be evaluated as given: its offset must be fitted
+        notes.append(f"reflector '{missing[0]}' has no tool frame in the robot {r.source or r.name}: base and tools "
+                     "fitted to these data (frames base+tool) before evaluating")
+        frames = "base+tool"
     if frames in ("none", "auto"):
         choice = choose_frames(r, meas)
         if frames == "none" and choice.mode != "none":
@@ -72,11 +78,13 @@ def evaluate(robot: str | Path | Robot, data: str | Path | Measurements, *, colu
         elif frames == "auto" and choice.mode != "none":
             notes.append(f"frames auto: {choice.sentence()}")
         mode = choice.mode if frames == "auto" else "none"
-    missing = [t for t in meas.target_names if t and t not in r.targets]
-    if missing and mode != "base+tool":
-        raise InputError(f"target '{missing[0]}' has no tool frame in the robot {r.source or r.name}; evaluate with "
-                         "frames base+tool to fit one", source=meas.source)
-    if mode != "none":
+        if mode != "none":
+            r = choice.robot
+    else:
+        if missing and frames == "base":
+            raise InputError(f"reflector '{missing[0]}' has no tool frame in the robot {r.source or r.name}: fit it "
+                             "with frames base+tool", source=meas.source, option="frames")
+        mode = frames
         r = fit_frames(r, meas, mode)
     per_target = {t or "(default)": Metrics.of(r, meas.subset([i for i, x in enumerate(meas.targets) if x == t]))
                   for t in meas.target_names} if meas.targets is not None else {}

@@ -9,13 +9,15 @@ sees the same message.
 from __future__ import annotations
 
 import os
+import re
 
 
 class InputError(ValueError):
     """Bad input: the message names the file (or option), the row/column or key, and what is wrong.
 
     ``option`` is set when the culprit is an option value (``"loss"``, ``"box"``): the
-    command line names it ``--loss``, the Python API ``loss``.
+    command line names it ``--loss``, the Python API ``loss``.  An option the message advises
+    is written in backquotes (``"state it with `joint_unit` rad"``) and rendered the same way.
     """
 
     def __init__(
@@ -39,7 +41,19 @@ class InputError(ValueError):
             label = f"--{self.option.replace('_', '-')}" if cli else f"option '{self.option}'"
         parts = [p for p in (self.source, label, self.where) if p]
         prefix = ": ".join(parts)
-        return f"{prefix}: {self.what}" if prefix else self.what
+        what = re.sub(r"`(\w+)`", (lambda m: "--" + m.group(1).replace("_", "-")) if cli else (lambda m: m.group(1)),
+                      self.what)
+        return f"{prefix}: {what}" if prefix else what
+
+
+class Interrupted(BaseException):
+    """Ctrl-C on the command line (raised by its SIGINT handler, so that no library in between
+    turns it into something else); ``kept`` says what a command kept of its work (a study's
+    finished runs), None when it wrote nothing."""
+
+    def __init__(self, kept: str | None = None):
+        self.kept = kept
+        super().__init__(kept or "interrupted")
 
 
 class RobocalWarning(UserWarning):

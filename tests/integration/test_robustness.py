@@ -74,3 +74,27 @@ def test_too_few_poses_to_screen(n):
     meas = _campaign(n, 8)
     res, _ = _run(meas, loss="huber")
     assert res.outliers == [] and math.isfinite(res.metrics["after"].position["rms"])
+
+
+def test_a_gross_error_beyond_a_heavy_tail_is_flagged():
+    """A smooth tail of misfit reaching almost 6 σ used to set the bar at three times itself;
+    a pose at 15 σ stands apart from its neighbour in the tail and is named."""
+    def sag(q):  # large enough that the tail reaches 5–6 robust σ
+        dq = np.zeros_like(q)
+        dq[:, 1] = 1.5e-3 * np.cos(q[:, 1]) ** 3
+        return dq
+
+    meas = _campaign(300, 7, sag)
+    plain, said = _run(meas)
+    assert not any("outlier" in s for s in said)
+    from robocal.calibration.statistics import MAXWELL_MEDIAN
+    from robocal.model.metrics import pose_errors
+
+    norm = np.linalg.norm(pose_errors(plain.robot, meas)[0], axis=1)
+    sigma = np.median(norm) / MAXWELL_MEDIAN
+    assert np.sort(norm)[-1] > 4 * sigma  # a heavy tail indeed
+    pos = meas.position.copy()
+    pos[17] += np.array([1.0, -1.0, 0.5]) / 1.5 * 15 * sigma
+    _, said = _run(Measurements(q=meas.q, position=pos))
+    named = [s for s in said if "look like outliers" in s]
+    assert len(named) == 1 and "rows 19" in named[0]

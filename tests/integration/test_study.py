@@ -42,7 +42,8 @@ def test_a_study_runs_every_seed_of_every_cell(in_process):
     rows = _without_times(out / "runs.csv")
     assert len(rows) == 48
     assert list(rows[0]) == ["method", "poses", "noise", "seed", "status", "before_rms", "after_rms", "validation_rms",
-                             "iterations", "evaluations"]
+                             "iterations", "evaluations", "spec"]
+    assert {r["spec"] for r in rows} == {parse_study(STUDY, source="study.toml").fingerprint()}
     assert {(r["method"], r["noise"]) for r in rows} == {("lm", "0"), ("lm", "0.02"), ("ldpso-bt", "0"),
                                                           ("ldpso-bt", "0.02")}
     summary = (out / "summary.md").read_text()

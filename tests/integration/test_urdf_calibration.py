@@ -111,8 +111,16 @@ def test_the_command_line_round_trip_of_a_urdf_with_joint_terms(tmp_path, run_cl
     after = json.loads((tmp_path / "r.json").read_text())["metrics"]["after"]["position"]["rms"]
     code, whole, _ = run_cli("evaluate", sidecar, data, "--json")
     assert json.loads(whole)["position"]["rms"] == pytest.approx(after, rel=1e-9)
+    code, through_urdf, err = run_cli("evaluate", out, data, "--json")  # the URDF names its whole model
+    assert code == 0 and json.loads(through_urdf)["position"]["rms"] == pytest.approx(after, rel=1e-9)
+    assert "the whole model is read from" in err and "cal.robocal.toml" in err
+    sidecar.rename(tmp_path / "elsewhere.toml")  # the URDF alone would lack the compliance: refused
+    code, _, err = run_cli("evaluate", out, data, "--json")
+    assert code == 2 and "'cal.robocal.toml', which is missing" in err and err.count("\n") == 1
+    text = out.read_text()  # without robocal's element the URDF is read as the geometry it holds
+    out.write_text(text.replace('<robocal whole_model="cal.robocal.toml" />', ""))
     code, geometry_only, _ = run_cli("evaluate", out, data, "--json")
-    assert json.loads(geometry_only)["position"]["rms"] > 3 * after  # the URDF alone lacks the compliance
+    assert json.loads(geometry_only)["position"]["rms"] > 3 * after  # the geometry alone lacks the compliance
 
 
 def test_the_target_hangs_from_the_tip_link(tmp_path):

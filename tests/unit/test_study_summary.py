@@ -51,8 +51,9 @@ def test_paired_comparison_and_cells_match_a_direct_computation(rng):
     a = rng.uniform(0.03, 0.05, 10)
     b = a + rng.normal(0.01, 0.005, 10)
     ta, tb = rng.uniform(0.04, 0.06, 10), rng.uniform(0.5, 0.9, 10)
-    rows = [row(RunKey("lm", 30, 0.02, s), "converged", 10, 0.03, a[s], 5, 7, ta[s]) for s in range(10)]
-    rows += [row(RunKey("pso", 30, 0.02, s), "completed" if s else "max_iterations", 10, 0.03, b[s], 500, 9000, tb[s])
+    rows = [row(RunKey("lm", 30, 0.02, s), "spec", "converged", 10, 0.03, a[s], 5, 7, ta[s]) for s in range(10)]
+    rows += [row(RunKey("pso", 30, 0.02, s), "spec", "completed" if s else "max_iterations", 10, 0.03, b[s], 500,
+                 9000, tb[s])
              for s in range(10)]
     cells = {c.method: c for c in cell_stats(study, rows)}
     assert cells["lm"].success_rate == 1.0 and cells["pso"].success_rate == 0.9

@@ -35,7 +35,7 @@ ZERO_TOL = 1e-9
 ILL_CONDITIONED = 1e5
 
 #: kinds of reason for leaving a parameter out
-NO_EFFECT, DEPENDENT, SECOND_ORDER = "no_effect", "dependent", "second_order"
+NO_EFFECT, DEPENDENT, SECOND_ORDER, STILL = "no_effect", "dependent", "second_order", "still_joint"
 
 
 @dataclass(frozen=True)
@@ -43,8 +43,10 @@ class Reason:
     """Why a parameter is not identified: structured data, rendered by :meth:`text`.
 
     kind: ``no_effect`` (zero Jacobian column), ``dependent`` (in the span of ``related``),
-    or ``second_order`` (dependent at the nominal model, separable only at the estimate,
-    which did not improve the fit significantly: ``p_value`` of the F-test).  For a
+    ``second_order`` (dependent at the nominal model, separable only at the estimate, which
+    did not improve the fit significantly: ``p_value`` of the F-test), or ``still_joint``
+    (dependent on ``related`` once ``joints``, which never moved in the data, are held still:
+    only their read-back jitter would separate it).  For a
     dependent parameter D, ``coefficients`` c_j (one per related K_j) say that a deviation
     δD moves the data as δK_j = c_j δD would: the estimate of K_j absorbs c_j·δD.
     """
@@ -53,6 +55,7 @@ class Reason:
     related: tuple[str, ...] = ()
     p_value: float | None = None
     coefficients: tuple[float, ...] = ()
+    joints: tuple[int, ...] = ()
 
     def text(self) -> str:
         if self.kind == NO_EFFECT:
@@ -60,6 +63,10 @@ class Reason:
         others = ", ".join(self.related) or "the others"
         if self.kind == DEPENDENT:
             return f"dependent on {others} (not separable with these measurements)"
+        if self.kind == STILL:
+            which = ", ".join(map(str, self.joints))
+            return (f"needs the motion of joint{'s' if len(self.joints) > 1 else ''} {which}, which never moved: "
+                    f"absorbed by {others}")
         return (f"dependent on {others} at the nominal model; separable only to second order at the estimate, "
                 f"which did not improve the fit significantly (F-test p={self.p_value:.2g})")
 
@@ -69,6 +76,8 @@ class Reason:
             out["coefficients"] = list(self.coefficients)
         if self.p_value is not None:
             out["p_value"] = self.p_value
+        if self.joints:
+            out["joints"] = list(self.joints)
         return out
 
 

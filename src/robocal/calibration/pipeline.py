@@ -36,19 +36,28 @@ from ..model.candidates import complete, frame_candidates, joint_candidates
 from ..model.measurements import Measurements
 from ..model.metrics import Metrics
 from ..model.parameters import ParameterSpace, is_term
+from ..model.region import Region
 from ..model.robot import Robot
 from ..model.terms import TermSpec
 from ..optimize.result import OptimizeResult, Progress
 from . import checks
 from .config import CalibrationConfig, resolve_params
 from .diagnostics import GoodnessOfFit, goodness_of_fit, implausible_deviations, joint_patterns, misfit_message
-from .identifiability import NO_EFFECT, SECOND_ORDER, Identifiability, Reason, analyse
+from .identifiability import NO_EFFECT, SECOND_ORDER, STILL, Identifiability, Reason, analyse
 from .methods import Estimate, fit_lm, optimise
 from .noise import LINEAR_CHI2, MAX_REWEIGHTS, NoiseEstimate, block_sigmas, confirmed, settle, settled
 from .problem import Setup
 from .registration import choose_frames, fit_frames
 from .result import CalibrationResult
-from .statistics import MAX_OUTLIER_FRACTION, OUTLIER_GAP, OUTLIER_SIGMAS, covariance, f_test, robust_outliers
+from .statistics import (
+    MAX_OUTLIER_FRACTION,
+    OUTLIER_GAP,
+    OUTLIER_SIGMAS,
+    covariance,
+    f_test,
+    leave_one_out,
+    robust_outliers,
+)
 
 #: significance level of the F-test that decides whether parameters that become
 #: identifiable at the estimate are worth adding
@@ -92,6 +101,8 @@ def load_inputs(robot, data, validate, config: CalibrationConfig, notes: list[st
         notes.append(f"the residual model of {nominal.source or nominal.name} is not used as a starting point: a "
                      "calibration fits its own (with --model residual or auto)")
         nominal = nominal.replace(residual=None)
+    if nominal.fallback is not None or nominal.region is not None:  # a new calibration finds its own
+        nominal = nominal.replace(fallback=None, region=None)
     meas = _measurements(data, nominal, config, columns)
     val = None if validate is None else _measurements(validate, nominal, config, columns)
     if not (meas.full_pose and config.use_orientation):
@@ -150,11 +161,36 @@ def choose_candidates(setup: Setup, config: CalibrationConfig, frames_mode: str)
     return Candidates(joints, joints + [n for n in frames + terms if n not in joints], requested is not None)
 
 
+def _still_reasons(setup: Setup, ident: Identifiability, names: list[str]) -> Identifiability:
+    """With joints that never moved, identifiability is judged with each held at its mean: a
+    joint's read-back jitter of a few thousandths of a degree must not make its geometry look
+    separable from the frames that absorb it (it would be fitted to the jitter).  Parameters
+    kept on the data as measured but not when held still are dropped for that reason."""
+    still = checks.still_joints(setup.meas)
+    if not still:
+        return ident
+    probe = setup.with_measurements(checks.held_still(setup.meas)).problem(names)
+    held = analyse(probe.residual_jacobian(np.zeros(probe.n_params)), names, probe.angle_mask, setup.meas.n_poses,
+                   setup.space.robot.reach())
+    newly = [n for n in held.dropped if n in ident.kept]
+    if not newly:
+        return ident
+    joints = tuple(i + 1 for i in still)
+    reasons = {**held.reasons, **{n: Reason(STILL, held.reasons[n].related, coefficients=held.reasons[n].coefficients,
+                                            joints=joints) for n in newly}}
+    many = len(joints) > 1
+    return held.with_changes(reasons=reasons, warnings=held.warnings + [
+        f"joint{'s' if many else ''} {', '.join(map(str, joints))} never move{'' if many else 's'}: "
+        f"{', '.join(newly)} dropped (absorbed by the frames and the other joints)"])
+
+
 def analyse_identifiability(setup: Setup, candidates: Candidates, notes: list[str]) -> Identifiability:
-    """Step 4: the identifiable subset at the initial robot."""
+    """Step 4: the identifiable subset at the initial robot; parameters that need the motion of a
+    joint that never moved are dropped (see :func:`_still_reasons`)."""
     probe = setup.problem(candidates.names)
-    ident = analyse(probe.residual_jacobian(np.zeros(probe.n_params)), candidates.names, probe.angle_mask,
-                    setup.meas.n_poses, setup.space.robot.reach())
+    J = probe.residual_jacobian(np.zeros(probe.n_params))
+    ident = analyse(J, candidates.names, probe.angle_mask, setup.meas.n_poses, setup.space.robot.reach())
+    ident = _still_reasons(setup, ident, candidates.names)
     notes += ident.warnings
     if candidates.explicit:
         bad = [n for n in candidates.joints if n in ident.reasons]
@@ -172,7 +208,7 @@ def searched_names(candidates: Candidates, ident: Identifiability) -> list[str]:
     """What a swarm searches: every geometric candidate that has any effect on the data (joint
     terms are left to LM, which hybrid runs after the swarm)."""
     return [n for n in candidates.names if not is_term(n)
-            and (n not in ident.reasons or ident.reasons[n].kind != NO_EFFECT)]
+            and (n not in ident.reasons or ident.reasons[n].kind not in (NO_EFFECT, STILL))]
 
 
 @dataclass(frozen=True)
@@ -196,12 +232,12 @@ def screen_outliers(est: Estimate, config: CalibrationConfig, notes: list[str]) 
     if config.method not in ("lm", "hybrid") or est.optimisation.status != "converged":
         return est, Screening([])
     dp, _ = problem.errors(est.x)
-    flagged, sigma = robust_outliers(dp)
+    flagged, sigma = robust_outliers(leave_one_out(dp, problem.residual_jacobian(est.x)))
     if not flagged.size:
         return est, Screening([])
     meas = problem.meas
-    test = (f"residual beyond {OUTLIER_SIGMAS:g} σ̂ = {OUTLIER_SIGMAS * sigma:.3g} mm and {OUTLIER_GAP:g}× the largest "
-            "residual within it")
+    test = (f"leave-one-out residual beyond {OUTLIER_SIGMAS:g} σ̂ = {OUTLIER_SIGMAS * sigma:.3g} mm and standing "
+            f"apart, {OUTLIER_GAP:g}× the next smaller one or more")
     if config.loss == "linear":
         notes.append(f"{meas.labels(flagged)} look like outliers ({test}); a robust fit (loss huber, "
                      "--loss huber) would leave them out")
@@ -240,11 +276,12 @@ def refine_at_estimate(est: Estimate, ident: Identifiability, candidates: Candid
     if config.method not in ("lm", "hybrid") or est.optimisation.status != "converged":
         return est, ident
     setup = est.problem.setup
-    probe = setup.problem(candidates.names)
+    # judged with still joints held still: their parameters stay out whatever the estimate
+    probe = setup.with_measurements(checks.held_still(setup.meas)).problem(candidates.names)
     deviation = est.problem.full(est.x)
     again = analyse(probe.residual_jacobian(deviation[probe.active]), candidates.names, probe.angle_mask,
                     setup.meas.n_poses, setup.space.robot.reach(), prefer=ident.kept)
-    added = [n for n in again.kept if n not in ident.kept]
+    added = [n for n in again.kept if n not in ident.kept and ident.reasons[n].kind != STILL]
     if not added:
         return est, ident
     names = ident.kept + added
@@ -444,19 +481,24 @@ def calibrate(
     (iteration, total, best objective).  Warnings are issued as :class:`RobocalWarning` and
     listed in the result.
     """
-    from .selection import fit_model
+    from .selection import fit_model, guard
 
     start = time.perf_counter()
     cfg = CalibrationConfig.build(config, **({"method": method} if config is None else {}), **options)
     notes: list[str] = []
     inputs = load_inputs(robot, data, validate, cfg, notes, columns)
     notes += checks.degeneracy_warnings(inputs.nominal, inputs.meas)
-    chosen = fit_model(inputs, cfg, progress)
+    chosen = guard(fit_model(inputs, cfg, progress))
     fit = chosen.fit
     notes += fit.notes + chosen.notes
     est, setup = fit.estimate, fit.setup
     initial = setup.space.robot
-    calibrated = fit.robot.replace(name=f"{inputs.nominal.name} (calibrated)", residual=chosen.residual)
+    region = Region.of(inputs.meas.q, inputs.nominal.prismatic)
+    calibrated = fit.robot.replace(name=f"{inputs.nominal.name} (calibrated)", residual=chosen.residual, region=region)
+    if not calibrated.geometric:  # outside its region it becomes its geometric fit
+        geometric = (chosen.geometric or fit).robot
+        calibrated = calibrated.with_fallback(geometric.replace(
+            name=f"{inputs.nominal.name} (calibrated, geometric fit)", region=region, residual=None))
     metrics = evaluate(initial, calibrated, est.problem.meas, inputs.meas, inputs.validation, fit.screening, notes)
     for note in notes:
         warnings.warn(note, RobocalWarning, stacklevel=2)
@@ -468,5 +510,5 @@ def calibrate(
         validation=inputs.validation, outliers=fit.screening.outliers, reexpression_gap_mm=est.reexpression_gap_mm,
         noise=fit.noise, goodness_of_fit=fit.goodness, covariance=fit.covariance, frames=inputs.frames,
         model=chosen.name, model_selection=chosen.table, error_budget=chosen.budget(calibrated, inputs.validation),
-        geometric=None if chosen.geometric in (None, fit) else chosen.geometric.robot,
+        geometric=None if chosen.geometric is None or chosen.geometric is fit else chosen.geometric.robot,
     )

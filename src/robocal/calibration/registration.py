@@ -81,12 +81,14 @@ AUTO_FACTOR, AUTO_MIN_GAIN_MM = 3.0, 1.0
 @dataclass(frozen=True)
 class FrameChoice:
     """What ``frames auto`` decided: the mode, and the nominal model's RMS position error (mm)
-    as given and after registering that mode's frames (None when nothing was registered)."""
+    as given and after fitting that mode's frames (None when nothing was fitted); ``robot``:
+    the model with those frames, the very fit the sentence speaks of (None: as given)."""
 
     mode: str
     given_rms: float | None = None
     registered_rms: float | None = None
     reason: str = ""
+    robot: Robot | None = None
 
     def sentence(self) -> str:
         if self.reason:
@@ -116,17 +118,62 @@ def choose_frames(robot: Robot, meas: Measurements) -> FrameChoice:
         given = _rms(robot, meas, targets)
         if given < AUTO_MIN_GAIN_MM:  # no registration can gain a millimetre
             return FrameChoice("none", given, None)
-    both = _rms(register_frames(robot, meas, "base+tool"), meas, meas.targets)
+    # the frames are fitted as they will be used (closed form, then LM on position and, for
+    # full-pose data, orientation): a base that matches positions alone may not survive the
+    # orientations, and what is said must be what is then shown
+    fitted = fit_frames(robot, meas, "base+tool")
+    both = _rms(fitted, meas, meas.targets)
     if unknown:
         return FrameChoice("base+tool", None, both, f"reflector '{unknown[0]}' has no tool frame in the robot file, "
-                           f"so base and tools are identified (frames base+tool; {both:.4g} mm RMS registered)")
+                           f"so base and tools are identified (frames base+tool; {both:.4g} mm RMS registered)",
+                           fitted)
     given = _rms(robot, meas, targets)
     if given <= AUTO_FACTOR * both or given - both < AUTO_MIN_GAIN_MM:
         return FrameChoice("none", given, None)
-    base = _rms(register_frames(robot, meas, "base"), meas, targets)
+    base_only = fit_frames(robot, meas, "base")
+    base = _rms(base_only, meas, targets)
     if base <= 1.5 * both + 0.5:
-        return FrameChoice("base", given, base)
-    return FrameChoice("base+tool", given, both)
+        return FrameChoice("base", given, base, robot=base_only)
+    return FrameChoice("base+tool", given, both, robot=fitted)
+
+
+def _fit_frames_whole(robot: Robot, meas: Measurements, mode: str, sigma_position: float,
+                      sigma_orientation: float | None) -> Robot:
+    """Frames of a model beyond geometry fitted through its whole forward model (joint terms,
+    residual correction, the blend into its geometric fallback outside the calibrated region),
+    by least squares with finite-difference derivatives: a handful of frame parameters."""
+    from scipy.optimize import least_squares
+
+    from ..math.so3 import exp_so3, orientation_error
+    from .problem import DEFAULT_K
+
+    sigma_r = sigma_orientation if sigma_orientation is not None else sigma_position / np.sqrt(DEFAULT_K)
+    targets = [t for t in meas.target_names] if mode == "base+tool" else []
+    width = 6 if meas.rotation is not None else 3
+
+    def frames(x):
+        base = homogeneous(exp_so3(x[3:6]), x[:3]) @ robot.base
+        tools, k = {}, 6
+        for t in targets:
+            own = robot.tool if t == "" else robot.targets.get(t, robot.tool)
+            turn = exp_so3(x[k + 3:k + 6]) if width == 6 else np.eye(3)
+            tools[t] = own @ homogeneous(turn, x[k:k + 3])
+            k += width
+        named = {t: T for t, T in tools.items() if t}
+        return robot.replace(base=base, tool=tools.get("", robot.tool), targets={**robot.targets, **named})
+
+    def residuals(x):
+        r = frames(x)
+        T = r.fk(meas.q, meas.targets, meas.torques, meas.payload)
+        out = [((meas.position - T[:, :3, 3]) / sigma_position).ravel()]
+        if meas.rotation is not None:
+            out.append((orientation_error(meas.rotation, T[:, :3, :3]) / sigma_r).ravel())
+        return np.concatenate(out)
+
+    x0 = np.zeros(6 + width * len(targets))
+    fit = least_squares(residuals, x0, method="lm", x_scale="jac")
+    return frames(fit.x) if np.all(np.isfinite(fit.x)) and fit.cost <= 0.5 * np.sum(residuals(x0) ** 2) \
+        else robot
 
 
 def fit_frames(robot: Robot, meas: Measurements, mode: str, sigma_position: float = 1.0,
@@ -146,6 +193,8 @@ def fit_frames(robot: Robot, meas: Measurements, mode: str, sigma_position: floa
     initial = register_frames(robot, meas, mode)
     if mode == "none":
         return initial
+    if not robot.geometric:  # what is fitted is the whole model's pose: terms, residual, fallback
+        return _fit_frames_whole(initial, meas, mode, sigma_position, sigma_orientation)
     space = ParameterSpace.of(initial, meas.target_names if mode == "base+tool" else None)
     sigma_r = sigma_orientation if sigma_orientation is not None else sigma_position / np.sqrt(DEFAULT_K)
     rigid = Setup(space, meas, sigma_position, sigma_r).problem(frame_candidates(mode, meas.target_names,

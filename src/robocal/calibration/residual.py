@@ -61,16 +61,36 @@ def _tuned(q, y, start, iterations: int | None):
     return gp.kernel_
 
 
-def _block(q, y, keep, kernel) -> Block:
+#: random probes of the stochastic trace estimate of a process's degrees of freedom
+TRACE_PROBES = 32
+
+
+def effective_dof(L: np.ndarray, noise: float, rng: np.random.Generator) -> float:
+    """Effective degrees of freedom of a process per output, tr(K_s (K_s + σ²I)⁻¹) = N − σ² tr((K_s + σ²I)⁻¹),
+    from the Cholesky factor L of K_s + σ²I; the trace of the inverse by Hutchinson's estimate
+    (Rademacher probes), N² per probe instead of N³."""
+    from scipy.linalg import cho_solve
+
+    n = len(L)
+    if n <= 4 * TRACE_PROBES:  # small: exact
+        inverse_trace = float(np.trace(cho_solve((L, True), np.eye(n))))
+    else:
+        z = rng.choice([-1.0, 1.0], size=(n, TRACE_PROBES))
+        inverse_trace = float(np.mean(np.sum(z * cho_solve((L, True), z), axis=0)))
+    return float(np.clip(n - noise * inverse_trace, 0.0, n))
+
+
+def _block(q, y, keep, kernel, rng: np.random.Generator) -> Block:
     from sklearn.gaussian_process import GaussianProcessRegressor
 
     final = GaussianProcessRegressor(kernel, normalize_y=True, optimizer=None).fit(q[keep], y[keep])
     signal = final.kernel_.k1  # ConstantKernel * RBF; the white noise acts on the training diagonal only
+    dof = effective_dof(final.L_, float(final.kernel_.k2.noise_level), rng) * y.shape[1]
     return Block(alpha=np.asarray(final.alpha_, float).reshape(len(keep), -1),
                  length_scales=np.atleast_1d(signal.k2.length_scale).astype(float),
                  amplitude=float(signal.k1.constant_value),
                  y_mean=np.atleast_1d(final._y_train_mean).astype(float),
-                 y_scale=np.atleast_1d(final._y_train_std).astype(float))
+                 y_scale=np.atleast_1d(final._y_train_std).astype(float), dof=dof)
 
 
 def fit_residual(q: np.ndarray, errors: np.ndarray, seed: int | None = 0, kernels: tuple | None = None,
@@ -89,6 +109,6 @@ def fit_residual(q: np.ndarray, errors: np.ndarray, seed: int | None = 0, kernel
         if given is None or iterations is not None:
             pick = order[:HYPER_POINTS if k == 0 else ORIENTATION_HYPER_POINTS]
             kernel = _tuned(q[pick], errors[pick, cols], given, None if given is None else iterations)
-        blocks.append(_block(q, errors[:, cols], keep, kernel))
+        blocks.append(_block(q, errors[:, cols], keep, kernel, rng))
         fitted.append(kernel)
     return ResidualModel(q[keep].copy(), tuple(blocks)), tuple(fitted)

@@ -150,6 +150,8 @@ class CalibrationResult:
             "model_selection": list(self.model_selection),
             "error_budget": list(self.error_budget),
             "residual_model": None if self.robot.residual is None else self.robot.residual.summary(),
+            "region": None if self.robot.region is None else self.robot.region.to_dict(),
+            "fallback": None if self.robot.fallback is None else "the geometric fit, outside the region",
             "frames": self.frames,
             "frames_requested": cfg.frames,
             "robot": self.nominal.name,
@@ -203,11 +205,13 @@ class CalibrationResult:
             return save_robot(self.robot, path, comment)
         from ..io.urdf import urdf_text
 
-        written = []
+        written, whole = [], None
         if not self.robot.geometric:  # the sidecar first: the URDF alone would be an incomplete model
-            written = save_robot(self.robot, path.with_name(f"{path.stem}.robocal.toml"), comment)
+            whole = path.with_name(f"{path.stem}.robocal.toml")
+            written = save_robot(self.robot, whole, comment)
         atomic_write(path, urdf_text(self.robot, comment + "\nLengths in m, angles in rad; measuring_frame carries "
-                                                           "the identified base frame, target the tool."))
+                                                           "the identified base frame, target the tool.",
+                                     whole_model=None if whole is None else whole.name))
         return [path, *written]
 
 

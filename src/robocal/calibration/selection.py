@@ -20,8 +20,9 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from ..exceptions import InputError
 from ..model.measurements import Measurements
-from ..model.metrics import Metrics
+from ..model.metrics import Metrics, pose_errors
 from ..model.residual import ResidualModel
 from ..model.robot import Robot
 from .config import CalibrationConfig
@@ -37,6 +38,11 @@ TIE = 0.01
 FOLD_TUNING = 5
 #: a simpler model is kept unless the paired test says it predicts held-out poses worse at this level
 SIGNIFICANCE = 0.01
+#: fewest poses a residual process is learnt from: with fewer, it can only memorise them
+MIN_RESIDUAL_POSES = 30
+#: share of the data's values a model may spend on its unknowns (parameters, the residual
+#: process's effective degrees of freedom) before its calibration figures are called fitted
+MAX_DOF_SHARE = 0.5
 
 
 def model_name(terms) -> str:
@@ -198,9 +204,12 @@ class Candidate:
 def choose(candidates: list[Candidate], groups: np.ndarray) -> Candidate:
     """The simplest candidate (the first, in ladder order) that predicts held-out poses as well
     as the best one: within :data:`TIE` of its RMS, or not worse by the paired test at
-    :data:`SIGNIFICANCE`.  A richer model must earn its place beyond the luck of the folds."""
-    best = min(candidates, key=lambda c: c.cv_rms)
-    for c in candidates:
+    :data:`SIGNIFICANCE`.  A richer model must earn its place beyond the luck of the folds, and
+    never predicts the held-out poses worse than the first (geometry)."""
+    simplest = candidates[0]
+    eligible = [simplest] + [c for c in candidates[1:] if c.cv_rms < simplest.cv_rms]
+    best = min(eligible, key=lambda c: c.cv_rms)
+    for c in eligible:
         if c is best or c.cv_rms <= best.cv_rms * (1 + TIE) or \
                 worse_p_value(c.errors, best.errors, groups) >= SIGNIFICANCE:
             return c
@@ -214,17 +223,34 @@ def residual_on_all(fit: Fit, seed: int | None, kernels: tuple | None = None) ->
     return replace(model, axes=fit.robot.base[:3, :3].T.copy())  # the measuring axes, seen from the base
 
 
+def spent_dof(fit: Fit, residual: ResidualModel | None) -> list[str]:
+    """A loud note when the model spends most of the data on its unknowns: its figures on the
+    calibration poses are then fitted, not measured accuracy."""
+    n_data = fit.estimate.problem.n_residuals
+    used = fit.n_params + (0.0 if residual is None else residual.dof)
+    if not used > MAX_DOF_SHARE * n_data:
+        return []
+    process = "" if residual is None else f" ({residual.dof:.0f} of them the residual process's)"
+    return [f"the model spends {used:.0f} degrees of freedom{process} on {n_data} measured values: its figures on "
+            "the calibration poses are fitted, not its accuracy; judge it on other poses (validation data) and "
+            "measure more poses"]
+
+
 def fit_model(inputs: Inputs, config: CalibrationConfig, progress=None) -> Chosen:
     """The model the config asks for, or, for ``auto``, the one cross-validation chooses."""
     meas = inputs.meas
     if config.model != "auto":
         terms = config.model_terms
+        if "residual" in terms and len(set(pose_groups(meas))) < MIN_RESIDUAL_POSES:
+            raise InputError(f"a residual process learns from the poses what the parametric model leaves: "
+                             f"{len(set(pose_groups(meas)))} poses are too few (at least {MIN_RESIDUAL_POSES}); "
+                             "measure more, or calibrate the parametric model alone", option="model")
         fit = fit_parametric(inputs, config, term_spec(terms, meas, config), progress)
         residual = residual_on_all(fit, config.seed) if "residual" in terms else None
         geometric = fit
-        if terms - {"residual"} and inputs.validation is not None:  # for the error budget
+        if terms - {"residual"}:  # the fallback outside the calibrated region, and the error budget
             geometric = fit_parametric(inputs, config, term_spec((), meas, config))
-        return Chosen(model_name(terms), fit, residual, geometric=geometric)
+        return Chosen(model_name(terms), fit, residual, notes=spent_dof(fit, residual), geometric=geometric)
     groups = pose_groups(meas)
     ladder = []
     for terms in LADDER:
@@ -236,7 +262,7 @@ def fit_model(inputs: Inputs, config: CalibrationConfig, progress=None) -> Chose
     # take structure that joint terms would have taken more coarsely
     candidates = [c for c, _ in ladder]
     for c, cv in ladder:
-        if c.terms in dict.fromkeys((parametric.terms, ())):
+        if groups.max() + 1 >= MIN_RESIDUAL_POSES and c.terms in dict.fromkeys((parametric.terms, ())):
             errors, kernels = cross_validate_residual(c.fit, cv, config.seed)
             candidates.append(Candidate(c.terms, True, c.fit, errors, kernels))
     chosen = choose(candidates, groups)
@@ -247,3 +273,48 @@ def fit_model(inputs: Inputs, config: CalibrationConfig, progress=None) -> Chose
              f"{candidates[0].cv_rms:.4g} mm; a richer model is kept only if it predicts held-out poses "
              f"better, paired test p < {SIGNIFICANCE:g})"]
     return Chosen(chosen.name, chosen.fit, residual, rows, notes, geometric=candidates[0].fit)
+
+
+def guard(chosen: Chosen) -> Chosen:
+    """The last check before a model is returned: it must fit the calibration poses at least as
+    well as the geometric fit (a richer model that does not has failed to converge or was
+    misled), and the geometric fit at least as well as the nominal joints with their fitted
+    frames (a calibration that made things worse has failed).  The better one is kept, and
+    the note says why."""
+    fit = chosen.fit
+    meas = fit.estimate.problem.meas
+    sigma_p, sigma_r = fit.noise.position, fit.noise.orientation
+
+    def rms_of(robot: Robot) -> float:
+        """Position RMS (mm) when it is all the data say; with orientations, the RMS of the
+        errors weighed as the fit weighs them, in mm of position."""
+        dp, dr = pose_errors(robot, meas)
+        total = np.sum(dp * dp)
+        if dr is not None and sigma_r:
+            total += np.sum(dr * dr) * (sigma_p / sigma_r) ** 2
+        return float(np.sqrt(total / len(dp)))
+
+    model = fit.robot.replace(residual=chosen.residual)
+    rms = rms_of(model)
+    geometric = chosen.geometric
+    if geometric is not None and geometric is not fit:
+        rms_geometric = rms_of(geometric.robot)
+        if rms > rms_geometric * (1 + 1e-6) + 1e-9:
+            note = (f"model {chosen.name} fits the calibration poses worse than geometry alone ({rms:.4g} vs "
+                    f"{rms_geometric:.4g} mm{'' if meas.rotation is None else ' weighed'} RMS): the geometric fit is "
+                    "returned")
+            chosen = replace(chosen, name="geometric", fit=geometric, residual=None,
+                             notes=chosen.notes + [note])
+            fit, rms = geometric, rms_geometric
+    rms_nominal = rms_of(fit.setup.space.robot)
+    if rms > rms_nominal * (1 + 1e-6) + 1e-9:
+        est = fit.estimate
+        held = replace(fit, estimate=est.replace(x=np.zeros_like(est.x)),
+                       uncertainty=None if fit.uncertainty is None else np.full_like(fit.uncertainty, np.nan),
+                       covariance=None)
+        note = (f"the calibration fits the poses worse than the nominal model with its fitted frames ({rms:.4g} vs "
+                f"{rms_nominal:.4g} mm RMS; optimiser {est.optimisation.status}): the nominal joint geometry is "
+                "returned unchanged; check the data and the robot file")
+        chosen = replace(chosen, name="geometric", fit=held, residual=None, notes=chosen.notes + [note])
+    return chosen
+

@@ -18,9 +18,10 @@ OUTLIER_SIGMAS = 6.0
 MAXWELL_MEDIAN = 1.5382
 #: fewer poses than this give no robust scale worth screening with
 MIN_POSES_FOR_OUTLIERS = 8
-#: an outlier also stands this far apart: beyond this many times the largest residual within
-#: OUTLIER_SIGMAS (gross errors are isolated; a tail of model misfit is continuous)
-OUTLIER_GAP = 3.0
+#: an outlier also stands apart: its studentised residual is at least this many times the next
+#: smaller one (gross errors are isolated; a tail of model misfit is continuous, neighbours in
+#: it differ by a few percent)
+OUTLIER_GAP = 1.5
 #: leaving out more than this fraction of the poses gets a warning: the model, not the data, may be at fault
 MAX_OUTLIER_FRACTION = 0.05
 
@@ -77,20 +78,43 @@ def f_test(rss_restricted: float, rss_full: float, n_added: int, dof_full: int) 
     return float(f_dist.sf(stat, n_added, dof_full))
 
 
+def leave_one_out(position_errors: np.ndarray, J: np.ndarray) -> np.ndarray:
+    """Position errors (m, 3) mm each pose would show had it not been fitted: (I − H_ii)⁻¹ δp_i,
+    H_ii the pose's 3×3 block of the hat matrix J (JᵀJ)⁻¹ Jᵀ (J: the whitened Jacobian, its
+    first 3m rows the positions).  A pose with leverage pulls the fit to itself and hides its
+    own error; this undoes that, to first order."""
+    m = len(position_errors)
+    P = covariance(J)  # (JᵀJ)⁻¹, on a k×k factor
+    if not np.all(np.isfinite(P)):
+        return position_errors
+    Jp = J[:3 * m].reshape(m, 3, -1)
+    H = np.einsum("mak,kl,mbl->mab", Jp, P, Jp)
+    I_H = np.eye(3) - H
+    ok = np.linalg.det(I_H) > 1e-6
+    out = position_errors.copy()
+    out[ok] = np.linalg.solve(I_H[ok], position_errors[ok][..., None])[..., 0]
+    return out
+
+
 def robust_outliers(position_errors: np.ndarray) -> tuple[np.ndarray, float]:
     """Poses that fail the outlier test, and the robust σ (mm per axis).
 
-    The test: |δp| beyond OUTLIER_SIGMAS robust σ (σ from the median |δp| through the Maxwell
-    law, so gross errors do not inflate it; Gaussian noise passes it with probability
-    1 − 1e-7 per pose) *and* beyond OUTLIER_GAP times the largest |δp| within that bound.  A lost
-    beam or a mislabelled row stands apart from the rest; the residuals of an incomplete model
-    (real robots: compliance, gears) form a continuous tail, which the gap keeps in.
+    The test, on (ideally leave-one-out, see :func:`leave_one_out`) position errors: |δp|
+    beyond OUTLIER_SIGMAS robust σ (σ from the median |δp| through the Maxwell law, so gross
+    errors do not inflate it; Gaussian noise passes with probability 1 − 1e-7 per pose) *and*
+    standing apart: sorted from the largest, the poses above the deepest gap where one |δp| is
+    at least OUTLIER_GAP times the next.  A lost beam or a mislabelled row stands apart from the
+    rest; the residuals of an incomplete model (real robots: compliance, gears) form a
+    continuous tail, which no gap cuts, however far it reaches.
     """
     norm = np.linalg.norm(position_errors, axis=1)
     sigma = float(np.median(norm)) / MAXWELL_MEDIAN
     if len(norm) < MIN_POSES_FOR_OUTLIERS:
         return np.zeros(0, dtype=int), sigma
     bound = OUTLIER_SIGMAS * max(sigma, 1e-9)
-    bulk = norm[norm <= bound]
-    limit = max(bound, OUTLIER_GAP * float(bulk.max())) if bulk.size else bound
-    return np.flatnonzero(norm > limit), sigma
+    order = np.argsort(-norm)
+    ranked = norm[order]
+    gaps = np.flatnonzero((ranked[:-1] > bound) & (ranked[:-1] >= OUTLIER_GAP * ranked[1:]))
+    if not gaps.size:
+        return np.zeros(0, dtype=int), sigma
+    return np.sort(order[:gaps[-1] + 1]), sigma

@@ -6,7 +6,7 @@ import sys
 
 import typer
 
-from ..exceptions import InputError
+from ..exceptions import InputError, Interrupted
 from . import bench, calibrate, compensate, evaluate, pkm, plan, reproduce, robots, simulate, study
 from .common import one_line
 
@@ -34,26 +34,45 @@ app.add_typer(pkm.app, name="pkm")
 
 
 def _one_line_warnings(python_show):
-    """A warning printer for the command line: robocal's own as one line on stderr, others as
-    Python prints them."""
+    """A warning printer for the command line: robocal's own as one line on stderr.  The
+    libraries' (numpy's overflow RuntimeWarnings, scikit-learn's convergence notes) are not
+    for the user: whatever they flag, robocal checks and says in its own words; set
+    ROBOCAL_SHOW_WARNINGS=1 to see them as Python prints them."""
+    import os
+
     from ..exceptions import RobocalWarning
 
     def show(message, category, filename, lineno, file=None, line=None) -> None:
         if issubclass(category, RobocalWarning):
             print(f"robocal: warning: {one_line(message)}", file=sys.stderr)
-        else:
+        elif os.environ.get("ROBOCAL_SHOW_WARNINGS"):
             python_show(message, category, filename, lineno, file, line)
 
     return show
 
 
+def _raise_interrupted(signum, frame):
+    from ..exceptions import Interrupted
+
+    raise Interrupted()
+
+
 def main(argv: list[str] | None = None) -> int:
-    """Entry point: runs the app and turns input errors into one line and exit code 2."""
+    """Entry point: runs the app and turns input errors into one line and exit code 2, Ctrl-C
+    into one line and exit code 130."""
+    import signal
+    import threading
     import warnings
 
-    with warnings.catch_warnings():  # restores Python's printer on the way out
-        warnings.showwarning = _one_line_warnings(warnings.showwarning)
-        return _run(argv)
+    own_sigint = threading.current_thread() is threading.main_thread()
+    previous = signal.signal(signal.SIGINT, _raise_interrupted) if own_sigint else None
+    try:
+        with warnings.catch_warnings():  # restores Python's printer on the way out
+            warnings.showwarning = _one_line_warnings(warnings.showwarning)
+            return _run(argv)
+    finally:
+        if own_sigint:
+            signal.signal(signal.SIGINT, previous)
 
 
 def _run(argv: list[str] | None) -> int:
@@ -62,15 +81,17 @@ def _run(argv: list[str] | None) -> int:
     except InputError as exc:
         print(f"robocal: error: {one_line(exc.render(cli=True))}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
-        print("robocal: interrupted", file=sys.stderr)
+    except (Interrupted, KeyboardInterrupt) as exc:
+        # outputs are written together at the end (io.atomic.together): none was touched
+        kept = getattr(exc, "kept", None)
+        print(f"robocal: interrupted; {kept or 'nothing written'}", file=sys.stderr)
         return 130
     except Exception as exc:
         # Command-line misuse, raised by typer's click (vendored or not): duck-typed so that
         # either generation of typer gives the same one-line message.
         kind = type(exc).__name__
         if kind == "Abort":
-            print("robocal: aborted", file=sys.stderr)
+            print("robocal: interrupted; nothing written", file=sys.stderr)
             return 130
         if kind == "Exit":
             return int(getattr(exc, "exit_code", 0) or 0)

@@ -106,9 +106,11 @@ def calibrate_cmd(
     from .. import options as opt
     from ..calibration import CalibrationConfig, calibrate
     from ..calibration.methods import settings
+    from ..io.atomic import together
     from ..io.robotfile import load_robot
-    from .common import console, print_warnings, progress_bar
+    from .common import check_outputs, console, print_warnings, progress_bar
 
+    check_outputs(out=out, export=export, report=report)
     cfg = CalibrationConfig(method=method, frames=frames, params=params, seed=seed, objective=objective,
                             use_orientation=not position_only, loss=loss, f_scale=f_scale, particles=particles,
                             iterations=iterations, box=box, halton=halton, backend=backend, noise=noise,
@@ -121,13 +123,14 @@ def calibrate_cmd(
         warnings.simplefilter("ignore")
         result = calibrate(nominal, data, config=cfg, validate=validate, columns=opt.column_map(column),
                            progress=callback)
-    if out is not None:
-        result.save(out)
-    written = [] if export is None else result.export(export)
-    if report is not None:
-        from ..report.html import write_report
+    with together():  # all or nothing: a failure leaves every earlier output as it was
+        if out is not None:
+            result.save(out)
+        written = [] if export is None else result.export(export)
+        if report is not None:
+            from ..report.html import write_report
 
-        write_report(result, report)
+            write_report(result, report)
     print_warnings(result.warnings)
     if not quiet:
         _print_summary(result, nominal.name, data)
@@ -135,7 +138,8 @@ def calibrate_cmd(
         console().print(f"wrote {written[0]}; the model's joint terms and residual correction cannot live in a URDF: "
                         f"the whole model is in {written[1]} (every robocal command reads it)")
     elif len(written) > 1:
-        console().print(f"wrote {written[0]} and, beside it, its residual model {written[1]} (keep them together)")
+        console().print(f"wrote {written[0]} and, beside it, {' and '.join(map(str, written[1:]))} (parts of the "
+                        "same model: keep them together)")
 
 
 def register(app: typer.Typer) -> None:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import contextlib
 import sys
+from pathlib import Path
 
 
 def one_line(text: str) -> str:
@@ -100,3 +101,20 @@ def load(robot, base_link=None, tip_link=None):
     from ..io.robotfile import load_robot
 
     return load_robot(robot, base_link=base_link, tip_link=tip_link)
+
+
+def check_outputs(**paths) -> None:
+    """Every output file of a command, checked before any work (keyword: the option's name):
+    not a folder, its folder existing and writable, no two options naming one file."""
+    from ..exceptions import InputError
+    from ..io.atomic import check_output
+
+    seen: dict = {}
+    for option, path in paths.items():
+        if path is None:
+            continue
+        check_output(path, option)
+        key = Path(path).resolve()
+        if key in seen:
+            raise InputError(f"the same file as --{seen[key].replace('_', '-')}", source=path, option=option)
+        seen[key] = option

@@ -22,6 +22,8 @@ def compensate_cmd(
     ),
     payload: float | None = typer.Option(None, "--payload", help="payload mass, kg, at goals without a payload "
                                          "column"),
+    tool: str | None = typer.Option(None, "--tool", help="the TCP the commands are for, flange → TCP: x,y,z[,rx,ry,rz] "
+                                    "mm, deg (default: the nominal robot's tool)"),
     as_json: Path | None = typer.Option(None, "--json", help="write the summary as JSON too"),
     column: list[str] | None = typer.Option(None, "--column", help="map file columns: FILE=ROBOCAL[,FILE=ROBOCAL…]"),
     base_link: str | None = base_link_option(),
@@ -33,10 +35,13 @@ def compensate_cmd(
 
     from .. import options as opt
     from ..compensation import compensate
-    from ..io.atomic import atomic_write
+    from ..io.atomic import atomic_write, together
     from ..io.goals import load_goals
     from ..io.robotfile import load_robot
-    from .common import console, metrics_table, print_warnings
+    from .common import check_outputs, console, metrics_table, print_warnings
+
+    check_outputs(out=out, json=as_json)
+    opt.frame_values(tool, "tool")  # checked before any work
 
     # the chain's links choose the nominal's chain (and the truth's); a calibrated URDF export
     # runs from its measuring_frame to its target, robocal's defaults
@@ -44,12 +49,17 @@ def compensate_cmd(
     tru = None if truth is None else load_robot(truth, base_link=base_link, tip_link=tip_link)
     g = load_goals(goals, n_joints=nom.n_joints, columns=opt.column_map(column),
                    prismatic=tuple(map(bool, nom.prismatic)) if nom.prismatic.any() else None)
-    result = compensate(nom, cal, g, truth=tru, position_only=position_only or None, payload=payload)
-    result.save(out)
+    from ..math.se3 import frame_from_values
+
+    tcp = opt.frame_values(tool, "tool")
+    result = compensate(nom, cal, g, truth=tru, position_only=position_only or None, payload=payload,
+                        tool=None if tcp is None else frame_from_values(tcp))
     summary = result.summary()
+    with together():
+        result.save(out)
+        if as_json is not None:
+            atomic_write(as_json, json.dumps(summary, indent=2) + "\n")
     print_warnings(result.warnings)
-    if as_json is not None:
-        atomic_write(as_json, json.dumps(summary, indent=2) + "\n")
     if not quiet:
         c = console()
         c.print(f"{g.n} goals: " + ", ".join(f"{v} {k}" for k, v in summary["status"].items()) + f"; wrote {out}")

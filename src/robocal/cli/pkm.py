@@ -69,8 +69,9 @@ def sensitivity_cmd(
     from ..pkm.files import load_pkm
     from ..pkm.kinematics import workspace_targets
     from ..pkm.sensitivity import sensitivity
-    from .common import console, table
+    from .common import check_outputs, console, table
 
+    check_outputs(out=out)
     opt.integer(poses, "poses", minimum=1)
     g = load_pkm(geometry)
     means = sensitivity(g, workspace_targets(g, poses, seed, angle=0.2)).mean_table()
@@ -94,8 +95,9 @@ def compensate_cmd(
 
     from ..io.atomic import atomic_write
     from ..pkm.compensation import simulate_compensation
-    from .common import console, table
+    from .common import check_outputs, console, table
 
+    check_outputs(out=out)
     study = simulate_compensation(errors=errors, targets=targets, noise=noise, seed=seed)
     rows = study.table()
     if out is not None:
@@ -117,16 +119,18 @@ def calibrate_cmd(
     """Identify the identifiable subset of the 28 parameters from measured platform positions."""
     import json
 
-    from ..io.atomic import atomic_write
+    from ..io.atomic import atomic_write, together
     from ..pkm.files import load_pkm, save_pkm
     from ..pkm.identify import identify_file
-    from .common import console
+    from .common import check_outputs, console
 
+    check_outputs(out=out, export=export)
     res = identify_file(data, load_pkm(geometry))
-    if out is not None:
-        atomic_write(out, json.dumps(res.to_dict(), indent=1) + "\n")
-    if export is not None:
-        save_pkm(res.geometry, export, comment=f"Identified by robocal from {data}")
+    with together():
+        if out is not None:
+            atomic_write(out, json.dumps(res.to_dict(), indent=1) + "\n")
+        if export is not None:
+            save_pkm(res.geometry, export, comment=f"Identified by robocal from {data}")
     dropped = ", ".join(res.identifiability.dropped) or "none"
     console().print(f"{len(res.names)} parameters identified, dropped: {dropped}"
                     f"; position RMS {res.rms_before:.4f} → {res.rms_after:.6f} mm ({res.status})")

@@ -52,11 +52,13 @@ def plan_cmd(
     import math
 
     from .. import options as opt
-    from ..io.atomic import atomic_write
+    from ..io.atomic import atomic_write, together
     from ..io.measurements import joints_to_file
     from ..io.robotfile import load_robot
     from ..plan import plan_poses
-    from .common import console
+    from .common import check_outputs, console
+
+    check_outputs(out=out, json=report)
 
     r = load_robot(robot, base_link=base_link, tip_link=tip_link)
     jr = opt.joint_limits(limits, r.n_joints)
@@ -67,9 +69,10 @@ def plan_cmd(
     lines = ["pose_id," + ",".join(f"q{i + 1}" for i in range(r.n_joints))]
     lines += [f"P{j + 1:03d}," + ",".join(f"{v:.6f}" for v in joints_to_file(q, r.prismatic))
               for j, q in enumerate(p.q)]
-    atomic_write(out, "\n".join(lines) + "\n")
-    if report is not None:
-        atomic_write(report, json.dumps(p.to_dict(), indent=1) + "\n")
+    with together():
+        atomic_write(out, "\n".join(lines) + "\n")
+        if report is not None:
+            atomic_write(report, json.dumps(p.to_dict(), indent=1) + "\n")
     if not quiet:
         _print_plan(p, r, poses, candidates, criterion, measure, noise, angle_noise)
         console().print(f"wrote {out}")

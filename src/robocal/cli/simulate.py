@@ -38,11 +38,13 @@ def simulate_cmd(
     import math
 
     from .. import options as opt
-    from ..io.atomic import atomic_write
+    from ..io.atomic import atomic_write, together
     from ..io.measurements import measurements_to_csv
     from ..io.robotfile import load_robot, robot_to_toml
     from ..simulation import simulate
-    from .common import console
+    from .common import check_outputs, console
+
+    check_outputs(out=out, truth=truth)
 
     r = load_robot(robot, base_link=base_link, tip_link=tip_link)
     rng = None if joint_range is None else tuple(math.radians(v) for v in opt.floats(joint_range, "range", (2,)))
@@ -59,8 +61,9 @@ def simulate_cmd(
         texts[truth] = robot_to_toml(sim.truth.replace(name=f"{r.name} (simulated truth)"), comment=(
             f"True robot simulated by robocal from {robot} with errors {errors!r}, seed {seed}.\n"
             f"Planted deviations (mm, rad): {planted}"))
-    for path, text in texts.items():
-        atomic_write(path, text)
+    with together():
+        for path, text in texts.items():
+            atomic_write(path, text)
     console().print(f"wrote {sim.measurements.n_poses} poses to {out}" + (f" and the true robot to {truth}"
                                                                            if truth else ""))
 

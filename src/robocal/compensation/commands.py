@@ -31,10 +31,11 @@ from ..io.goals import Goals
 from ..io.measurements import joints_to_file
 from ..math.se3 import homogeneous, invert
 from ..math.so3 import matrix_to_rpy, orientation_error
+from ..model.jointspace import condition_numbers
 from ..model.metrics import Metrics
 from ..model.robot import Robot
 from ..model.terms import missing_torques
-from .ik import ROT_WEIGHT, STATUSES, solve_ik
+from .ik import ROT_WEIGHT, SINGULAR_CONDITION, STATUSES, solve_ik
 
 
 @dataclass
@@ -124,51 +125,113 @@ def _mid_range(robot: Robot, m: int) -> np.ndarray:
     return np.tile(np.where(np.isfinite(lim).all(axis=1), lim.mean(axis=1), 0.0), (m, 1))
 
 
-def _nominal_commands(nominal: Robot, goals: Goals, position_only: bool | None, rot_weight: float):
+def _nominal_commands(nominal: Robot, goals: Goals, position_only: bool | None, rot_weight: float,
+                      targets: list[str] | None = None):
     """Desired poses (m, 4, 4) in the nominal base frame, the nominal joints, and whether full pose."""
     m = goals.n
     if goals.position is None:
-        return nominal.fk(goals.q), goals.q, True
+        return nominal.fk(goals.q, targets), goals.q, True
     R = goals.rotation if goals.rotation is not None else np.broadcast_to(np.eye(3), (m, 3, 3))
     T_des = homogeneous(R, goals.position)
     full = goals.rotation is not None
     start = goals.q if goals.q is not None else _mid_range(nominal, m)
     sol = solve_ik(nominal, T_des[:, :3, 3], T_des[:, :3, :3] if full and not position_only else None, start,
-                   rot_weight=rot_weight)
+                   rot_weight=rot_weight, targets=targets)
     return T_des, sol.q, full
+
+
+#: a calibrated tool further than this from the TCP (mm, deg) is another point: the target the
+#: calibration measured, not a refinement of the TCP
+TOOL_MATCH_MM, TOOL_MATCH_DEG = 5.0, 2.0
+
+
+def _frame_gap(a: np.ndarray, b: np.ndarray) -> tuple[float, float]:
+    """Distance (mm) and rotation angle (deg) between two frames."""
+    return float(np.linalg.norm(a[:3, 3] - b[:3, 3])), float(np.degrees(np.linalg.norm(
+        orientation_error(a[None, :3, :3], b[None, :3, :3])[0])))
+
+
+def with_tcp(nominal: Robot, calibrated: Robot, truth: Robot | None, tool: np.ndarray | None,
+             notes: list[str]) -> tuple[Robot, Robot, Robot | None]:
+    """The robots with the tool centre point that the commands are for.
+
+    The controller's TCP is ``tool`` when given, else the nominal model's tool.  A calibrated
+    model's tool is the point the calibration measured: a refinement of the TCP when it lies
+    within TOOL_MATCH_MM / TOOL_MATCH_DEG of it (kept: it is the better estimate), else another
+    point (a tracker target on the flange), which is replaced by the TCP, and said: compensating
+    for the target would move the TCP to the wrong place by their distance and more.
+    """
+    tcp = nominal.tool if tool is None else tool
+    mm, deg = _frame_gap(calibrated.tool, tcp)
+    if tool is None and mm <= TOOL_MATCH_MM and deg <= TOOL_MATCH_DEG:
+        return nominal, calibrated, truth
+    if mm > TOOL_MATCH_MM or deg > TOOL_MATCH_DEG:
+        whose = "the --tool given" if tool is not None else "the nominal model's tool"
+        notes.append(f"the calibrated model's tool is {mm:.4g} mm and {deg:.3g}° from {whose}: it is the point the "
+                     f"calibration measured, not the TCP; commands are computed for {whose} on the calibrated "
+                     "joints and base" + ("" if tool is not None else " (give --tool to name another TCP)"))
+    return nominal.with_tool(tcp), calibrated.with_tool(tcp), None if truth is None else truth.with_tool(tcp)
+
+
+def _check_goal_targets(calibrated: Robot, goals: Goals) -> list[str] | None:
+    """Reflectors named by the goals: each must be one the calibrated model knows."""
+    if goals.targets is None or all(t == "" for t in goals.targets):
+        return None
+    unknown = sorted({t for t in goals.targets if t and t not in calibrated.targets})
+    if unknown:
+        known = ", ".join(repr(t) for t in calibrated.targets) or "none"
+        raise InputError(f"reflector {unknown[0]!r} was never calibrated (the calibrated model's reflectors: {known})",
+                         source=goals.source)
+    return list(goals.targets)
 
 
 def compensate(nominal: Robot, calibrated: Robot, goals: Goals, *, truth: Robot | None = None,
                position_only: bool | None = None, rot_weight: float = ROT_WEIGHT,
-               payload: float | None = None) -> CompensationResult:
+               payload: float | None = None, tool: np.ndarray | None = None) -> CompensationResult:
     """Compensated commands for every goal (see the module docstring).
 
     position_only: solve for the position alone (default: for pose goals without
     orientation columns; joint goals use the full nominal pose).  truth: a simulated true
     robot; its errors at the nominal and the compensated commands are returned.  payload:
-    kg at every goal, where the goals file has no ``payload`` column.
+    kg at every goal, where the goals file has no ``payload`` column.  tool: the TCP (4×4,
+    flange frame, mm) the commands are for; default the nominal model's (see :func:`with_tcp`).
+    Goals with a ``target`` column place that reflector of the calibrated model instead.
     """
     if nominal.n_joints != calibrated.n_joints or (truth is not None and truth.n_joints != nominal.n_joints):
         raise InputError("nominal, calibrated and true robots must have the same number of joints",
                          source=calibrated.source or "compensate")
-    T_des, q_nom, full = _nominal_commands(nominal, goals, position_only, rot_weight)
+    notes: list[str] = []
+    targets = _check_goal_targets(calibrated, goals)
+    if targets is None:
+        nominal, calibrated, truth = with_tcp(nominal, calibrated, truth, tool, notes)
+    else:  # the nominal model places the reflectors where the calibrated one has them
+        reflectors = {t: calibrated.targets[t] for t in set(targets) if t}
+        nominal = nominal.replace(targets={**nominal.targets, **reflectors})
+        truth = None if truth is None else truth.replace(targets={**reflectors, **truth.targets})
+    T_des, q_nom, full = _nominal_commands(nominal, goals, position_only, rot_weight, targets)
     full = full and not position_only
     T_cal = calibrated.base @ invert(nominal.base) @ T_des
     load = goals.payload
     if load is None and payload is not None:
         load = np.full(goals.n, opt.number(payload, "payload", minimum=0.0))
     sol = solve_ik(calibrated, T_cal[:, :3, 3], T_cal[:, :3, :3] if full else None, q_nom, rot_weight=rot_weight,
-                   torques=goals.torques, payload=load)
-    notes = [w for w in (missing_torques(calibrated.terms, goals.torques, goals.source),) if w]
+                   torques=goals.torques, payload=load, targets=targets)
+    notes += [w for w in (missing_torques(calibrated.terms, goals.torques, goals.source),
+                          calibrated.outside_note(sol.q)) if w]
+    # a jump at a goal where the controller's own model is singular is the singularity's doing
+    nominal_cond = condition_numbers(nominal, q_nom, full, rot_weight)
+    sol.status = ["singular" if s == "branch" and c > SINGULAR_CONDITION else s
+                  for s, c in zip(sol.status, nominal_cond)]
     result = CompensationResult(
-        goals=goals, q_nominal=q_nom, q=sol.q, cartesian=nominal.fk(sol.q), residual_mm=sol.position_error,
+        goals=goals, q_nominal=q_nom, q=sol.q, cartesian=nominal.fk(sol.q, targets),
+        residual_mm=sol.position_error,
         residual_deg=np.degrees(sol.rotation_error), status=sol.status, full_pose=full, warnings=notes,
         prismatic=nominal.prismatic,
     )
     if truth is not None:
         T_true = truth.base @ invert(nominal.base) @ T_des
         for attr, q in (("before", q_nom), ("after", sol.q)):
-            Tq = truth.fk(q, None, goals.torques, load)
+            Tq = truth.fk(q, targets, goals.torques, load)
             setattr(result, f"true_{attr}", T_true[:, :3, 3] - Tq[:, :3, 3])
             if full:
                 setattr(result, f"true_rot_{attr}", orientation_error(T_true[:, :3, :3], Tq[:, :3, :3]))

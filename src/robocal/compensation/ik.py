@@ -11,7 +11,7 @@ from ..math.so3 import orientation_error
 from ..model.jointspace import condition_numbers, joint_jacobian
 from ..model.robot import Robot
 
-STATUSES = ("ok", "unreachable", "limit", "singular", "no_convergence")
+STATUSES = ("ok", "branch", "unreachable", "limit", "singular", "no_convergence")
 
 #: weight of orientation against position in the joint-space solve, mm per rad
 ROT_WEIGHT = 1000.0
@@ -24,8 +24,8 @@ SINGULAR_CONDITION = 1e4
 #: largest joint step of one iteration (rad): corrections are small, so the solve walks
 #: rather than jumps, and cannot leave the configuration branch it started on
 MAX_STEP = 0.05
-#: a reached solution further than this (rad) from its start changed branch or sat on a
-#: near-singular pose: it is reported as singular
+#: a reached solution further than this (rad) from its start changed configuration branch: it
+#: is reported as ``branch`` (the pose is reached, but with other joints than the controller's)
 BRANCH_TOLERANCE = math.radians(20.0)
 
 
@@ -41,12 +41,15 @@ class IKSolution:
 class _Residual:
     """Pose error of a robot against the goals, weighted: (position mm, rot_weight × rotation)."""
 
-    def __init__(self, robot: Robot, position, rotation, rot_weight: float, torques=None, payload=None):
+    def __init__(self, robot: Robot, position, rotation, rot_weight: float, torques=None, payload=None,
+                 targets=None):
         self.robot, self.position, self.rotation, self.w = robot, position, rotation, rot_weight
         self.torques, self.payload = torques, payload
+        self.targets = None if targets is None else np.asarray(targets, dtype=object)
 
     def __call__(self, q, rows=slice(None)):
-        T = self.robot.fk(q, None, None if self.torques is None else self.torques[rows],
+        T = self.robot.fk(q, None if self.targets is None else list(self.targets[rows]),
+                          None if self.torques is None else self.torques[rows],
                           None if self.payload is None else self.payload[rows])
         dp = self.position[rows] - T[:, :3, 3]
         dr = None if self.rotation is None else orientation_error(self.rotation[rows], T[:, :3, :3])
@@ -76,8 +79,10 @@ def _step(robot, q, e, start, full, rot_weight, lam):
 def _statuses(reached, moved, cond, at_limit, stalled) -> list[str]:
     status = []
     for i in range(len(reached)):
-        if cond[i] > SINGULAR_CONDITION or (reached[i] and moved[i] > BRANCH_TOLERANCE):
+        if cond[i] > SINGULAR_CONDITION:
             status.append("singular")
+        elif reached[i] and moved[i] > BRANCH_TOLERANCE:
+            status.append("branch")
         elif reached[i]:
             status.append("ok")
         elif at_limit[i]:
@@ -91,18 +96,20 @@ def _statuses(reached, moved, cond, at_limit, stalled) -> list[str]:
 
 def solve_ik(robot: Robot, position: np.ndarray, rotation: np.ndarray | None, q0: np.ndarray, *,
              rot_weight: float = ROT_WEIGHT, max_iter: int = 100, limits: bool = True, torques=None,
-             payload=None) -> IKSolution:
+             payload=None, targets=None) -> IKSolution:
     """Joints reaching each goal pose (or position when rotation is None), batched.
 
     Positions in mm and rotations in the robot's measuring frame; q0 (m, n) rad starts each
     goal and keeps it on its configuration branch; joints stay inside the robot's limits.
-    Statuses: ``ok``; ``singular`` (reached, but the joint Jacobian's condition number
-    exceeds SINGULAR_CONDITION, or the solution moved beyond BRANCH_TOLERANCE); ``limit``
+    Statuses: ``ok``; ``singular`` (the joint Jacobian's condition number exceeds
+    SINGULAR_CONDITION at the start or the solution); ``branch`` (reached, but on another
+    configuration branch: the joints moved beyond BRANCH_TOLERANCE from the start); ``limit``
     (not reached, a joint held at its limit); ``unreachable`` (not reached, stalled away
     from the goal); ``no_convergence``.
 
     The pose is the robot's whole model (:meth:`Robot.fk`): joint terms, at the goals' joint
-    torques (m, n) N·m and payload (m,) kg where they need them, and the residual correction.
+    torques (m, n) N·m and payload (m,) kg where they need them, and the residual correction;
+    targets: per goal, the robot's tool frame to place (a reflector's name), default its tool.
     The step uses the geometric joint Jacobian, which the terms change by a few hundredths of
     a percent: the solve converges on the full model's pose all the same.
     """
@@ -114,7 +121,7 @@ def solve_ik(robot: Robot, position: np.ndarray, rotation: np.ndarray | None, q0
     start = q.copy()
     lam = np.full(m, 1e-6)
     iters = np.zeros(m, dtype=int)
-    residual = _Residual(robot, position, rotation, rot_weight, torques, payload)
+    residual = _Residual(robot, position, rotation, rot_weight, torques, payload, targets)
     dp, dr, cost, e = residual(q)
     done = np.zeros(m, bool)
     stalled = np.zeros(m, bool)

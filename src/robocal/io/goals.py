@@ -2,7 +2,9 @@
 
 Columns ``q1..qn`` (deg: go where the nominal model says these joints go) and/or
 ``x, y, z[, rx, ry, rz]`` (mm, deg: a pose in the robot base frame, with the optional
-joints as starting guess and configuration branch); optional ``pose_id`` names the rows.
+joints as starting guess and configuration branch); optional ``pose_id`` names the rows and
+``target`` places a reflector of the calibrated model (by its name) at the goal instead of the
+tool centre point.
 For a model with joint terms, ``tau1..tauN`` (N·m) give the joint torques at each goal and
 ``payload`` (kg) its payload, as in measurement files.
 """
@@ -30,6 +32,7 @@ class Goals:
     source: str = "<goals>"
     torques: np.ndarray | None = None
     payload: np.ndarray | None = None
+    targets: list[str] | None = None
 
     @property
     def n(self) -> int:
@@ -49,6 +52,7 @@ def parse_goals(text: str, *, source: str = "<goals>", **options) -> Goals:
         source=source,
         torques=t.torques,
         payload=t.payload,
+        targets=t.targets,
     )
 
 

@@ -1,9 +1,11 @@
 """Measurement files (CSV, SPEC §6): joint values and measured poses.
 
 Columns: ``q1 … qn`` (deg; mm for a prismatic joint), ``x, y, z`` (mm), optionally ``rx, ry, rz`` (deg, rpy with
-``R = Rz(rz) Ry(ry) Rx(rx)``) for full-pose data, ``pose_id`` (rows sharing one are
-repeated measurements of one pose and are averaged) and ``target`` (which point on the
-flange).  Positions and orientations are in the measuring device's frame.
+``R = Rz(rz) Ry(ry) Rx(rx)``) for full-pose data, ``pose_id`` (rows sharing one are one pose: its
+reflectors, and repeated measurements of each, which are averaged), ``target`` (which point on
+the flange) and ``cycle`` (repeated measuring cycles of a pose_id: each cycle is its own
+measurement, with its own joint read-back).  Positions and orientations are in the measuring
+device's frame.
 """
 
 from __future__ import annotations
@@ -27,12 +29,18 @@ from .table import CsvTable, numbers, read_csv, strings
 
 POSITION = ("x", "y", "z")
 ORIENTATION = ("rx", "ry", "rz")
-OPTIONAL = ("pose_id", "target", "payload")
+OPTIONAL = ("pose_id", "target", "payload", "cycle")
 _JOINT = re.compile(r"^q(\d+)$")
 _TORQUE = re.compile(r"^tau(\d+)$")
 
 #: repeated rows of one pose_id that spread further than this (mm) are an error
 REPEAT_TOLERANCE_MM = 1.0
+#: largest magnitudes a measurement file may hold, in its units: a hundred turns of a joint,
+#: ten kilometres, and torques and payloads no robot sees; beyond them a value is a typo or garbage
+MAX_JOINT_DEG, MAX_LENGTH_MM, MAX_TORQUE_NM, MAX_PAYLOAD_KG = 36_000.0, 1e7, 1e7, 1e5
+#: rows of one pose_id (and cycle) whose joints differ by more than this (deg) are not one pose: a
+#: repeated commanded pose reads back within a few thousandths of a degree
+JOINT_TOLERANCE_DEG = 0.05
 
 
 @dataclass
@@ -47,6 +55,7 @@ class PoseTable:
     rows: np.ndarray
     torques: np.ndarray | None = None
     payload: np.ndarray | None = None
+    cycles: list[str] | None = None
 
 
 def _torque_columns(table: CsvTable, n_joints: int) -> list[str] | None:
@@ -136,11 +145,14 @@ def read_pose_table(text: str, *, source: str, options: ReadOptions = ReadOption
     for h in table.header:
         if h not in known and not _JOINT.match(h) and not _TORQUE.match(h):
             raise InputError(f"unknown column '{h}' (expected q1..qn, x, y, z, optional rx, ry, rz, pose_id, "
-                             "target, tau1..taun, payload; map other names with a column mapping)", source=source)
+                             "target, cycle, tau1..taun, payload; map other names with a column mapping)",
+                             source=source)
     qcols = _joint_columns(table, options.n_joints, require_joints, options.robot_label)
     has_pos, has_rot = _pose_columns(table, bool(qcols), require_position)
-    q = numbers(table, qcols) if qcols else None
     scale = 1000.0 if options.length_unit == "m" else 1.0
+    q = numbers(table, qcols) if qcols else None
+    if q is not None:
+        _check_joint_magnitudes(table, q, qcols, options, scale)
     if q is not None:
         slide = np.zeros(q.shape[1], bool) if options.prismatic is None else np.array(options.prismatic, bool)
         turn = q[:, ~slide]
@@ -148,23 +160,40 @@ def read_pose_table(text: str, *, source: str, options: ReadOptions = ReadOption
             q[:, ~slide] = np.degrees(turn)
         elif options.joint_unit is None and len(q) >= 3 and turn.size and 0 < np.abs(turn).max() <= math.pi + 1e-9:
             raise InputError("all joint values lie within ±π: they look like radians; files give joints in degrees "
-                             "(state the unit with joint unit deg or rad)", source=source)
+                             "(state the joint unit with `joint_unit` rad if they are)", source=source)
         q[:, slide] *= scale
     taus = _torque_columns(table, len(qcols)) if qcols else None
-    payload = numbers(table, ["payload"])[:, 0] if "payload" in table else None
+    payload = numbers(table, ["payload"], MAX_PAYLOAD_KG, "kg")[:, 0] if "payload" in table else None
     if payload is not None and np.any(payload < 0):
         row = int(table.lines[int(np.argmax(payload < 0))])
         raise InputError("payload must be ≥ 0 kg", source=source, where=f"row {row}, column 'payload'")
     return PoseTable(
         q=q,
-        position=scale * numbers(table, POSITION) if has_pos else None,
-        rpy=numbers(table, ORIENTATION) if has_rot else None,
+        position=scale * numbers(table, POSITION, MAX_LENGTH_MM / scale, "m" if scale != 1 else "mm") if has_pos
+        else None,
+        rpy=numbers(table, ORIENTATION, MAX_JOINT_DEG, "deg") if has_rot else None,
         pose_ids=strings(table, "pose_id", required=True) if "pose_id" in table else None,
         targets=strings(table, "target") if "target" in table else None,
         rows=table.lines,
-        torques=numbers(table, taus) if taus else None,
+        torques=numbers(table, taus, MAX_TORQUE_NM, "N·m") if taus else None,
         payload=payload,
+        cycles=strings(table, "cycle", required=True) if "cycle" in table else None,
     )
+
+
+def _check_joint_magnitudes(table: CsvTable, q: np.ndarray, columns: list[str], options: ReadOptions,
+                            scale: float) -> None:
+    """Turning joints within ±MAX_JOINT_DEG (in radians when the file says so), sliding ones
+    within MAX_LENGTH_MM."""
+    slide = np.zeros(q.shape[1], bool) if options.prismatic is None else np.array(options.prismatic, bool)
+    turn_limit = np.radians(MAX_JOINT_DEG) if options.joint_unit == "rad" else MAX_JOINT_DEG
+    limit = np.where(slide, MAX_LENGTH_MM / scale, turn_limit)
+    bad = np.abs(q) > limit
+    if bad.any():
+        r, j = np.unravel_index(int(np.argmax(bad)), q.shape)
+        unit = ("m" if scale != 1 else "mm") if slide[j] else (options.joint_unit or "deg")
+        raise InputError(f"{q[r, j]:.6g} is not a plausible joint value (beyond ±{limit[j]:g} {unit})",
+                         source=table.source, where=f"row {int(table.lines[r])}, column '{columns[j]}'")
 
 
 def parse_measurements(text: str, *, source: str = "<data>", average: bool = True,
@@ -184,57 +213,103 @@ def parse_measurements(text: str, *, source: str = "<data>", average: bool = Tru
         torques=t.torques,
         payload=t.payload,
     )
+    if t.cycles is not None and t.pose_ids is None:
+        raise InputError("a cycle column numbers the measuring cycles of each pose: it needs a pose_id column",
+                         source=source)
     if average and t.pose_ids is not None:
-        meas = average_repeats(meas, repeat_tolerance)
+        meas = average_repeats(meas, repeat_tolerance, t.cycles)
     return meas
 
 
-def _check_group(meas: Measurements, key: tuple[str, str], group: list[int], tolerance: float) -> np.ndarray:
-    """Mean position of one group of repeated rows, after checking they agree."""
-    rows = [int(meas.rows[i]) for i in group]
-    dq = np.abs(meas.q[group] - meas.q[group[0]]).max()
-    if dq > 1e-9:
-        raise InputError(f"pose_id {key[0]!r}: repeated rows {rows} command different joint values "
-                         f"(differ by {math.degrees(dq):.4g} deg)", source=meas.source)
-    mean = meas.position[group].mean(0)
-    spread = np.linalg.norm(meas.position[group] - mean, axis=1)
-    if spread.max() > tolerance:
-        bad = rows[int(np.argmax(spread))]
-        raise InputError(f"pose_id {key[0]!r}: repeated rows {rows} disagree by {spread.max():.4g} mm "
-                         f"(row {bad} furthest from their mean; tolerance {tolerance:g} mm)",
-                         source=meas.source)
-    return mean
+def _groups(*labels: Sequence[str]) -> np.ndarray:
+    """Group index per row of equal label tuples, groups numbered in order of first appearance."""
+    combined = np.array(["\x1f".join(t) for t in zip(*labels)])
+    _, first, inverse = np.unique(combined, return_index=True, return_inverse=True)
+    rank = np.empty(len(first), dtype=int)
+    rank[np.argsort(first)] = np.arange(len(first))
+    return rank[inverse.reshape(-1)]
 
 
-def average_repeats(meas: Measurements, tolerance: float = REPEAT_TOLERANCE_MM) -> Measurements:
-    """Average rows sharing (pose_id, target): mean position, chordal mean rotation.
+def _spread(values: np.ndarray, group: np.ndarray) -> np.ndarray:
+    """Per group, the largest range over rows of any column of ``values`` (m, k)."""
+    n = group.max() + 1
+    hi = np.full((n, values.shape[1]), -np.inf)
+    lo = np.full((n, values.shape[1]), np.inf)
+    np.maximum.at(hi, group, values)
+    np.minimum.at(lo, group, values)
+    return (hi - lo).max(axis=1)
 
-    Rows of one group must command the same joints, and their positions must agree within
-    ``tolerance`` mm of the group mean (a gross disagreement is a mislabelled row or a lost
-    beam, not noise).
+
+def _group_rows(meas: Measurements, group: np.ndarray, g: int) -> str:
+    rows = [int(r) for r in meas.rows[group == g]]
+    return "[" + ", ".join(map(str, rows[:8])) + (", …]" if len(rows) > 8 else "]")
+
+
+def _check_one_pose(meas: Measurements, pose: np.ndarray, labels: list[str], tolerance_deg: float) -> None:
+    """Rows of one pose (its reflectors, its repeated rows) must command one joint set, within
+    ``tolerance_deg`` (encoder read-backs of one commanded pose differ by thousandths of a degree)."""
+    spread = np.degrees(_spread(meas.q, pose))
+    bad = np.flatnonzero(spread > tolerance_deg)
+    if not bad.size:
+        return
+    g = bad[int(np.argmax(spread[bad]))]
+    rows = np.flatnonzero(pose == g)
+    reflectors = sorted({meas.targets[i] for i in rows}) if meas.targets is not None else []
+    what = f"rows {_group_rows(meas, pose, g)} (reflectors {', '.join(reflectors)})" if len(reflectors) > 1 else \
+        f"repeated rows {_group_rows(meas, pose, g)}"
+    raise InputError(f"{labels[rows[0]]}: {what} command different joint values (they differ by {spread[g]:.4g} "
+                     f"deg; tolerance {tolerance_deg:g} deg): the rows of one pose_id are one pose; "
+                     "give each pose its own pose_id, or number repeated measuring cycles in a cycle column",
+                     source=meas.source)
+
+
+def average_repeats(meas: Measurements, tolerance: float = REPEAT_TOLERANCE_MM, cycles: Sequence[str] | None = None,
+                    joint_tolerance: float = JOINT_TOLERANCE_DEG) -> Measurements:
+    """Average the rows of one measurement: same pose_id, same cycle (when the file numbers
+    its measuring cycles), same reflector: mean joints, position, torques and payload; chordal
+    mean rotation.
+
+    The rows of one pose_id and cycle (every reflector, every repeat) must command the same
+    joints within ``joint_tolerance`` deg, and a measurement's repeated rows must agree within
+    ``tolerance`` mm of their mean (a gross disagreement is a mislabelled row or a lost beam,
+    not noise).  Different cycles of one pose_id stay separate measurements of that pose.
     """
-    keys = list(zip(meas.pose_ids, meas.targets or ("",) * meas.n_poses))
-    groups: dict[tuple[str, str], list[int]] = {}
-    for i, k in enumerate(keys):
-        groups.setdefault(k, []).append(i)
-    if all(len(g) == 1 for g in groups.values()):
+    cycle = ("",) * meas.n_poses if cycles is None else tuple(cycles)
+    labels = [f"pose_id {p!r}" + (f", cycle {c!r}" if cycles is not None else "") for p, c in
+              zip(meas.pose_ids, cycle)]
+    _check_one_pose(meas, _groups(meas.pose_ids, cycle), labels, joint_tolerance)
+    group = _groups(meas.pose_ids, cycle, meas.targets or ("",) * meas.n_poses)
+    n = group.max() + 1
+    if n == meas.n_poses:
         return meas
-    order = list(groups.values())
-    first = np.array([g[0] for g in order])
-    pos = np.array([_check_group(meas, keys[g[0]], g, tolerance) for g in order])
-    rot = None if meas.rotation is None else project_to_so3(np.stack([meas.rotation[g].sum(0) for g in order]))
-    def mean(values):
-        return None if values is None else np.stack([values[g].mean(0) for g in order])
+    count = np.bincount(group, minlength=n)
 
+    def mean(values):
+        if values is None:
+            return None
+        flat = values.reshape(len(values), -1)
+        out = np.zeros((n, flat.shape[1]))
+        np.add.at(out, group, flat)
+        return (out / count[:, None]).reshape((n,) + values.shape[1:])
+
+    position = mean(meas.position)
+    spread = np.linalg.norm(meas.position - position[group], axis=1)
+    if spread.max() > tolerance:
+        i = int(np.argmax(spread))
+        raise InputError(f"{labels[i]}: repeated rows {_group_rows(meas, group, group[i])} disagree by "
+                         f"{spread[i]:.4g} mm (row {int(meas.rows[i])} furthest from their mean; tolerance "
+                         f"{tolerance:g} mm)", source=meas.source)
+    first = np.zeros(n, dtype=int)
+    first[group[::-1]] = np.arange(meas.n_poses)[::-1]
     return replace(
         meas,
-        q=meas.q[first].copy(),
-        position=pos,
-        rotation=rot,
+        q=mean(meas.q),
+        position=position,
+        rotation=None if meas.rotation is None else project_to_so3(mean(meas.rotation) * count[:, None, None]),
         torques=mean(meas.torques),
         payload=mean(meas.payload),
-        targets=None if meas.targets is None else tuple(keys[g[0]][1] for g in order),
-        pose_ids=tuple(keys[g[0]][0] for g in order),
+        targets=None if meas.targets is None else tuple(meas.targets[i] for i in first),
+        pose_ids=tuple(meas.pose_ids[i] for i in first),
         rows=meas.rows[first],
     )
 

@@ -26,13 +26,15 @@ from ..math.se3 import frame_from_values
 from ..math.so3 import matrix_to_rpy
 from ..model import urdf
 from ..model.kinematics import CONVENTIONS, prismatic_mask
+from ..model.region import Region
 from ..model.residual import ResidualModel
 from ..model.robot import Robot
 from ..model.terms import JointTerms
 from .atomic import atomic_write, read_text
 from .builtins import builtin_names, builtin_text
 
-TOP_KEYS = {"name", "convention", "joint", "base", "tool", "targets", "source", "gravity", "residual"}
+TOP_KEYS = {"name", "convention", "joint", "base", "tool", "targets", "source", "gravity", "residual", "region",
+            "fallback"}
 GEOMETRY_KEYS = {"a", "alpha", "d", "theta", "beta", "limits", "type", "name"}
 TERM_KEYS = {"compliance", "harmonics", "gravity_deflection"}
 JOINT_KEYS = GEOMETRY_KEYS | TERM_KEYS
@@ -265,8 +267,40 @@ def _residual(value, n: int, source: str, directory: Path | None) -> ResidualMod
     return model
 
 
+def _region(value, slide: np.ndarray, source: str) -> Region:
+    where = "[region]"
+    if not isinstance(value, dict) or "joints" not in value or set(value) - {"joints", "poses"}:
+        raise InputError("expected a [region] table with joints = [[low, high], …] and poses", source=source,
+                         where=where)
+    ranges = _pairs(value["joints"], 2, source, f"{where} joints")
+    if len(ranges) != len(slide) or np.any(ranges[:, 0] > ranges[:, 1]):
+        raise InputError(f"expected {len(slide)} [low, high] pairs with low ≤ high", source=source,
+                         where=f"{where} joints")
+    poses = value.get("poses", 0)
+    if isinstance(poses, bool) or not isinstance(poses, int) or poses < 0:
+        raise InputError(f"expected a count of poses, got {poses!r}", source=source, where=f"{where} poses")
+    return Region.from_dict({"joints": ranges.tolist(), "poses": poses}, slide)
+
+
+def _fallback(value, robot_source: str, n: int, directory: Path | None) -> Robot:
+    where = "key 'fallback'"
+    if not isinstance(value, str) or not value:
+        raise InputError(f"expected the name of a robot file, got {value!r}", source=robot_source, where=where)
+    path = Path(value)
+    if not path.is_absolute() and directory is not None:
+        path = directory / path
+    if not path.is_file():
+        raise InputError(f"no such robot file {str(path)!r}: the model's geometric fit, used outside the region it "
+                         "was calibrated on (it is looked for beside the robot file)", source=robot_source, where=where)
+    fallback = parse_robot(read_text(path, "robot file"), source=str(path), default_name=path.stem,
+                           directory=path.parent, nested=True)
+    if fallback.n_joints != n:
+        raise InputError(f"the fallback robot has {fallback.n_joints} joints, this one {n}", source=path)
+    return fallback
+
+
 def parse_robot(text: str, *, source: str = "<robot>", default_name: str = "robot",
-                directory: Path | None = None) -> Robot:
+                directory: Path | None = None, nested: bool = False) -> Robot:
     """A robot from TOML text; every problem is an InputError naming ``source`` and the key.
     directory: where a ``residual`` file named in the text is looked for (default: the
     working directory)."""
@@ -299,9 +333,16 @@ def parse_robot(text: str, *, source: str = "<robot>", default_name: str = "robo
         targets = {str(t): _frame(table, source, f"targets.{t}") for t, table in data["targets"].items()}
     terms = _terms(joints, data, len(joints), source)
     residual = None if "residual" not in data else _residual(data["residual"], len(joints), source, directory)
-    return Robot(conv, geom, limits, joint_names=tuple(nm or f"joint{i + 1}" for i, nm in enumerate(names))
-                 if any(names) else None, base=base, tool=tool, targets=targets, name=name or default_name,
-                 source=source, terms=terms, residual=residual)
+    region = None if "region" not in data else _region(data["region"], slide, source)
+    fallback = None
+    if "fallback" in data:
+        if nested:
+            raise InputError("a fallback robot has no fallback of its own", source=source, where="key 'fallback'")
+        fallback = _fallback(data["fallback"], source, len(joints), directory)
+    robot = Robot(conv, geom, limits, joint_names=tuple(nm or f"joint{i + 1}" for i, nm in enumerate(names))
+                  if any(names) else None, base=base, tool=tool, targets=targets, name=name or default_name,
+                  source=source, terms=terms, residual=residual, region=region)
+    return robot if fallback is None else robot.with_fallback(fallback)
 
 
 def _deg(x_rad: float) -> str:
@@ -392,15 +433,34 @@ def residual_path(path: str | Path) -> Path:
     return path.with_name(f"{path.stem}.residual.json")
 
 
-def robot_to_toml(robot: Robot, comment: str | None = None, residual_file: str | None = None) -> str:
-    """The robot file's text.  residual_file: the name under which the robot's residual model
-    is saved beside it (see :func:`save_robot`); without it a residual model is left out, and
-    the file says so."""
+def fallback_path(path: str | Path) -> Path:
+    """Where a robot file's geometric fallback is written: beside it, ``NAME.geometric.toml``."""
+    path = Path(path)
+    return path.with_name(f"{path.stem}.geometric.toml")
+
+
+def _region_lines(robot: Robot) -> list[str]:
+    if robot.region is None:
+        return []
+    d = robot.region.to_dict()
+    pairs = ", ".join(f"[{_num(round(a, 9))}, {_num(round(b, 9))}]" for a, b in d["joints"])
+    return ["[region]  # the joint ranges (deg; mm where a joint slides) of the poses it was calibrated on",
+            f"joints = [{pairs}]", f"poses = {d['poses']}", ""]
+
+
+def robot_to_toml(robot: Robot, comment: str | None = None, residual_file: str | None = None,
+                  fallback_file: str | None = None) -> str:
+    """The robot file's text.  residual_file, fallback_file: the names under which the robot's
+    residual model and geometric fallback are saved beside it (see :func:`save_robot`);
+    without them these are left out, and the file says so."""
     lines = [f"# {c}" for c in comment.splitlines()] if comment else []
     lines += [f"name = {_quote(robot.name)}", f'convention = "{robot.convention}"']
     if robot.residual is not None:
         lines.append(f"residual = {_quote(residual_file)}  # Gaussian-process correction of the pose"
                      if residual_file else "# this robot's residual model was not saved with it")
+    if robot.fallback is not None:
+        lines.append(f"fallback = {_quote(fallback_file)}  # its geometric fit, used outside [region]"
+                     if fallback_file else "# this robot's geometric fallback was not saved with it")
     lines.append("")
     for i in range(robot.n_joints):
         lines += ["[[joint]]"] + ([f"name = {_quote(robot.joint_names[i])}"] if robot.joint_names else [])
@@ -417,6 +477,7 @@ def robot_to_toml(robot: Robot, comment: str | None = None, residual_file: str |
     lines += _frame_text("[tool]", robot.tool) + [""]
     for name, T in robot.targets.items():
         lines += _frame_text(f"[targets.{_quote(name)}]", T) + [""]
+    lines += _region_lines(robot)
     return "\n".join(lines)
 
 
@@ -426,11 +487,18 @@ def save_robot(robot: Robot, path: str | Path, comment: str | None = None) -> li
 
     path = Path(path)
     written = []
-    name = None
+    name = fallback = None
     if robot.residual is not None:
         side = residual_path(path)
         atomic_write(side, json.dumps(robot.residual.to_dict()) + "\n")
         written.append(side)
         name = side.name
-    atomic_write(path, robot_to_toml(robot, comment, name))
+    if robot.fallback is not None:
+        side = fallback_path(path)
+        atomic_write(side, robot_to_toml(robot.fallback_robot, (
+            f"The geometric fit of {path.name}, which that model becomes outside the region it was "
+            "calibrated on.")))
+        written.append(side)
+        fallback = side.name
+    atomic_write(path, robot_to_toml(robot, comment, name, fallback))
     return [path, *written]

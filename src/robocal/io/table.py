@@ -113,14 +113,20 @@ def _number(cell: str, source: str, line: int, column: str) -> float:
     return value
 
 
-def numbers(table: CsvTable, names: Sequence[str]) -> np.ndarray:
-    """The named columns as finite floats, (rows, len(names))."""
+def numbers(table: CsvTable, names: Sequence[str], limit: float | None = None, unit: str = "") -> np.ndarray:
+    """The named columns as finite floats, (rows, len(names)); with ``limit``, a magnitude
+    beyond it (in the file's ``unit``) is an error naming the row and column: 1e308 is finite,
+    but no robot turns or reaches that far, and the arithmetic on it overflows."""
     idx = table.index
     cols = [idx[n] for n in names]
     out = np.empty((len(table.rows), len(cols)))
     for r, (ln, cells) in enumerate(zip(table.lines, table.rows)):
         for j, (c, name) in enumerate(zip(cols, names)):
             out[r, j] = _number(cells[c], table.source, int(ln), name)
+    if limit is not None and out.size and np.abs(out).max() > limit:
+        r, j = np.unravel_index(int(np.argmax(np.abs(out) > limit)), out.shape)
+        raise InputError(f"{out[r, j]:.6g} is not a plausible value (beyond ±{limit:g}{' ' + unit if unit else ''})",
+                         source=table.source, where=f"row {int(table.lines[r])}, column '{names[j]}'")
     return out
 
 

@@ -39,6 +39,9 @@ MOVABLE = ("revolute", "continuous", "prismatic")
 JOINT_TYPES = MOVABLE + ("fixed",)
 MEASURING_FRAME = "measuring_frame"
 TARGET = "target"
+#: the element by which a URDF names the robot file holding its whole model (joint terms, a
+#: residual correction): URDF readers ignore elements they do not know
+WHOLE_MODEL = "robocal"
 
 
 @dataclass(frozen=True, eq=False)
@@ -115,6 +118,8 @@ def _joint(element: ET.Element, source: str) -> _Joint:
     limit = element.find("limit")
     if kind in ("revolute", "prismatic") and limit is not None:
         lo, hi = (_floats(limit.get(k), 1, source, f"{where}, <limit {k}>", [0.0])[0] for k in ("lower", "upper"))
+        if lo > hi:
+            raise InputError(f"<limit> lower {lo:g} is above upper {hi:g}", source=source, where=where)
         if hi > lo:  # URDF defaults both to 0: no range stated
             scale = 1000.0 if kind == "prismatic" else 1.0
             limits = (scale * lo, scale * hi)
@@ -134,9 +139,35 @@ def _parse_xml(text: str, source: str) -> ET.Element:
     return root
 
 
+def _unique(names: list[str], what: str, source: str) -> None:
+    seen: set[str] = set()
+    for name in names:
+        if name in seen:
+            raise InputError(f"two {what}s are named '{name}'; names must be unique", source=source)
+        seen.add(name)
+
+
+def _loop(by_child: dict, start: str) -> list[str] | None:
+    """The links of a loop met walking up from ``start`` through the parents, or None."""
+    seen: list[str] = []
+    link = start
+    while link in by_child:
+        if link in seen:
+            return seen[seen.index(link):]
+        seen.append(link)
+        link = by_child[link].parent
+    return None
+
+
 def _tree(root: ET.Element, source: str):
+    """Links, the joint above each link, the joints below each link, and the root link; a link
+    with two parents, a loop of links, repeated names or several roots are input errors."""
     links = [link.get("name") for link in root.findall("link")]
+    if any(not name for name in links):
+        raise InputError("a <link> has no name", source=source)
+    _unique(links, "link", source)
     joints = [_joint(j, source) for j in root.findall("joint")]
+    _unique([j.name for j in joints], "joint", source)
     by_child, children = {}, {name: [] for name in links}
     for j in joints:
         for end in (j.parent, j.child):
@@ -147,6 +178,11 @@ def _tree(root: ET.Element, source: str):
                              source=source)
         by_child[j.child] = j
         children[j.parent].append(j)
+    for name in links:  # every walk up must end at a root: a loop would never end
+        loop = _loop(by_child, name)
+        if loop:
+            raise InputError(f"the links {' → '.join(loop + loop[:1])} form a loop (joints "
+                             f"{', '.join(by_child[link].name for link in loop)}); a URDF is a tree", source=source)
     roots = [name for name in links if name not in by_child]
     if len(roots) != 1:
         raise InputError(f"a URDF has one root link, this one has {len(roots)} ({', '.join(roots) or 'none'})",
@@ -209,10 +245,14 @@ def parse_urdf(text: str, *, source: str = "<urdf>", base_link: str | None = Non
         raise InputError(f"{bad[0].kind} joints are not supported in a serial chain", source=source,
                          where=f"joint '{bad[0].name}'")
     movable = [k for k, j in enumerate(path) if j.kind in MOVABLE]
+    for k in movable:
+        mimic = path[k].element.find("mimic")
+        if mimic is not None:
+            raise InputError(f"mimics joint '{mimic.get('joint')}' (<mimic>): robocal does "
+                             "not calibrate coupled joints; end the chain before it (--tip-link) or drop the "
+                             "coupling", source=source, where=f"joint '{path[k].name}'")
     if not movable:
         raise InputError(f"no movable joint between '{base}' and '{tip}'", source=source)
-    if note:
-        warnings.warn(note, RobocalWarning, stacklevel=2)
     lead = np.eye(4)
     for j in path[:movable[0]]:
         lead = lead @ j.origin
@@ -234,6 +274,9 @@ def parse_urdf(text: str, *, source: str = "<urdf>", base_link: str | None = Non
     tail = np.eye(4)
     for j in path[movable[-1] + 1:]:
         tail = tail @ j.origin
+    _check_size(path, source)
+    if note:  # only once the chain is known to be sound: an error is the one line said
+        warnings.warn(note, RobocalWarning, stacklevel=2)
     flange = path[movable[-1]].child
     targets, target_joints = _targets(by_child, children, flange, tip)
     chain = UrdfChain(text, base, tip, tuple(path[k].name for k in movable), tuple(folded), lead,
@@ -241,6 +284,21 @@ def parse_urdf(text: str, *, source: str = "<urdf>", base_link: str | None = Non
     return Robot("urdf", np.array(rows), np.array(limits), base=lead, tool=tail, targets=targets,
                  name=root.get("name") or Path(source).stem, source=source,
                  joint_names=tuple(path[k].name for k in movable), urdf=chain)
+
+
+#: a chain longer than this (mm, sum of its joint origins' offsets) is not a robot in metres
+MAX_CHAIN_MM = 50_000.0
+
+
+def _check_size(path: list[_Joint], source: str) -> None:
+    """A URDF written in millimetres reads as a robot hundreds of metres long: say so here, where
+    the culprit is, rather than blame the measurements for not matching it."""
+    length = sum(float(np.linalg.norm(j.origin[:3, 3])) for j in path)
+    if length > MAX_CHAIN_MM:
+        longest = max(path, key=lambda j: np.linalg.norm(j.origin[:3, 3]))
+        raise InputError(f"the chain is {length / 1000:.4g} m long (joint '{longest.name}' alone "
+                         f"{np.linalg.norm(longest.origin[:3, 3]) / 1000:.4g} m): implausible for a robot; URDF "
+                         "lengths are metres: was the file written in millimetres?", source=source)
 
 
 def _targets(by_child, children, flange: str, tip: str) -> tuple[dict, dict]:
@@ -263,9 +321,25 @@ def _targets(by_child, children, flange: str, tip: str) -> tuple[dict, dict]:
 
 
 def load_urdf(path: str | Path, base_link: str | None = None, tip_link: str | None = None) -> Robot:
+    """The robot of a URDF file; for a URDF that robocal exported as the geometry of a richer model
+    (``<robocal whole_model="…"/>``), that whole model, read from the robot file beside it."""
     from .atomic import read_text
 
-    return parse_urdf(read_text(path, "URDF file"), source=str(path), base_link=base_link, tip_link=tip_link)
+    text = read_text(path, "URDF file")
+    marker = _parse_xml(text, str(path)).find(WHOLE_MODEL)
+    whole = None if marker is None else marker.get("whole_model")
+    if not whole:
+        return parse_urdf(text, source=str(path), base_link=base_link, tip_link=tip_link)
+    side = Path(path).with_name(Path(whole).name)
+    if not side.is_file():
+        raise InputError(f"this URDF holds only the geometry of a calibrated model whose joint terms and residual "
+                         f"correction are in {side.name!r}, which is missing: put it beside the URDF (or delete the "
+                         f"<{WHOLE_MODEL}> element to use the geometry alone)", source=path)
+    from .robotfile import load_robot
+
+    warnings.warn(f"{path} is the geometry of a model beyond geometry: the whole model is read from {side}",
+                  RobocalWarning, stacklevel=2)
+    return load_robot(side)
 
 
 # --- writing ------------------------------------------------------------------------------
@@ -441,10 +515,16 @@ def _dh_split(convention: str, g: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return (fixed, np.eye(4)) if convention == "craig" else (np.eye(4), fixed)
 
 
-def urdf_text(robot: Robot, comment: str | None = None) -> str:
+def urdf_text(robot: Robot, comment: str | None = None, whole_model: str | None = None) -> str:
     """The URDF of a robot (see the module docstring); joint terms and residual corrections
-    cannot live in a URDF and are left out (:func:`robocal.io.robotfile.save_robot` writes them)."""
+    cannot live in a URDF and are left out (:func:`robocal.io.robotfile.save_robot` writes them):
+    ``whole_model`` names the robot file beside it that holds them, so that the URDF alone is
+    never taken for the whole model."""
     root = _from_file(robot) if robot.urdf is not None and robot.convention == "urdf" else _from_dh(robot)
+    for old in root.findall(WHOLE_MODEL):  # an earlier export's: this one says its own
+        root.remove(old)
+    if whole_model:
+        _append(root, ET.Element(WHOLE_MODEL, {"whole_model": whole_model}))
     head = '<?xml version="1.0"?>\n'
     if comment:
         head += "".join(f"<!-- {line.replace('--', '—')} -->\n" for line in comment.splitlines())

@@ -27,13 +27,15 @@ from ..math.so3 import exp_so3
 @dataclass(frozen=True, eq=False)
 class Block:
     """One kernel and the outputs it predicts: alpha (N, t) dual coefficients; length_scales (n,)
-    rad; amplitude c² of the standardised targets; y_mean, y_scale (t,) in the outputs' units."""
+    rad; amplitude c² of the standardised targets; y_mean, y_scale (t,) in the outputs' units;
+    dof: the effective degrees of freedom it took from its training data (all t outputs)."""
 
     alpha: np.ndarray
     length_scales: np.ndarray
     amplitude: float
     y_mean: np.ndarray
     y_scale: np.ndarray
+    dof: float = float("nan")
 
     def predict(self, X: np.ndarray, q: np.ndarray) -> np.ndarray:
         Xs, d = X / self.length_scales, q / self.length_scales
@@ -42,12 +44,13 @@ class Block:
 
     def to_dict(self) -> dict:
         return {"length_scales_rad": self.length_scales.tolist(), "amplitude": self.amplitude,
-                "y_mean": self.y_mean.tolist(), "y_scale": self.y_scale.tolist(), "alpha": self.alpha.tolist()}
+                "y_mean": self.y_mean.tolist(), "y_scale": self.y_scale.tolist(), "alpha": self.alpha.tolist(),
+                **({"dof": self.dof} if np.isfinite(self.dof) else {})}
 
     @classmethod
     def from_dict(cls, d: dict) -> Block:
         return cls(np.array(d["alpha"], float), np.array(d["length_scales_rad"], float), float(d["amplitude"]),
-                   np.array(d["y_mean"], float), np.array(d["y_scale"], float))
+                   np.array(d["y_mean"], float), np.array(d["y_scale"], float), float(d.get("dof", float("nan"))))
 
 
 @dataclass(frozen=True, eq=False)
@@ -63,6 +66,11 @@ class ResidualModel:
     @property
     def outputs(self) -> int:
         return sum(b.alpha.shape[1] for b in self.blocks)
+
+    @property
+    def dof(self) -> float:
+        """Effective degrees of freedom taken from the data (every block, every output)."""
+        return float(sum(b.dof for b in self.blocks))
 
     def predict(self, q: np.ndarray) -> np.ndarray:
         """δ (m, 3 or 6) at commanded joints q (m, n) rad; computed in chunks to bound memory."""
@@ -87,7 +95,8 @@ class ResidualModel:
         """What the result JSON says of the model (the model itself goes to a file of its own)."""
         return {"kind": "gaussian process on the joint angles", "points": int(len(self.X)),
                 "outputs": "position" if self.outputs == 3 else "position and orientation",
-                "length_scales_rad": [b.length_scales.tolist() for b in self.blocks]}
+                "length_scales_rad": [b.length_scales.tolist() for b in self.blocks],
+                **({"effective_dof": self.dof} if np.isfinite(self.dof) else {})}
 
     def to_dict(self) -> dict:
         return {"kind": "gaussian processes, RBF on the joint angles (rad)", "X": self.X.tolist(),

@@ -11,6 +11,7 @@ from ..math.se3 import homogeneous
 from .dh import ALPHA, BETA, THETA, A, D
 from .kinematics import chain_pose, check_convention, geometry_width, prismatic_mask
 from .kinematics import reach as chain_reach
+from .region import Region, describe_margin
 from .residual import ResidualModel
 from .terms import JointTerms, joint_offsets
 
@@ -27,7 +28,12 @@ class Robot:
     beyond geometry (:mod:`robocal.model.terms`); residual: a learned correction of the pose
     in the measuring frame (:mod:`robocal.model.residual`).  joint_names: as a URDF or robot
     file names them; urdf: what a robot read from a URDF keeps of it for a faithful export
-    (:class:`robocal.io.urdf.UrdfChain`).
+    (:class:`robocal.io.urdf.UrdfChain`).  region: the joint ranges of the data it was
+    calibrated on; fallback: for a model beyond geometry, its geometric fit, which its pose
+    blends into outside the region (:mod:`robocal.model.region`).  The fallback's frames are held
+    relative to the robot's (base: inv(B)·B_fallback; tools: T_fallback·inv(T), per reflector), so
+    that when the robot is measured from elsewhere or given another tool its fallback moves with
+    it: attach one with :meth:`with_fallback`, read it whole with :attr:`fallback_robot`.
     """
 
     convention: str
@@ -42,6 +48,8 @@ class Robot:
     residual: ResidualModel | None = None
     joint_names: tuple[str, ...] | None = None
     urdf: object | None = field(default=None, repr=False)
+    region: Region | None = None
+    fallback: Robot | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
         check_convention(self.convention)
@@ -117,7 +125,28 @@ class Robot:
                           self.tool_frames(targets))
         if self.residual is not None:
             R, p = self.residual.correct(q, R, p, self.base[:3, :3])
+        if self.fallback is not None and self.region is not None:
+            R, p = self._blend(q, R, p, targets, torques, payload)
         return homogeneous(R, p)
+
+    def _blend(self, q, R, p, targets, torques, payload):
+        """Outside the calibrated region the pose blends into the geometric fallback's."""
+        w = self.region.weight(q)
+        rows = np.flatnonzero(w < 1.0)
+        if not rows.size:
+            return R, p
+        from ..math.so3 import exp_so3, orientation_error
+
+        def pick(a):
+            return None if a is None else np.asarray(a)[rows]
+
+        T = self.fallback_robot.fk(q[rows], None if targets is None else [targets[i] for i in rows],
+                                   pick(torques), pick(payload))
+        R, p = R.copy(), p.copy()
+        share = (1.0 - w[rows])[:, None]
+        p[rows] = p[rows] + share * (T[:, :3, 3] - p[rows])
+        R[rows] = exp_so3(share * orientation_error(T[:, :3, :3], R[rows])) @ R[rows]
+        return R, p
 
     def positions(self, q, targets: Sequence[str] | None = None, torques=None, payload=None) -> np.ndarray:
         """Measured-point positions (m, 3) mm in the measuring frame for commanded joints q (m, n) rad."""
@@ -128,8 +157,44 @@ class Robot:
         """True when the model is geometry alone (no joint terms, no residual correction)."""
         return (self.terms is None or self.terms.empty) and self.residual is None
 
+    def outside_note(self, q) -> str | None:
+        """What to say when poses q (m, n) rad lie outside the region the model was calibrated on."""
+        if self.region is None:
+            return None
+        text = self.region.describe(q)
+        if text is None:
+            return None
+        if self.fallback is not None:
+            return (f"{text}: its joint terms and residual correction are only known where they were calibrated; "
+                    f"beyond {describe_margin()}")
+        return f"{text}: the model is extrapolated there; expect larger errors"
+
     def replace(self, **changes) -> Robot:
         return replace(self, **changes)
+
+    def with_tool(self, tool: np.ndarray) -> Robot:
+        """The robot with another flange → tool frame (its fallback's follows: see the class)."""
+        return replace(self, tool=np.asarray(tool, float))
+
+    def with_fallback(self, geometric: Robot | None) -> Robot:
+        """This robot with ``geometric`` (frames as fitted, absolute) as its fallback."""
+        if geometric is None:
+            return replace(self, fallback=None)
+        inv = np.linalg.inv
+        targets = {t: T @ inv(self.targets[t]) if t in self.targets else T for t, T in geometric.targets.items()}
+        return replace(self, fallback=geometric.replace(base=inv(self.base) @ geometric.base,
+                                                         tool=geometric.tool @ inv(self.tool), targets=targets,
+                                                         fallback=None))
+
+    @property
+    def fallback_robot(self) -> Robot | None:
+        """The geometric fallback with its frames where this robot's are now."""
+        fb = self.fallback
+        if fb is None:
+            return None
+        targets = {t: T @ self.targets[t] if t in self.targets else T for t, T in fb.targets.items()}
+        targets.update({t: self.targets[t] for t in self.targets if t not in fb.targets})
+        return fb.replace(base=self.base @ fb.base, tool=fb.tool @ self.tool, targets=targets)
 
     def reach(self) -> float:
         """A length scale of the arm (mm): sum of |a| and |d| (urdf: of the origins), at least 1."""

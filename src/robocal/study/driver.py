@@ -9,7 +9,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..exceptions import InputError
+from ..exceptions import InputError, Interrupted
 from .engine import map_runs
 from .runs import RunsFile, key_of, key_text, read_runs, run
 from .spec import Study, load_study
@@ -70,10 +70,12 @@ def run_study(study: Study | str | Path, out: str | Path, *, workers: int | None
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise InputError("exists and is not a folder", source=out)
-    out.mkdir(parents=True, exist_ok=True)
+    if not out.exists() and not out.parent.is_dir():
+        raise InputError("its parent folder does not exist", source=out, option="out")
     order = study.runs()
     wanted = {key_text(k) for k in order}
     existing = read_runs(out / "runs.csv")
+    check_same_study(study, existing, out)
     have = {key_of(r) for r in existing if key_of(r) in wanted}
     todo = [k for k in order if key_text(k) not in have]
     runs_file = RunsFile(out / "runs.csv", existing)
@@ -82,6 +84,9 @@ def run_study(study: Study | str | Path, out: str | Path, *, workers: int | None
         for _, r in map_runs(functools.partial(run, study), todo, workers=workers, scheduler=scheduler,
                              setup=functools.partial(warm_up, study), batch=batch, progress=progress):
             runs_file.add(r)
+    except (Interrupted, KeyboardInterrupt):
+        raise Interrupted(f"{out / 'runs.csv'} keeps the {len(runs_file.rows)} runs done; the same command "
+                          "resumes") from None
     finally:
         runs_file.close()
     elapsed = time.perf_counter() - start
@@ -93,10 +98,41 @@ def run_study(study: Study | str | Path, out: str | Path, *, workers: int | None
     return result
 
 
+#: the study's identity beside its runs.csv, to name what differs when another study resumes there
+IDENTITY_FILE = "study.json"
+
+
+def check_same_study(study: Study, rows: list[dict], out: Path) -> None:
+    """Refuse to resume into a folder whose runs another study made (another robot, errors,
+    frames, options…): their figures would be summarised as this study's."""
+    import json
+
+    mine = study.fingerprint()
+    theirs = sorted({r["spec"] for r in rows} - {mine})
+    if not theirs:
+        return
+    recorded = out / IDENTITY_FILE
+    differ = ""
+    try:
+        before = json.loads(recorded.read_text(encoding="utf-8"))["identity"]
+        now = study.identity()
+        keys = [k for k in sorted(set(before) | set(now)) if before.get(k) != now.get(k)]
+        differ = ": " + "; ".join(f"{k} {before.get(k, '(unset)')!r} there, {now.get(k, '(unset)')!r} here"
+                                  for k in keys)
+    except (OSError, ValueError, KeyError, TypeError):
+        pass
+    raise InputError(f"was made by a different study{differ or ' (' + IDENTITY_FILE + ' is missing)'}; its runs "
+                     "would mix with this one's: use another --out folder", source=out / "runs.csv")
+
+
 def write_outputs(result: StudyResult, out: Path) -> None:
+    import json
+
     from ..io.atomic import atomic_write
     from ..report import figures
 
+    atomic_write(out / IDENTITY_FILE, json.dumps({"spec": result.study.fingerprint(),
+                                                  "identity": result.study.identity()}, indent=1) + "\n")
     atomic_write(out / "summary.md", summary_markdown(result.study, result.rows,
                                                       elapsed_s=result.elapsed_s if result.ran else None,
                                                       executor=result.executor if result.ran else ""))

@@ -23,7 +23,7 @@ from ..exceptions import InputError
 from .spec import RunKey, Study, number_key
 
 COLUMNS = ("method", "poses", "noise", "seed", "status", "before_rms", "after_rms", "validation_rms", "iterations",
-           "evaluations", "time_s")
+           "evaluations", "time_s", "spec")
 #: columns that depend on where and when a run ran
 TIME_COLUMNS = ("time_s",)
 #: statuses of a run that ended by its own criterion
@@ -47,6 +47,7 @@ def run(study: Study, key: RunKey) -> dict:
     from ..simulation import simulate
 
     robot = cached_robot(study.robot)
+    spec = study.fingerprint()
     start = time.perf_counter()
     try:
         with warnings.catch_warnings():
@@ -59,18 +60,18 @@ def run(study: Study, key: RunKey) -> dict:
             res = calibrate(robot, cal, key.method, frames=study.frames, seed=key.seed, validate=val,
                             **study.calibration)
     except (ArithmeticError, ValueError, np.linalg.LinAlgError) as exc:  # a run's failure is a result
-        return row(key, f"error: {exc.__class__.__name__}", time_s=time.perf_counter() - start)
+        return row(key, spec, f"error: {exc.__class__.__name__}", time_s=time.perf_counter() - start)
     m = res.metrics
-    return row(key, res.optimisation.status, m["before"].position["rms"], m["after"].position["rms"],
+    return row(key, spec, res.optimisation.status, m["before"].position["rms"], m["after"].position["rms"],
                m["validation_after"].position["rms"], res.optimisation.nit, res.optimisation.nfev, res.time_s)
 
 
-def row(key: RunKey, status: str, before=math.nan, after=math.nan, validation=math.nan, iterations=0, evaluations=0,
-        time_s=math.nan) -> dict:
+def row(key: RunKey, spec: str, status: str, before=math.nan, after=math.nan, validation=math.nan, iterations=0,
+        evaluations=0, time_s=math.nan) -> dict:
     return {"method": key.method, "poses": str(key.poses), "noise": number_key(key.noise), "seed": str(key.seed),
             "status": status, "before_rms": number_key(before), "after_rms": number_key(after),
             "validation_rms": number_key(validation), "iterations": str(iterations), "evaluations": str(evaluations),
-            "time_s": format(time_s, ".4g")}
+            "time_s": format(time_s, ".4g"), "spec": spec}
 
 
 def key_of(r: dict) -> tuple[str, str, str, str]:
@@ -87,9 +88,14 @@ def read_runs(path: Path) -> list[dict]:
     if not path.is_file():
         return []
     text = path.read_text(encoding="utf-8")
-    rows = list(csv.DictReader(io.StringIO(text)))
-    if rows and list(rows[0].keys()) != list(COLUMNS):
-        raise InputError(f"not a runs.csv of robocal study (columns {', '.join(rows[0].keys())})", source=path)
+    reader = csv.DictReader(io.StringIO(text))
+    rows = list(reader)
+    header = list(reader.fieldnames or [])
+    if header and header == list(COLUMNS[:-1]):
+        raise InputError("was written by an earlier robocal that did not record the study it belongs to: resume "
+                         "into a new --out folder", source=path)
+    if header and header != list(COLUMNS):
+        raise InputError(f"not a runs.csv of robocal study (columns {', '.join(header)})", source=path)
     return [r for r in rows if all(r.get(c) not in (None, "") for c in COLUMNS)]
 
 
@@ -104,17 +110,25 @@ def csv_text(rows: list[dict], header: bool = True) -> str:
 
 class RunsFile:
     """runs.csv while a study runs: each finished run is appended and flushed, so that an
-    interrupted study resumes where it stopped; :meth:`finish` rewrites it in run order."""
+    interrupted study resumes where it stopped; :meth:`finish` rewrites it in run order.  The
+    file (and its folder) is only touched once the first run is done: a start that fails
+    leaves nothing behind."""
 
     def __init__(self, path: Path, rows: list[dict]):
         self.path = path
         self.rows = list(rows)
+        self._fh = None
+
+    def _open(self):
         from ..io.atomic import atomic_write
 
-        atomic_write(path, csv_text(self.rows))  # drops a row a crash cut short
-        self._fh = path.open("a", encoding="utf-8", newline="")
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        atomic_write(self.path, csv_text(self.rows))  # drops a row a crash cut short
+        return self.path.open("a", encoding="utf-8", newline="")
 
     def add(self, r: dict) -> None:
+        if self._fh is None:
+            self._fh = self._open()
         self.rows.append(r)
         self._fh.write(csv_text([r], header=False))
         self._fh.flush()
@@ -122,12 +136,13 @@ class RunsFile:
     def finish(self, order: list[RunKey]) -> list[dict]:
         from ..io.atomic import atomic_write
 
-        self._fh.close()
+        self.close()
+        self.path.parent.mkdir(parents=True, exist_ok=True)
         rank = {key_text(k): i for i, k in enumerate(order)}
         self.rows.sort(key=lambda r: (rank.get(key_of(r), len(rank)), key_of(r)))
         atomic_write(self.path, csv_text(self.rows))
         return self.rows
 
     def close(self) -> None:
-        if not self._fh.closed:
+        if self._fh is not None and not self._fh.closed:
             self._fh.close()

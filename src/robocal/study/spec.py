@@ -76,6 +76,26 @@ class Study:
         return [RunKey(m, p, n, s) for m, p, n in itertools.product(self.methods, self.poses, self.noise)
                 for s in range(self.seeds)]
 
+    def identity(self) -> dict:
+        """What, besides a run's key (method, poses, noise, seed), changes its result: the
+        robot (its file's bytes, or a built-in's name), the planted errors, what is measured,
+        the frames, the validation poses, the simulation's noises and the calibration options."""
+        import hashlib
+
+        path = Path(self.robot)
+        robot = hashlib.sha256(path.read_bytes()).hexdigest()[:16] if path.is_file() else self.robot
+        return {"robot": robot, "errors": self.errors, "measure": self.measure, "frames": self.frames,
+                "validate": self.validate, "angle_noise": number_key(self.angle_noise),
+                "joint_noise": number_key(self.joint_noise),
+                **{k: str(v) for k, v in sorted(self.calibration.items())}}
+
+    def fingerprint(self) -> str:
+        """A short hash of :meth:`identity`: the ``spec`` column of runs.csv."""
+        import hashlib
+        import json
+
+        return hashlib.sha256(json.dumps(self.identity(), sort_keys=True).encode()).hexdigest()[:12]
+
     def to_dict(self) -> dict:
         """Plain values, to send to the workers and to record."""
         return {k: getattr(self, k) for k in ("robot", "methods", "poses", "noise", "seeds", "errors", "measure",
