@@ -244,16 +244,22 @@ def _terms(joints: list[dict], data: dict, n: int, source: str) -> JointTerms | 
                       padded if width else None, direction / np.linalg.norm(direction), com)
 
 
-def _residual(value, n: int, source: str, directory: Path | None) -> ResidualModel:
-    where = "key 'residual'"
+def _sibling(value, key: str, kind: str, source: str, directory: Path | None, purpose: str = "") -> Path:
+    """The file a robot file's ``key`` names (looked for beside the robot file): part of its model."""
+    where = f"key '{key}'"
     if not isinstance(value, str) or not value:
-        raise InputError(f"expected the name of a residual-model JSON file, got {value!r}", source=source, where=where)
+        raise InputError(f"expected the name of a {kind}, got {value!r}", source=source, where=where)
     path = Path(value)
     if not path.is_absolute() and directory is not None:
         path = directory / path
     if not path.is_file():
-        raise InputError(f"no such residual-model file {str(path)!r} (it is looked for beside the robot file)",
+        raise InputError(f"no such {kind} {str(path)!r}{purpose} (it is looked for beside the robot file)",
                          source=source, where=where)
+    return path
+
+
+def _residual(value, n: int, source: str, directory: Path | None) -> ResidualModel:
+    path = _sibling(value, "residual", "residual-model file", source, directory)
     import json
 
     try:
@@ -283,15 +289,8 @@ def _region(value, slide: np.ndarray, source: str) -> Region:
 
 
 def _fallback(value, robot_source: str, n: int, directory: Path | None) -> Robot:
-    where = "key 'fallback'"
-    if not isinstance(value, str) or not value:
-        raise InputError(f"expected the name of a robot file, got {value!r}", source=robot_source, where=where)
-    path = Path(value)
-    if not path.is_absolute() and directory is not None:
-        path = directory / path
-    if not path.is_file():
-        raise InputError(f"no such robot file {str(path)!r}: the model's geometric fit, used outside the region it "
-                         "was calibrated on (it is looked for beside the robot file)", source=robot_source, where=where)
+    path = _sibling(value, "fallback", "robot file", robot_source, directory,
+                    ": the model's geometric fit, used outside the region it was calibrated on")
     fallback = parse_robot(read_text(path, "robot file"), source=str(path), default_name=path.stem,
                            directory=path.parent, nested=True)
     if fallback.n_joints != n:

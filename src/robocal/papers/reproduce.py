@@ -26,6 +26,15 @@ def reproduce(name: str, out: str | Path, *, quick: bool = False, runs: int = 10
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise InputError("exists and is not a folder", source=out)
+    if not out.exists() and not out.parent.is_dir():
+        raise InputError("its parent folder does not exist", source=out, option="out")
+    from ..io.atomic import together
+
+    with together():  # every summary and figure lands at the end, or none does
+        return _run(names, name, out, quick, runs, seed, say, workers, scheduler)
+
+
+def _run(names, name, out: Path, quick, runs, seed, say, workers, scheduler) -> dict:
     done = {}
     for n in names:
         folder = out / n if name == "all" else out
