@@ -33,10 +33,11 @@ for module in (robots, simulate, evaluate, calibrate, compensate, plan, reproduc
 app.add_typer(pkm.app, name="pkm")
 
 
-def _one_line_warnings(python_show):
-    """A warning printer for the command line: robocal's own as one line on stderr.  The
-    libraries' (numpy's overflow RuntimeWarnings, scikit-learn's convergence notes) are not
-    for the user: whatever they flag, robocal checks and says in its own words; set
+def _one_line_warnings(python_show, held: list[str] | None = None):
+    """A warning printer for the command line: robocal's own as one line on stderr, or kept in
+    ``held`` to be printed once the command has succeeded (an input error is then the one line
+    said).  The libraries' (numpy's overflow RuntimeWarnings, scikit-learn's convergence notes)
+    are not for the user: whatever they flag, robocal checks and says in its own words; set
     ROBOCAL_SHOW_WARNINGS=1 to see them as Python prints them."""
     import os
 
@@ -44,7 +45,11 @@ def _one_line_warnings(python_show):
 
     def show(message, category, filename, lineno, file=None, line=None) -> None:
         if issubclass(category, RobocalWarning):
-            print(f"robocal: warning: {one_line(message)}", file=sys.stderr)
+            text = f"robocal: warning: {one_line(message)}"
+            if held is None:
+                print(text, file=sys.stderr)
+            else:
+                held.append(text)
         elif os.environ.get("ROBOCAL_SHOW_WARNINGS"):
             python_show(message, category, filename, lineno, file, line)
 
@@ -66,13 +71,18 @@ def main(argv: list[str] | None = None) -> int:
 
     own_sigint = threading.current_thread() is threading.main_thread()
     previous = signal.signal(signal.SIGINT, _raise_interrupted) if own_sigint else None
+    held: list[str] = []
     try:
         with warnings.catch_warnings():  # restores Python's printer on the way out
-            warnings.showwarning = _one_line_warnings(warnings.showwarning)
-            return _run(argv)
+            warnings.showwarning = _one_line_warnings(warnings.showwarning, held)
+            code = _run(argv)
     finally:
         if own_sigint:
             signal.signal(signal.SIGINT, previous)
+    if code == 0:  # what was noticed on the way; after an error, the error alone is said
+        for text in held:
+            print(text, file=sys.stderr)
+    return code
 
 
 def _run(argv: list[str] | None) -> int:

@@ -110,7 +110,7 @@ def calibrate_cmd(
     from ..io.robotfile import load_robot
     from .common import check_outputs, console, print_warnings, progress_bar
 
-    check_outputs(out=out, export=export, report=report)
+    check_outputs((robot, data, validate), out=out, export=export, report=report)
     cfg = CalibrationConfig(method=method, frames=frames, params=params, seed=seed, objective=objective,
                             use_orientation=not position_only, loss=loss, f_scale=f_scale, particles=particles,
                             iterations=iterations, box=box, halton=halton, backend=backend, noise=noise,

@@ -103,12 +103,14 @@ def load(robot, base_link=None, tip_link=None):
     return load_robot(robot, base_link=base_link, tip_link=tip_link)
 
 
-def check_outputs(**paths) -> None:
+def check_outputs(inputs=(), **paths) -> None:
     """Every output file of a command, checked before any work (keyword: the option's name):
-    not a folder, its folder existing and writable, no two options naming one file."""
+    not a folder, its folder existing and writable, no two options naming one file, and none
+    of the command's ``inputs`` (a result written over its own data would destroy them)."""
     from ..exceptions import InputError
     from ..io.atomic import check_output
 
+    read = {Path(p).resolve(): p for p in inputs if p is not None and Path(p).is_file()}
     seen: dict = {}
     for option, path in paths.items():
         if path is None:
@@ -117,4 +119,7 @@ def check_outputs(**paths) -> None:
         key = Path(path).resolve()
         if key in seen:
             raise InputError(f"the same file as --{seen[key].replace('_', '-')}", source=path, option=option)
+        if key in read:
+            raise InputError("is also an input of this command: it would be overwritten", source=path,
+                             option=option)
         seen[key] = option

@@ -40,7 +40,7 @@ def compensate_cmd(
     from ..io.robotfile import load_robot
     from .common import check_outputs, console, metrics_table, print_warnings
 
-    check_outputs(out=out, json=as_json)
+    check_outputs((nominal, calibrated, goals, truth), out=out, json=as_json)
     opt.frame_values(tool, "tool")  # checked before any work
 
     # the chain's links choose the nominal's chain (and the truth's); a calibrated URDF export

@@ -58,7 +58,7 @@ def plan_cmd(
     from ..plan import plan_poses
     from .common import check_outputs, console
 
-    check_outputs(out=out, json=report)
+    check_outputs((robot,), out=out, json=report)
 
     r = load_robot(robot, base_link=base_link, tip_link=tip_link)
     jr = opt.joint_limits(limits, r.n_joints)

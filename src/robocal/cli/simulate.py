@@ -44,7 +44,7 @@ def simulate_cmd(
     from ..simulation import simulate
     from .common import check_outputs, console
 
-    check_outputs(out=out, truth=truth)
+    check_outputs((robot,), out=out, truth=truth)
 
     r = load_robot(robot, base_link=base_link, tip_link=tip_link)
     rng = None if joint_range is None else tuple(math.radians(v) for v in opt.floats(joint_range, "range", (2,)))

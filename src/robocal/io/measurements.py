@@ -80,8 +80,10 @@ def _joint_columns(table: CsvTable, n_joints: int | None, required: bool, robot_
         raise InputError(f"joint column 'q{missing[0]}' is missing", source=table.source)
     if numbers_ and n_joints is not None and len(numbers_) != n_joints:
         robot = f" ({Path(robot_label).name})" if robot_label else ""
+        hint = ("; a URDF's joints are those of the chain between `base_link` and `tip_link`: check that chain"
+                if robot_label.lower().endswith(".urdf") else "")
         raise InputError(f"file has {len(numbers_)} joint columns (q1..q{len(numbers_)}) but the robot{robot} "
-                         f"has {n_joints} joints", source=table.source)
+                         f"has {n_joints} joints{hint}", source=table.source)
     return [h for _, h in joints]
 
 

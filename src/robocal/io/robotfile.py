@@ -71,11 +71,19 @@ def load_robot(spec: str | Path | Robot, *, base_link: str | None = None, tip_li
     return parse_robot(text, source=f"built-in {spec}", default_name=str(spec))
 
 
+#: no length (mm) or angle (deg) of a robot file is larger: ten kilometres; beyond it a value is a
+#: typo, and the arithmetic on it overflows
+MAX_MAGNITUDE = 1e7
+
+
 def _number(value, source, where) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise InputError(f"expected a number, got {type(value).__name__} {value!r}", source=source, where=where)
     if not math.isfinite(value):
         raise InputError(f"value must be finite, got {value!r}", source=source, where=where)
+    if abs(value) > MAX_MAGNITUDE:
+        raise InputError(f"{value!r} is not a plausible value (beyond ±{MAX_MAGNITUDE:g}: mm, deg)", source=source,
+                         where=where)
     return float(value)
 
 
