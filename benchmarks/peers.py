@@ -19,7 +19,7 @@ from robocal.bench.workloads import wen2019_problem
 from robocal.calibration import calibrate
 from robocal.io.robotfile import load_robot
 from robocal.optimize.swarm import constriction, ipso
-from robocal.papers import wen2019
+from robocal.presets import wen2019
 from robocal.simulation import planted_deviations, simulate
 
 

@@ -18,7 +18,7 @@ from .model.measurements import Measurements
 from .model.parameters import ParameterSpace, is_angle
 from .model.robot import Robot
 from .model.terms import JointTerms, mass_torques, nominal_masses
-from .papers import wen2019
+from .presets import wen2019
 
 MEASURES = ("pose", "position")
 

@@ -11,8 +11,8 @@ from robocal.io.robotfile import load_robot
 from robocal.model.measurements import Measurements
 from robocal.model.metrics import Metrics
 from robocal.model.parameters import ParameterSpace
-from robocal.papers.wen2019 import PARAMETERS as WEN2019_PARAMS
-from robocal.papers.wen2019 import TABLE2_DEVIATIONS as WEN2019_ERRORS
+from robocal.presets.wen2019 import PARAMETERS as WEN2019_PARAMS
+from robocal.presets.wen2019 import TABLE2_DEVIATIONS as WEN2019_ERRORS
 from robocal.simulation import simulate
 
 pytestmark = pytest.mark.usefixtures("quiet")

@@ -9,7 +9,7 @@ import numpy as np
 from robocal.io.measurements import load_measurements
 from robocal.io.robotfile import load_robot
 from robocal.model.metrics import Metrics
-from robocal.papers.wen2019 import TABLE2_DEVIATIONS as WEN2019_ERRORS
+from robocal.presets.wen2019 import TABLE2_DEVIATIONS as WEN2019_ERRORS
 from robocal.simulation import simulate
 
 

@@ -19,7 +19,7 @@ from robocal.calibration import calibrate
 from robocal.io.robotfile import load_robot
 from robocal.model.measurements import Measurements
 from robocal.model.metrics import Metrics
-from robocal.papers.wen2019 import TABLE2_DEVIATIONS
+from robocal.presets.wen2019 import TABLE2_DEVIATIONS
 
 DRAWS = 60
 NOISE, ANGLE_NOISE = 0.02, math.radians(0.001)

@@ -234,12 +234,12 @@ def test_the_final_guard_keeps_geometry_over_a_rich_model_that_fits_worse():
     from dataclasses import replace
 
     from robocal.calibration.config import CalibrationConfig
-    from robocal.calibration.pipeline import fit_parametric, load_inputs, term_spec
     from robocal.calibration.selection import Chosen, guard
+    from robocal.calibration.steps import fit_parametric, load_inputs, term_spec
 
     meas = _kr5_campaign(60, 8)
     cfg = CalibrationConfig(model="harmonics")
-    inputs = load_inputs("kr5-arc", meas, None, cfg, [])
+    inputs = load_inputs("kr5-arc", meas, None, cfg)
     rich = fit_parametric(inputs, cfg, term_spec(("harmonics",), meas, cfg))
     geometric = fit_parametric(inputs, cfg, term_spec((), meas, cfg))
     misled = replace(rich, estimate=rich.estimate.replace(x=rich.estimate.x + 1e-3))

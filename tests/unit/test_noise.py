@@ -10,7 +10,7 @@ from robocal.calibration.noise import NoiseModel, block_sigmas, settle
 from robocal.calibration.problem import Setup
 from robocal.io.robotfile import load_robot
 from robocal.model.parameters import ParameterSpace
-from robocal.papers import wen2019
+from robocal.presets import wen2019
 from robocal.simulation import simulate
 
 

@@ -22,7 +22,7 @@ from ..io.robotfile import load_robot
 from ..model.kinematics import chain_points
 from ..model.parameters import ParameterSpace, is_angle
 from ..optimize.swarm import ipso, ldpso_bt, pso
-from ..papers import kou2022, wen2019
+from ..presets import kou2022, wen2019
 from ..simulation import simulate
 from .timing import Row, median_time, run_measured
 

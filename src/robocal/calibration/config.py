@@ -195,7 +195,7 @@ def _params(value) -> str | tuple[str, ...] | None:
 
 def resolve_params(params: str | Sequence[str] | None, n_joints: int) -> list[str] | None:
     """The candidate joint names a config asks for, or None for the convention's defaults."""
-    from ..papers import kou2022, wen2019
+    from ..presets import kou2022, wen2019
 
     if params is None:
         return None

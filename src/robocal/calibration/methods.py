@@ -20,7 +20,7 @@ from ..model.parameters import is_angle, is_frame
 from ..optimize.lm import levenberg_marquardt
 from ..optimize.result import OptimizeResult, Progress
 from ..optimize.swarm import ipso, ldpso_bt, pso
-from ..papers import kou2022, wen2019
+from ..presets import kou2022, wen2019
 from .config import CalibrationConfig
 from .problem import Problem
 

@@ -1,18 +1,20 @@
 """The calibration pipeline: nominal robot + measurements → calibrated robot and honest figures.
 
-:func:`calibrate` runs named steps, each a function below:
+:func:`calibrate` runs the steps of :mod:`robocal.calibration.steps` through the choice of
+model (:mod:`robocal.calibration.selection`: steps 2–9 once per model, or a ladder of them
+for ``auto``), the final guard, and the evaluation:
 
-1. :func:`load_inputs`: robot, data and validation data, checked against each other;
-2. :func:`register`: a complete model (DH + β on parallel axes), the measuring frame (and
-   tool offsets) in closed form, the noise weighting to start with;
-3. :func:`choose_candidates`: the parameters offered, from the config;
-4. :func:`analyse_identifiability`: the identifiable subset, the rest dropped with reasons;
+1. :func:`~.steps.load_inputs`: robot, data and validation data, checked against each other;
+2. :func:`~.steps.register`: a complete model (DH + β on parallel axes), the measuring frame
+   (and tool offsets) in closed form, the noise weighting to start with;
+3. :func:`~.steps.choose_candidates`: the parameters offered, from the config;
+4. :func:`~.steps.analyse_identifiability`: the identifiable subset, the rest dropped with reasons;
 5. :func:`robocal.calibration.methods.optimise`: the configured method;
-6. :func:`screen_outliers`: with a robust loss, outliers left out and the inliers refitted;
-7. :func:`reweigh`: σ estimated per residual block where not stated, and the fit repeated;
-8. :func:`refine_at_estimate`: identifiability re-checked at the estimate (F-test);
-9. :func:`judge`: goodness of fit, standard uncertainties, misfit and plausibility warnings;
-10. :func:`evaluate`: before/after metrics.
+6. :func:`~.steps.screen_outliers`: with a robust loss, outliers left out and the inliers refitted;
+7. :func:`~.steps.reweigh`: σ estimated per residual block where not stated, and the fit repeated;
+8. :func:`~.steps.refine_at_estimate`: identifiability re-checked at the estimate (F-test);
+9. :func:`~.steps.judge`: goodness of fit, standard uncertainties, misfit and plausibility warnings;
+10. :func:`~.selection.guard`, then :func:`~.steps.evaluate`: before/after metrics.
 
 "Before" figures use the nominal joint geometry with the registered frames, i.e. the best
 a rigid re-mounting of the nominal model can do, so that the improvement shown is the
@@ -24,442 +26,17 @@ from __future__ import annotations
 import time
 import warnings
 from collections.abc import Mapping
-from dataclasses import dataclass, replace
 from pathlib import Path
 
-import numpy as np
-
-from ..exceptions import InputError, RobocalWarning
-from ..io.measurements import load_measurements
-from ..io.robotfile import load_robot
-from ..model.candidates import complete, frame_candidates, joint_candidates
+from ..exceptions import RobocalWarning
 from ..model.measurements import Measurements
-from ..model.metrics import Metrics
-from ..model.parameters import ParameterSpace, is_term
 from ..model.region import Region
 from ..model.robot import Robot
-from ..model.terms import TermSpec
-from ..optimize.result import OptimizeResult, Progress
-from . import checks
-from .config import CalibrationConfig, resolve_params
-from .diagnostics import GoodnessOfFit, goodness_of_fit, implausible_deviations, joint_patterns, misfit_message
-from .identifiability import NO_EFFECT, SECOND_ORDER, STILL, Identifiability, Reason, analyse
-from .methods import Estimate, fit_lm, optimise
-from .noise import LINEAR_CHI2, MAX_REWEIGHTS, NoiseEstimate, block_sigmas, confirmed, settle, settled
-from .problem import Setup
-from .registration import choose_frames, fit_frames
+from ..optimize.result import Progress
+from .config import CalibrationConfig
 from .result import CalibrationResult
-from .statistics import (
-    MAX_OUTLIER_FRACTION,
-    OUTLIER_GAP,
-    OUTLIER_SIGMAS,
-    covariance,
-    f_test,
-    leave_one_out,
-    robust_outliers,
-)
-
-#: significance level of the F-test that decides whether parameters that become
-#: identifiable at the estimate are worth adding
-ADD_SIGNIFICANCE = 0.01
-#: residual evaluations allowed to the refit with the added parameters
-REFIT_EVALUATIONS = 100
-
-
-@dataclass(frozen=True)
-class Inputs:
-    """The nominal robot, the measurements, validation data, and the frames mode in effect."""
-
-    nominal: Robot
-    meas: Measurements
-    validation: Measurements | None
-    frames: str
-
-
-@dataclass(frozen=True)
-class Candidates:
-    """The parameters offered: joint names (``explicit`` when the user chose them) and frames."""
-
-    joints: list[str]
-    names: list[str]
-    explicit: bool
-
-
-def _measurements(data, nominal: Robot, config: CalibrationConfig, columns) -> Measurements:
-    if isinstance(data, Measurements):
-        if data.n_joints != nominal.n_joints:
-            raise InputError(f"data have {data.n_joints} joints, the robot has {nominal.n_joints}", source=data.source)
-        return data
-    return load_measurements(data, **config.read_options(nominal, columns))
-
-
-def load_inputs(robot, data, validate, config: CalibrationConfig, notes: list[str], columns=None) -> Inputs:
-    """Step 1: the nominal robot and the measurements, position-only when asked, checked; the
-    frames mode (``auto`` decides here, and says what it decided)."""
-    nominal = load_robot(robot)
-    if nominal.residual is not None:  # a calibration learns its own correction from what its fit leaves
-        notes.append(f"the residual model of {nominal.source or nominal.name} is not used as a starting point: a "
-                     "calibration fits its own (with --model residual or auto)")
-        nominal = nominal.replace(residual=None)
-    if nominal.fallback is not None or nominal.region is not None:  # a new calibration finds its own
-        nominal = nominal.replace(fallback=None, region=None)
-    meas = _measurements(data, nominal, config, columns)
-    val = None if validate is None else _measurements(validate, nominal, config, columns)
-    if not (meas.full_pose and config.use_orientation):
-        meas = meas.position_only()
-        val = None if val is None else val.position_only()
-    if config.payload is not None:  # a stated payload where the files have no column
-        meas = meas if meas.payload is not None else replace(meas, payload=np.full(meas.n_poses, config.payload))
-        if val is not None and val.payload is None:
-            val = replace(val, payload=np.full(val.n_poses, config.payload))
-    frames = config.frames
-    if frames in ("auto", "none"):
-        choice = choose_frames(nominal, meas)
-        if frames == "auto" and choice.mode != "none":  # it changed what is calibrated: say so
-            notes.append(f"frames auto: {choice.sentence()}")
-        elif frames == "none" and choice.mode != "none":
-            notes.append(f"frames none, but {choice.sentence()}: calibrate with frames auto or {choice.mode}")
-        frames = choice.mode if frames == "auto" else "none"
-    checks.check_targets(nominal, meas, frames)
-    checks.check_validation_targets(nominal, meas, val)
-    if config.length_unit is None:  # a stated unit overrides the spread check
-        checks.check_units(nominal, meas, frames)
-    return Inputs(nominal, meas, val, frames)
-
-
-def complete_model(robot: Robot, config: CalibrationConfig) -> Robot:
-    """The robot with β offered on DH parallel axes (:func:`robocal.model.candidates.complete`),
-    unless the user's parameter list leaves β out (the papers' 24, for instance)."""
-    requested = resolve_params(config.params, robot.n_joints)
-    if requested is not None and not any(n.startswith("beta") for n in requested):
-        return robot
-    return complete(robot)
-
-
-def register(inputs: Inputs, config: CalibrationConfig, spec: TermSpec = TermSpec()) -> Setup:
-    """Step 2: the complete model, its frames fitted with the nominal joints (closed form, then
-    LM on base and tools together: see :func:`~robocal.calibration.registration.fit_frames`),
-    the parameter space around the result, and the noise weighting to start with.  A swarm
-    then searches a few millimetres around frames that are already right."""
-    sigma_p, sigma_r = config.noise_model.initial()
-    initial = fit_frames(complete_model(inputs.nominal, config), inputs.meas, inputs.frames, sigma_p, sigma_r)
-    space = ParameterSpace.of(initial, inputs.meas.target_names if inputs.frames == "base+tool" else None, spec)
-    return Setup(space, inputs.meas, sigma_p, sigma_r, config.use_orientation, config.backend)
-
-
-def choose_candidates(setup: Setup, config: CalibrationConfig, frames_mode: str) -> Candidates:
-    """Step 3: joint candidates (the convention's or the config's) and the frames' parameters."""
-    robot = setup.space.robot
-    requested = resolve_params(config.params, robot.n_joints)
-    joints = joint_candidates(robot) if requested is None else requested
-    unknown = [n for n in joints if n not in setup.space.names]
-    if unknown:
-        raise InputError(f"unknown parameter '{unknown[0]}' for this {robot.convention} robot "
-                         f"(known: {', '.join(setup.space.names[:8])}, …)", option="params")
-    frames = frame_candidates(frames_mode, setup.meas.target_names, setup.full_pose)
-    terms = setup.space.terms.names(robot.n_joints)
-    return Candidates(joints, joints + [n for n in frames + terms if n not in joints], requested is not None)
-
-
-def _still_reasons(setup: Setup, ident: Identifiability, names: list[str]) -> Identifiability:
-    """With joints that never moved, identifiability is judged with each held at its mean: a
-    joint's read-back jitter of a few thousandths of a degree must not make its geometry look
-    separable from the frames that absorb it (it would be fitted to the jitter).  Parameters
-    kept on the data as measured but not when held still are dropped for that reason."""
-    still = checks.still_joints(setup.meas)
-    if not still:
-        return ident
-    probe = setup.with_measurements(checks.held_still(setup.meas)).problem(names)
-    held = analyse(probe.residual_jacobian(np.zeros(probe.n_params)), names, probe.angle_mask, setup.meas.n_poses,
-                   setup.space.robot.reach())
-    newly = [n for n in held.dropped if n in ident.kept]
-    if not newly:
-        return ident
-    joints = tuple(i + 1 for i in still)
-    reasons = {**held.reasons, **{n: Reason(STILL, held.reasons[n].related, coefficients=held.reasons[n].coefficients,
-                                            joints=joints) for n in newly}}
-    many = len(joints) > 1
-    return held.with_changes(reasons=reasons, warnings=held.warnings + [
-        f"joint{'s' if many else ''} {', '.join(map(str, joints))} never move{'' if many else 's'}: "
-        f"{', '.join(newly)} dropped (absorbed by the frames and the other joints)"])
-
-
-def analyse_identifiability(setup: Setup, candidates: Candidates, notes: list[str]) -> Identifiability:
-    """Step 4: the identifiable subset at the initial robot; parameters that need the motion of a
-    joint that never moved are dropped (see :func:`_still_reasons`)."""
-    probe = setup.problem(candidates.names)
-    J = probe.residual_jacobian(np.zeros(probe.n_params))
-    ident = analyse(J, candidates.names, probe.angle_mask, setup.meas.n_poses, setup.space.robot.reach())
-    ident = _still_reasons(setup, ident, candidates.names)
-    notes += ident.warnings
-    if candidates.explicit:
-        bad = [n for n in candidates.joints if n in ident.reasons]
-        if bad:
-            notes.append(f"requested parameters not identifiable from these data, left at nominal: {', '.join(bad)}")
-    if not ident.kept:
-        raise InputError("no parameter is identifiable from these measurements", source=setup.meas.source)
-    if probe.n_residuals < probe.n_params:
-        notes.append(f"only {setup.meas.n_poses} poses ({probe.n_residuals} residuals) for {probe.n_params} "
-                     f"candidate parameters: {len(ident.dropped)} dropped; measure more poses")
-    return ident
-
-
-def searched_names(candidates: Candidates, ident: Identifiability) -> list[str]:
-    """What a swarm searches: every geometric candidate that has any effect on the data (joint
-    terms are left to LM, which hybrid runs after the swarm)."""
-    return [n for n in candidates.names if not is_term(n)
-            and (n not in ident.reasons or ident.reasons[n].kind not in (NO_EFFECT, STILL))]
-
-
-@dataclass(frozen=True)
-class Screening:
-    """Outliers left out by a robust fit, and the plain fit that keeps them (for comparison)."""
-
-    outliers: list[dict]
-    with_outliers: Robot | None = None
-
-
-def screen_outliers(est: Estimate, config: CalibrationConfig, notes: list[str]) -> tuple[Estimate, Screening]:
-    """Step 6: poses that fail the outlier test (:func:`~robocal.calibration.statistics.robust_outliers`).
-
-    With a robust loss they are left out and the inliers refitted by plain least squares (the
-    answer as if the outliers were never measured); a plain fit on every pose is kept beside
-    it, so that validation can say what leaving them out did.  With a plain fit they are only
-    named, with the suggestion of a robust loss: only poses that stand apart are named, so the
-    suggestion is not made for the continuous tail of an incomplete model.
-    """
-    problem = est.problem
-    if config.method not in ("lm", "hybrid") or est.optimisation.status != "converged":
-        return est, Screening([])
-    dp, _ = problem.errors(est.x)
-    flagged, sigma = robust_outliers(leave_one_out(dp, problem.residual_jacobian(est.x)))
-    if not flagged.size:
-        return est, Screening([])
-    meas = problem.meas
-    test = (f"leave-one-out residual beyond {OUTLIER_SIGMAS:g} σ̂ = {OUTLIER_SIGMAS * sigma:.3g} mm and standing "
-            f"apart, {OUTLIER_GAP:g}× the next smaller one or more")
-    if config.loss == "linear":
-        notes.append(f"{meas.labels(flagged)} look like outliers ({test}); a robust fit (loss huber, "
-                     "--loss huber) would leave them out")
-        return est, Screening([])
-    plain = CalibrationConfig.build(config, loss="linear")
-    keep_all = fit_lm(problem, est.x, plain)
-    outliers = [{"row": int(meas.rows[i]), "pose_id": None if meas.pose_ids is None else meas.pose_ids[i],
-                 "error_mm": float(np.linalg.norm(dp[i]))} for i in flagged]
-    inliers = problem.setup.with_measurements(meas.subset(np.setdiff1d(np.arange(meas.n_poses), flagged)))
-    refit_problem = inliers.problem(problem.names)
-    lm = fit_lm(refit_problem, est.x, plain)
-    merged = est.optimisation.then(lm, method=est.optimisation.method,
-                                   message=f"{est.optimisation.message}; {len(flagged)} outliers removed, inliers "
-                                           f"refitted: {lm.message}", extra={"robust_scale_mm": sigma})
-    notes.append(f"{len(flagged)} outlier poses left out ({test}): {meas.labels(flagged)}")
-    if len(flagged) > MAX_OUTLIER_FRACTION * meas.n_poses:
-        notes.append(f"{len(flagged)} of {meas.n_poses} poses ({100 * len(flagged) / meas.n_poses:.0f} %) left out "
-                     f"as outliers, more than {100 * MAX_OUTLIER_FRACTION:g} %: the model may be incomplete rather "
-                     "than the data bad; compare the validation figures with and without them")
-    screening = Screening(outliers, problem.space.apply(problem.full(keep_all.x)))
-    return est.replace(problem=refit_problem, optimisation=merged, x=lm.x), screening
-
-
-def refine_at_estimate(est: Estimate, ident: Identifiability, candidates: Candidates,
-                       config: CalibrationConfig) -> tuple[Estimate, Identifiability]:
-    """Step 7: re-check identifiability at the estimate; add what the data determine there.
-
-    Identifiability is judged from the Jacobian at a linearisation point.  At the nominal
-    model some dependencies hold only to first order: with parallel axes 2 ∥ 3 in standard
-    DH, d2 and d3 have identical columns, but a robot whose α2 is off by δ separates them by
-    an angle ~δ; a tool point off axis 6 by the deviation of a6 makes θ6 act.  The analysis
-    is repeated at the estimate with the kept set offered first; parameters that became
-    independent are added and LM continues, and the addition is accepted only if a
-    nested-model F-test says the fit improved significantly (p < ADD_SIGNIFICANCE).
-    """
-    if config.method not in ("lm", "hybrid") or est.optimisation.status != "converged":
-        return est, ident
-    setup = est.problem.setup
-    # judged with still joints held still: their parameters stay out whatever the estimate
-    probe = setup.with_measurements(checks.held_still(setup.meas)).problem(candidates.names)
-    deviation = est.problem.full(est.x)
-    again = analyse(probe.residual_jacobian(deviation[probe.active]), candidates.names, probe.angle_mask,
-                    setup.meas.n_poses, setup.space.robot.reach(), prefer=ident.kept)
-    added = [n for n in again.kept if n not in ident.kept and ident.reasons[n].kind != STILL]
-    if not added:
-        return est, ident
-    names = ident.kept + added
-    wider = setup.problem(names)
-    # A parameter that separates only weakly makes LM crawl along a valley; the refit is a
-    # test of whether the addition pays, so it gets a bounded budget.
-    lm = fit_lm(wider, deviation[wider.active], config, max_nfev=REFIT_EVALUATIONS)
-    p = f_test(est.optimisation.fun, lm.fun, len(added), wider.n_residuals - len(names))
-    if lm.status != "converged" or p >= ADD_SIGNIFICANCE:
-        second = {n: Reason(SECOND_ORDER, ident.reasons[n].related, p, ident.reasons[n].coefficients) for n in added}
-        reasons = {**ident.reasons, **second}
-        return est, ident.with_changes(reasons=reasons)
-    final = analyse(wider.residual_jacobian(lm.x), names, wider.angle_mask, setup.meas.n_poses,
-                    setup.space.robot.reach(), prefer=names)
-    kept = [n for n in candidates.names if n in set(names)]
-    refined = Identifiability(
-        kept=kept, dropped=[n for n in candidates.names if n not in set(names)],
-        reasons={n: r for n, r in ident.reasons.items() if n not in added},
-        singular_values=final.singular_values, condition=final.condition, observability=final.observability,
-        length_scale=final.length_scale, n_poses=final.n_poses,
-        warnings=final.warnings + [f"{', '.join(added)} identifiable only away from the nominal model (added after "
-                                   f"the first fit, F-test p={p:.2g}); expect large uncertainties"],
-    )
-    merged = est.optimisation.then(lm, method=est.optimisation.method, extra={"added_at_estimate": added},
-                                   message=f"{est.optimisation.message}; refit adding {', '.join(added)}: "
-                                           f"{lm.message}")
-    order = [names.index(n) for n in kept]
-    return Estimate(setup.problem(kept), merged, lm.x[order], est.reexpression_gap_mm), refined
-
-
-def reweigh(est: Estimate, config: CalibrationConfig) -> tuple[Estimate, NoiseEstimate]:
-    """Step 7: estimate σ per residual block where it is not stated, and refit with it until
-    the weights settle (see :mod:`robocal.calibration.noise`).  Swarms keep their answer; their
-    σ is estimated once, for the report."""
-    model, problem = config.noise_model, est.problem
-    full = problem.uses_orientation
-    source = "stated" if model.stated(full) else "estimated"
-    sigmas = (problem.setup.sigma_position, problem.setup.sigma_orientation)
-    refits = 0
-    refit = config.method in ("lm", "hybrid") and est.optimisation.status == "converged"
-    if source == "estimated" and problem.n_residuals > problem.n_params:
-        if not refit:  # a swarm keeps its answer: σ is estimated once, for the report
-            sigmas = block_sigmas(problem, est.x, model)
-            return est.replace(problem=problem.setup.with_noise(*sigmas).problem(problem.names)), NoiseEstimate(
-                sigmas[0], sigmas[1] if full else None, source, 0)
-        for _ in range(MAX_REWEIGHTS):
-            target = settle(problem, est.x, model)
-            moved = not settled(sigmas, target.sigmas, full)
-            sigmas, problem = target.sigmas, problem.setup.with_noise(*target.sigmas).problem(problem.names)
-            if not moved:  # the same solution, now weighed by the σ it shows
-                est = est.replace(problem=problem)
-                break
-            x = est.x + target.step
-            r = problem.residuals(x)
-            chi2 = float(r @ r)
-            if config.loss == "linear" and abs(chi2 - target.chi2) <= LINEAR_CHI2:
-                # linear there: the Gauss–Newton step is the refit, and LM would only confirm it
-                step = OptimizeResult("gauss-newton", x, chi2, np.array([chi2]), 1, 1, "converged",
-                                      "one Gauss–Newton step", 0.0)
-            else:
-                step = fit_lm(problem, est.x, config)
-            refits += 1
-            # χ² under new weights is another scale: the history stays that of the first weights
-            est = Estimate(problem, est.optimisation.then(step, method=est.optimisation.method, message=(
-                f"{est.optimisation.message}; reweighted (σp {sigmas[0]:.3g} mm): {step.message}"),
-                history=est.optimisation.history), step.x, est.reexpression_gap_mm)
-            if step.status != "converged" or confirmed(problem, est.x, target, model):
-                break
-    return est, NoiseEstimate(sigmas[0], sigmas[1] if full else None, source, refits)
-
-
-def judge(est: Estimate, config: CalibrationConfig, noise: NoiseEstimate,
-          notes: list[str]) -> tuple[GoodnessOfFit, np.ndarray | None, np.ndarray | None]:
-    """Step 9: goodness of fit, covariance and standard uncertainties, and the warnings they call for.
-
-    Uncertainties come from the whitened Jacobian at the solution, (JᵀJ)⁻¹.  With stated
-    noise and a fit worse than it (reduced χ² > 1) they are scaled by the reduced χ², which
-    is then said; with estimated noise the reduced χ² is 1 by construction.
-    """
-    gof = goodness_of_fit(est.problem, est.x, noise.source)
-    cov = None
-    if config.method in ("lm", "hybrid") and gof.dof > 0:
-        scale = gof.reduced_chi2 if noise.source == "estimated" else max(1.0, gof.reduced_chi2)
-        cov = covariance(est.problem.residual_jacobian(est.x), variance=scale)
-    if gof.misfit():
-        notes.append(misfit_message(gof, joint_patterns(est.problem, est.x))
-                     + (f"; uncertainties scaled by √χ²ᵣ = {np.sqrt(gof.reduced_chi2):.3g}" if cov is not None else ""))
-    unc = None if cov is None else np.sqrt(np.diag(cov))
-    corr = None
-    if cov is not None:
-        with np.errstate(invalid="ignore", divide="ignore"):
-            corr = cov / np.outer(unc, unc)
-    warning = implausible_deviations(est.problem.names, est.x, unc, corr)
-    if warning:
-        notes.append(warning)
-    if config.method in ("lm", "hybrid") and gof.dof <= 0:
-        unc = np.full(est.problem.n_params, np.nan)
-    return gof, unc, cov
-
-
-def evaluate(initial: Robot, calibrated: Robot, meas: Measurements, all_rows: Measurements,
-             validation: Measurements | None, screening: Screening, notes: list[str]) -> dict[str, Metrics]:
-    """Step 10: before/after metrics on the calibration data and, when given, on validation data;
-    with outliers left out, validation of the plain fit that kept them too."""
-    metrics = {"before": Metrics.of(initial, meas), "after": Metrics.of(calibrated, meas)}
-    if all_rows is not meas:
-        metrics["after_all_rows"] = Metrics.of(calibrated, all_rows)
-    if validation is not None:
-        metrics["validation_before"] = Metrics.of(initial, validation)
-        metrics["validation_after"] = Metrics.of(calibrated, validation)
-        if screening.with_outliers is not None:
-            kept = metrics["validation_with_outliers_kept"] = Metrics.of(screening.with_outliers, validation)
-            notes.append(f"leaving out {len(screening.outliers)} outlier poses changed the validation RMS from "
-                         f"{kept.position['rms']:.4g} mm (plain fit of every pose) to "
-                         f"{metrics['validation_after'].position['rms']:.4g} mm")
-    return metrics
-
-
-def _status_notes(est: Estimate, config: CalibrationConfig) -> list[str]:
-    opt = est.optimisation
-    if opt.status in ("diverged", "failed"):
-        return [f"optimiser {opt.method} {opt.status}: {opt.message}"]
-    if config.method in ("lm", "hybrid") and opt.status != "converged":
-        return [f"Levenberg–Marquardt stopped before converging: {opt.message}"]
-    return []
-
-
-@dataclass
-class Fit:
-    """A parametric model (geometry and joint terms) fitted to the data: what steps 2–9 give."""
-
-    setup: Setup
-    candidates: Candidates
-    identifiability: Identifiability
-    estimate: Estimate
-    screening: Screening
-    noise: NoiseEstimate
-    goodness: GoodnessOfFit
-    uncertainty: np.ndarray | None
-    covariance: np.ndarray | None
-    notes: list[str]
-
-    @property
-    def robot(self) -> Robot:
-        return self.setup.space.apply(self.estimate.problem.full(self.estimate.x))
-
-    @property
-    def n_params(self) -> int:
-        return self.estimate.problem.n_params
-
-
-def term_spec(terms, meas: Measurements, config: CalibrationConfig) -> TermSpec:
-    """The joint terms of a model for these data: compliance on measured torques where the file
-    has them, else under gravity (with the payload's own compliances when it varies)."""
-    compliance = None
-    if "compliance" in terms:
-        compliance = "torque" if meas.torques is not None else "gravity"
-    varying_payload = meas.payload is not None and np.ptp(meas.payload) > 0
-    return TermSpec(compliance, compliance == "gravity" and varying_payload,
-                    config.harmonics if "harmonics" in terms else 0)
-
-
-def fit_parametric(inputs: Inputs, config: CalibrationConfig, spec: TermSpec,
-                   progress: Progress | None = None) -> Fit:
-    """Steps 2–9 for one parametric model."""
-    notes: list[str] = []
-    setup = register(inputs, config, spec)
-    candidates = choose_candidates(setup, config, inputs.frames)
-    ident = analyse_identifiability(setup, candidates, notes)
-    est = optimise(setup.problem(ident.kept), setup.problem(searched_names(candidates, ident)), config, progress)
-    est, screening = screen_outliers(est, config, notes)
-    notes += _status_notes(est, config)
-    est, noise = reweigh(est, config)
-    refined, ident = refine_at_estimate(est, ident, candidates, config)
-    if refined is not est:  # parameters were added: their weights are settled again
-        est, noise = reweigh(refined, config)
-    gof, unc, cov = judge(est, config, noise, notes)
-    return Fit(setup, candidates, ident, est, screening, noise, gof, unc, cov, notes)
+from .selection import fit_model, guard
+from .steps import evaluate, load_inputs
 
 
 def calibrate(
@@ -481,14 +58,11 @@ def calibrate(
     (iteration, total, best objective).  Warnings are issued as :class:`RobocalWarning` and
     listed in the result.
     """
-    from .selection import fit_model, guard
-
     start = time.perf_counter()
     cfg = CalibrationConfig.build(config, **({"method": method} if config is None else {}), **options)
-    notes: list[str] = []
-    inputs = load_inputs(robot, data, validate, cfg, notes, columns)
-    notes += checks.degeneracy_warnings(inputs.nominal, inputs.meas)
+    inputs = load_inputs(robot, data, validate, cfg, columns)
     chosen = guard(fit_model(inputs, cfg, progress))
+    notes = list(inputs.notes)
     fit = chosen.fit
     notes += fit.notes + chosen.notes
     est, setup = fit.estimate, fit.setup
@@ -499,7 +73,8 @@ def calibrate(
         geometric = (chosen.geometric or fit).robot
         calibrated = calibrated.with_fallback(geometric.replace(
             name=f"{inputs.nominal.name} (calibrated, geometric fit)", region=region, residual=None))
-    metrics = evaluate(initial, calibrated, est.problem.meas, inputs.meas, inputs.validation, fit.screening, notes)
+    metrics, said = evaluate(initial, calibrated, est.problem.meas, inputs.meas, inputs.validation, fit.screening)
+    notes += said
     for note in notes:
         warnings.warn(note, RobocalWarning, stacklevel=2)
     return CalibrationResult(

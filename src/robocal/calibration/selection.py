@@ -27,8 +27,8 @@ from ..model.residual import ResidualModel
 from ..model.robot import Robot
 from .config import CalibrationConfig
 from .methods import fit_lm
-from .pipeline import Fit, Inputs, fit_parametric, term_spec
 from .residual import MAX_POINTS, fit_residual
+from .steps import Fit, Inputs, fit_parametric, term_spec
 
 LADDER: tuple[tuple[str, ...], ...] = ((), ("harmonics",), ("compliance",), ("compliance", "harmonics"))
 K_FOLDS = 5

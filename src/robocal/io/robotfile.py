@@ -17,11 +17,12 @@ from __future__ import annotations
 
 import math
 import tomllib
+import warnings
 from pathlib import Path
 
 import numpy as np
 
-from ..exceptions import InputError
+from ..exceptions import InputError, RobocalWarning
 from ..math.se3 import frame_from_values
 from ..math.so3 import matrix_to_rpy
 from ..model import urdf
@@ -53,9 +54,15 @@ def load_robot(spec: str | Path | Robot, *, base_link: str | None = None, tip_li
         return spec
     path = Path(spec)
     if path.suffix.lower() == ".urdf":
-        from .urdf import load_urdf
+        from .urdf import parse_urdf, whole_model_file
 
-        return load_urdf(path, base_link, tip_link)
+        text = read_text(path, "URDF file")
+        whole = whole_model_file(text, path)
+        if whole is None:
+            return parse_urdf(text, source=str(path), base_link=base_link, tip_link=tip_link)
+        warnings.warn(f"{path} is the geometry of a model beyond geometry: the whole model is read from {whole}",
+                      RobocalWarning, stacklevel=2)
+        return load_robot(whole)
     for option, value in (("base_link", base_link), ("tip_link", tip_link)):
         if value is not None:
             raise InputError(f"applies to URDF robots only, not {spec}", option=option)

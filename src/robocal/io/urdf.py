@@ -320,26 +320,20 @@ def _targets(by_child, children, flange: str, tip: str) -> tuple[dict, dict]:
     return targets, joints
 
 
-def load_urdf(path: str | Path, base_link: str | None = None, tip_link: str | None = None) -> Robot:
-    """The robot of a URDF file; for a URDF that robocal exported as the geometry of a richer model
-    (``<robocal whole_model="…"/>``), that whole model, read from the robot file beside it."""
-    from .atomic import read_text
-
-    text = read_text(path, "URDF file")
+def whole_model_file(text: str, path: str | Path) -> Path | None:
+    """For a URDF that robocal exported as the geometry of a richer model (``<robocal
+    whole_model="…"/>``), the robot file beside it that holds the whole model; else None.  A
+    missing one is an input error: the URDF alone would be a silently partial model."""
     marker = _parse_xml(text, str(path)).find(WHOLE_MODEL)
     whole = None if marker is None else marker.get("whole_model")
     if not whole:
-        return parse_urdf(text, source=str(path), base_link=base_link, tip_link=tip_link)
+        return None
     side = Path(path).with_name(Path(whole).name)
     if not side.is_file():
         raise InputError(f"this URDF holds only the geometry of a calibrated model whose joint terms and residual "
                          f"correction are in {side.name!r}, which is missing: put it beside the URDF (or delete the "
                          f"<{WHOLE_MODEL}> element to use the geometry alone)", source=path)
-    from .robotfile import load_robot
-
-    warnings.warn(f"{path} is the geometry of a model beyond geometry: the whole model is read from {side}",
-                  RobocalWarning, stacklevel=2)
-    return load_robot(side)
+    return side
 
 
 # --- writing ------------------------------------------------------------------------------

@@ -38,7 +38,7 @@ from collections.abc import Callable
 import numpy as np
 
 from ..backend import resolve
-from ..papers import chen2023, kou2022, wen2019
+from ..presets import chen2023, kou2022, wen2019
 from .result import OptimizeResult, Progress
 
 Objective = Callable[[np.ndarray], np.ndarray]

@@ -17,7 +17,7 @@ import numpy as np
 from .. import options as opt
 from ..exceptions import InputError
 from ..optimize.swarm import pso_batch
-from ..papers import chen2023 as paper
+from ..presets import chen2023 as paper
 from .geometry import PKMGeometry, chen2023, reduced_to_pose
 from .identify import identify_simulated
 from .kinematics import equations, forward, rod_lengths, workspace_targets

@@ -17,7 +17,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..math.so3 import rot_x, rot_y, rot_z
-from ..papers import chen2023 as paper
+from ..presets import chen2023 as paper
 
 AXES = ("x", "y", "z")
 #: the 28 error parameters: fixed points, moving points, rod zero lengths (all mm)
@@ -62,7 +62,7 @@ class PKMGeometry:
 
 
 def chen2023() -> PKMGeometry:
-    """The mechanism of Chen et al. Table 2 (see :mod:`robocal.papers.chen2023`)."""
+    """The mechanism of Chen et al. Table 2 (see :mod:`robocal.presets.chen2023`)."""
     return PKMGeometry(np.array(paper.FIXED_POINTS), np.array(paper.MOVING_POINTS))
 
 

@@ -9,12 +9,11 @@ from pathlib import Path
 import numpy as np
 
 from ..calibration.result import CalibrationResult
-from ..cli.calibrate import noise_line
 from ..io.atomic import atomic_write
 from ..model.metrics import Metrics, pose_errors
 from ..model.parameters import is_angle, is_frame
 from . import figures
-from .tables import FRAME_COLUMNS, PARAMETER_COLUMNS, frame_rows, parameter_rows
+from .tables import FRAME_COLUMNS, PARAMETER_COLUMNS, frame_rows, noise_line, parameter_rows
 
 _CSS = """
 body{font-family:system-ui,sans-serif;margin:2em auto;max-width:1000px;color:#222}

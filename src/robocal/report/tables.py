@@ -99,3 +99,17 @@ def frame_rows(result: CalibrationResult) -> list[tuple[str, ...]]:
             rpy_text = "not identified"
         rows.append((frame, ", ".join(_number(v, False) for v in xyz), rpy_text, change, note))
     return rows
+
+
+def noise_line(result) -> str:
+    """σ used and the goodness of fit, in one line."""
+    import math
+
+    n, g = result.noise, result.goodness_of_fit
+    text = f"noise σ {n.position:.3g} mm" + ("" if n.orientation is None else f", {math.degrees(n.orientation):.3g}°")
+    text += f" ({n.source})"
+    if g is not None and g.dof > 0:
+        text += f"; χ² {g.chi2:.4g} on {g.dof} degrees of freedom (reduced {g.reduced_chi2:.3g}, p {g.p_value:.3g})"
+    if result.robot.residual is not None:
+        text += " — of the parametric fit; its residual correction is judged by cross-validation"
+    return text

@@ -14,9 +14,9 @@ from ...pkm.geometry import PARAM_NAMES, chen2023
 from ...pkm.identify import identify_simulated
 from ...pkm.kinematics import workspace_targets
 from ...pkm.sensitivity import sensitivity
+from ...presets.chen2023 import PUBLISHED
 from ...report import figures
 from ..common import Say, fmt, quiet
-from . import PUBLISHED
 
 PAPER_METHOD = "paper (eq. 18, PSO)"
 NOISES = (0.0, 0.01)

@@ -13,12 +13,12 @@ from ...calibration import CalibrationResult, calibrate
 from ...io.atomic import atomic_write
 from ...io.robotfile import load_robot
 from ...model.metrics import pose_errors
+from ...presets.kou2022 import DEVIATIONS, LDPSO_BT, POSES, PSO, PUBLISHED
 from ...report import figures
 from ...simulation import planted_deviations, simulate
 from ...study.engine import map_runs
 from ..common import Say, fmt, machine, quiet, write_json
 from ..wen2019.reproduce import entry
-from . import DEVIATIONS, LDPSO_BT, POSES, PSO, PUBLISHED
 
 SWARMS = ("pso", "ldpso-bt")
 #: mean fitnesses within this relative difference count as "about the same" (the paper's words)

@@ -12,10 +12,10 @@ from ...io.atomic import atomic_write
 from ...io.robotfile import load_robot
 from ...model.metrics import pose_errors
 from ...model.parameters import is_angle
+from ...presets.wen2019 import IPSO, JOINT_NOISE_UNIFORM, PARAMETERS, POSES, PUBLISHED, TABLE2_DEVIATIONS
 from ...report import figures
 from ...simulation import simulate
 from ..common import Say, fmt, machine, quiet, write_json
-from . import IPSO, JOINT_NOISE_UNIFORM, PARAMETERS, POSES, PUBLISHED, TABLE2_DEVIATIONS
 
 
 def recovery(res: CalibrationResult, truth: dict[str, float]) -> dict[str, float]:
