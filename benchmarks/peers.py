@@ -46,7 +46,7 @@ def pyswarms_gbest(repeats: int) -> list[Row]:
         result["cost"], _ = opt.optimize(lambda X: prob.objective(X), iters=wen2019.IPSO["iterations"], verbose=False)
 
     def ours():
-        result["ours"] = ipso(lambda X: prob.objective(X), -box, box, seed=0).fun
+        result["ours"] = ipso(lambda X: prob.objective(X), -box, box, **wen2019.IPSO, seed=0).fun
 
     ours()
     t_peer, t_ours = median_time(peer, max(1, repeats // 2)), median_time(ours, max(1, repeats // 2))

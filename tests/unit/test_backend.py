@@ -40,7 +40,8 @@ def test_swarm_under_no_numba_runs_the_numpy_path_and_loads_no_numba():
     code = (
         "import sys, json, numpy as np\n"
         "from robocal.optimize.swarm import pso\n"
-        "r = pso(lambda X: np.sum(X**2, -1), -np.ones(4), np.ones(4), particles=20, iterations=30, seed=2)\n"
+        "r = pso(lambda X: np.sum(X**2, -1), -np.ones(4), np.ones(4), particles=20, iterations=30, w=0.8, c1=1.49,"
+        " c2=1.49, seed=2)\n"
         "print(json.dumps({'x': r.x.tolist(), 'numba': 'numba' in sys.modules}))\n"
     )
     out = json.loads(_python(code, {"ROBOCAL_NO_NUMBA": "1"}).splitlines()[-1])
@@ -49,7 +50,8 @@ def test_swarm_under_no_numba_runs_the_numpy_path_and_loads_no_numba():
 
     from robocal.optimize.swarm import pso
 
-    ref = pso(lambda X: np.sum(X**2, -1), -np.ones(4), np.ones(4), particles=20, iterations=30, seed=2,
+    ref = pso(lambda X: np.sum(X**2, -1), -np.ones(4), np.ones(4), particles=20, iterations=30, w=0.8, c1=1.49,
+              c2=1.49, seed=2,
               backend="numpy")
     assert out["x"] == ref.x.tolist()
 

@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from robocal.optimize.swarm import constriction, ipso, ldpso_bt, ldpso_population, pso, pso_batch
+from robocal.presets import kou2022, wen2019
 
 LO, HI = -np.ones(5), np.ones(5)
 
@@ -12,9 +13,9 @@ def sphere(X):
     return np.sum((X - 0.3) ** 2, axis=-1)
 
 
-@pytest.mark.parametrize("method", [pso, ipso, ldpso_bt])
-def test_backends_give_the_same_run(method):
-    kw = {"particles": 30, "iterations": 40, "seed": 3}
+@pytest.mark.parametrize("method,paper", [(pso, kou2022.PSO), (ipso, wen2019.IPSO), (ldpso_bt, kou2022.LDPSO_BT)])
+def test_backends_give_the_same_run(method, paper):
+    kw = {**paper, "particles": 30, "iterations": 40, "seed": 3}
     if method is ldpso_bt:
         kw["min_particles"] = 10
     a = method(sphere, LO, HI, backend="numpy", **kw)
@@ -43,7 +44,8 @@ def test_batched_swarms_equal_single_swarms_in_distribution(backend):
 
 
 def test_non_finite_objective_diverges():
-    out = pso(lambda X: np.full(len(X), np.nan), -np.ones(3), np.ones(3), particles=10, iterations=5)
+    out = pso(lambda X: np.full(len(X), np.nan), -np.ones(3), np.ones(3), particles=10, iterations=5, w=0.8, c1=1.49,
+              c2=1.49)
     assert out.status == "diverged" and not out.success
 
 

@@ -52,7 +52,7 @@ def w1_ipso(repeats: int = 5) -> list[Row]:
     prob, box = wen2019_problem()
 
     def run(iterations=wen2019.IPSO["iterations"]):
-        return ipso(lambda X: prob.objective(X), -box, box, iterations=iterations, seed=0)
+        return ipso(lambda X: prob.objective(X), -box, box, **{**wen2019.IPSO, "iterations": iterations}, seed=0)
 
     run(5)  # compile / warm caches outside the timing
     t = median_time(run, repeats)
@@ -66,12 +66,12 @@ def w2_swarms(repeats: int = 5) -> list[Row]:
     def f(X):
         return prob.objective(X, "sum_norms")
 
-    pso(f, -box, box, iterations=3)
-    ldpso_bt(f, -box, box, iterations=3)
+    pso(f, -box, box, **{**kou2022.PSO, "iterations": 3})
+    ldpso_bt(f, -box, box, **{**kou2022.LDPSO_BT, "iterations": 3})
     tp, tl = [], []
     for i in range(repeats):
-        tp.append(median_time(lambda i=i: pso(f, -box, box, seed=i), 1))
-        tl.append(median_time(lambda i=i: ldpso_bt(f, -box, box, seed=i), 1))
+        tp.append(median_time(lambda i=i: pso(f, -box, box, **kou2022.PSO, seed=i), 1))
+        tl.append(median_time(lambda i=i: ldpso_bt(f, -box, box, **kou2022.LDPSO_BT, seed=i), 1))
     p, ld = float(np.median(tp)), float(np.median(tl))
     ratio = float(np.median(np.array(tl) / np.array(tp)))
     return [

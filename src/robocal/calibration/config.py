@@ -11,8 +11,10 @@ from ..exceptions import InputError
 from ..io.measurements import ReadOptions
 from ..model.candidates import FRAME_CHOICES
 from ..optimize.lm import LOSSES
+from .registry import METHODS as _REGISTRY
+from .registry import Method
 
-METHODS = ("lm", "pso", "ipso", "ldpso-bt", "hybrid")
+METHODS = tuple(_REGISTRY)
 OBJECTIVES = ("sum_squares", "sum_norms")
 #: IPSO's start: a Halton sequence scrambled with the seed, or the plain sequence
 HALTON = ("scrambled", "plain")
@@ -20,12 +22,6 @@ HALTON = ("scrambled", "plain")
 MODEL_TERMS = ("compliance", "harmonics", "residual")
 #: named candidate sets: every joint parameter of the convention, or a paper's 24
 PARAMETER_SETS = ("auto", "all", "wen2019", "kou2022")
-#: default objective of each method (its paper's)
-DEFAULT_OBJECTIVE = {"lm": "sum_squares", "hybrid": "sum_squares", "ipso": "sum_squares", "pso": "sum_norms",
-                     "ldpso-bt": "sum_norms"}
-#: swarm settings a user may override, per method (the papers' names)
-SWARM_SETTINGS = {"pso": ("w", "c1", "c2"), "ipso": ("c1", "c2"), "hybrid": ("c1", "c2"),
-                  "ldpso-bt": ("min_particles", "w1", "w2", "switch", "c1", "c2"), "lm": ()}
 
 
 @dataclass(frozen=True)
@@ -98,7 +94,7 @@ class CalibrationConfig:
             if self.angle_noise is not None:
                 raise InputError("give the orientation noise or the weight k, not both", option="k")
         opt.choice(self.loss, LOSSES, "loss", "loss")
-        if self.loss != "linear" and self.method not in ("lm", "hybrid"):
+        if self.loss != "linear" and not self.spec.least_squares:
             raise InputError(f"a robust loss applies to lm and hybrid, not {self.method}", option="loss")
         set_(self, "f_scale", opt.number(self.f_scale, "f_scale", minimum=0.0, strict=True))
         set_(self, "particles", opt.optional_integer(self.particles, "particles", minimum=1))
@@ -109,7 +105,7 @@ class CalibrationConfig:
             if min(box) <= 0:
                 raise InputError(f"half-widths must be > 0, got {self.box!r}", option="box")
             set_(self, "box", box)
-        allowed = SWARM_SETTINGS[self.method]
+        allowed = self.spec.overridable
         for key, value in dict(self.swarm).items():
             if key not in allowed:
                 raise InputError(f"unknown setting {key!r} for {self.method} (allowed: {', '.join(allowed) or 'none'})",
@@ -123,7 +119,7 @@ class CalibrationConfig:
         set_(self, "harmonics", opt.integer(self.harmonics, "harmonics", minimum=1))
         if self.payload is not None:
             set_(self, "payload", opt.number(self.payload, "payload", minimum=0.0))
-        if self.is_swarm and (self.model == "auto" or self.model_terms - {"residual"}):
+        if not self.spec.least_squares and (self.model == "auto" or self.model_terms - {"residual"}):
             raise InputError(f"joint terms ({self.model}) are fitted by lm or hybrid, not {self.method}",
                              option="model")
 
@@ -155,9 +151,19 @@ class CalibrationConfig:
         return NoiseModel(self.noise, self.angle_noise, self.k)
 
     @property
+    def spec(self) -> Method:
+        """The method's entry of :data:`robocal.calibration.registry.METHODS`."""
+        return _REGISTRY[self.method]
+
+    @property
+    def least_squares(self) -> bool:
+        """LM gives or finishes the estimate: refits, outlier screening and uncertainties apply."""
+        return self.spec.least_squares
+
+    @property
     def objective_kind(self) -> str:
         """The objective the swarms minimise: the given one or the method's paper's."""
-        return self.objective or DEFAULT_OBJECTIVE[self.method]
+        return self.objective or self.spec.objective
 
     @property
     def halton_scramble(self) -> bool:
@@ -165,7 +171,8 @@ class CalibrationConfig:
 
     @property
     def is_swarm(self) -> bool:
-        return self.method in ("pso", "ipso", "ldpso-bt")
+        """A swarm alone gives the estimate."""
+        return self.spec.swarm_only
 
 
 def _model(value) -> str:

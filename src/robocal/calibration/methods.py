@@ -6,8 +6,7 @@
   initial robot; its model is then re-expressed in the identifiable parameters.
 - ``hybrid``: a short IPSO lands in the basin, LM finishes from there.
 
-Adding a method: a settings entry in :data:`SWARM_BOX` and a branch in :func:`optimise`
-(or a new optimiser in :mod:`robocal.optimize` called from it).
+Adding a method is one entry in :data:`robocal.calibration.registry.METHODS`.
 """
 
 from __future__ import annotations
@@ -19,20 +18,12 @@ import numpy as np
 from ..model.parameters import is_angle, is_frame
 from ..optimize.lm import levenberg_marquardt
 from ..optimize.result import OptimizeResult, Progress
-from ..optimize.swarm import ipso, ldpso_bt, pso
-from ..presets import kou2022, wen2019
 from .config import CalibrationConfig
 from .problem import Problem
+from .registry import METHODS
 
-#: default swarm search box per method: (± mm, ± rad) around the initial estimate
-SWARM_BOX = {"ipso": wen2019.BOX, "hybrid": wen2019.BOX, "pso": kou2022.BOX, "ldpso-bt": kou2022.BOX}
 #: swarms search frame parameters at least this far (mm, rad) around the registration
 FRAME_BOX = (5.0, 0.01)
-#: generations of the swarm stage of ``hybrid`` (IPSO, paper's 20 particles): enough to land
-#: in LM's basin, a fraction of the paper's 2000
-HYBRID_GENERATIONS = 300
-PAPER_SETTINGS = {"pso": kou2022.PSO, "ldpso-bt": kou2022.LDPSO_BT, "ipso": wen2019.IPSO,
-                  "hybrid": {**wen2019.IPSO, "iterations": HYBRID_GENERATIONS}}
 
 
 @dataclass(frozen=True)
@@ -55,7 +46,7 @@ class Estimate:
 
 def settings(config: CalibrationConfig) -> dict:
     """The swarm settings of a run: the paper's, overridden by the config."""
-    out = {**PAPER_SETTINGS[config.method], **config.swarm}
+    out = {**config.spec.settings, **config.swarm}
     if config.particles is not None:
         out["particles"] = config.particles
     if config.iterations is not None:
@@ -65,7 +56,7 @@ def settings(config: CalibrationConfig) -> dict:
 
 def swarm_box(names: list[str], method: str, box: tuple[float, float] | None) -> tuple[np.ndarray, np.ndarray]:
     """Lower and upper bounds of the search around the initial estimate (mm, rad)."""
-    length, angle = box or SWARM_BOX[method]
+    length, angle = box or METHODS[method].box
     upper = np.array([
         (max(angle, FRAME_BOX[1]) if is_angle(n) else max(length, FRAME_BOX[0])) if is_frame(n)
         else (angle if is_angle(n) else length)
@@ -106,32 +97,28 @@ def run_swarm(search: Problem, config: CalibrationConfig, progress: Progress | N
     # every particle at random, but on real data that start is already within a millimetre or
     # two, and a swarm should never end worse than the model it was handed
     kw = {"seed": config.seed, "callback": progress, "backend": config.backend, "start": np.zeros(len(search.names)),
-          **settings(config)}
+          **settings(config), **({"halton_scramble": config.halton_scramble} if config.spec.halton else {})}
 
     def objective(X):
         return search.objective(X, config.objective_kind)
 
-    if config.method == "pso":
-        return pso(objective, lower, upper, **kw)
-    if config.method == "ldpso-bt":
-        return ldpso_bt(objective, lower, upper, **kw)
-    return ipso(objective, lower, upper, halton_scramble=config.halton_scramble, **kw)
+    return config.spec.swarm(objective, lower, upper, **kw)
 
 
 def optimise(problem: Problem, search: Problem, config: CalibrationConfig,
              progress: Progress | None = None) -> Estimate:
     """Run the configured method: LM on ``problem`` (the identifiable set), swarms on ``search``."""
-    if config.method == "lm":
+    if config.spec.swarm is None:
         opt = fit_lm(problem, np.zeros(problem.n_params), config, progress)
         return Estimate(problem, opt, opt.x)
     swarm = run_swarm(search, config, progress)
     x_id, gap = reexpress(search, swarm.x, problem)
     swarm.extra.update({"searched": search.names})
-    if config.method != "hybrid":
+    if not config.least_squares:
         return Estimate(problem, swarm, x_id, gap)
     lm = fit_lm(problem, x_id, config)
     history = np.concatenate([swarm.history, lm.history]) if config.objective_kind == "sum_squares" else lm.history
-    merged = swarm.then(lm, method=f"ipso+{lm.method}", history=history,
-                        message=f"IPSO {swarm.nit} generations (best {swarm.fun:.6g}), then LM: {lm.message}",
-                        extra={"swarm_generations": swarm.nit, "swarm_best": swarm.fun})
+    merged = swarm.then(lm, method=f"{swarm.method}+{lm.method}", history=history,
+                        message=f"{swarm.method.upper()} {swarm.nit} generations (best {swarm.fun:.6g}), then LM: "
+                                f"{lm.message}", extra={"swarm_generations": swarm.nit, "swarm_best": swarm.fun})
     return Estimate(problem, merged, lm.x, gap)

@@ -83,7 +83,7 @@ class CalibrationResult:
 
     @property
     def objective(self) -> str:
-        return "sum_squares" if self.config.method == "lm" else self.config.objective_kind
+        return "sum_squares" if self.config.spec.swarm is None else self.config.objective_kind
 
     def parameter(self, name: str) -> float:
         """Identified deviation of one parameter (mm or rad)."""

@@ -227,7 +227,7 @@ def screen_outliers(est: Estimate, config: CalibrationConfig) -> tuple[Estimate,
     suggestion is not made for the continuous tail of an incomplete model.
     """
     problem = est.problem
-    if config.method not in ("lm", "hybrid") or est.optimisation.status != "converged":
+    if not config.least_squares or est.optimisation.status != "converged":
         return est, Screening([]), []
     dp, _ = problem.errors(est.x)
     flagged, sigma = robust_outliers(leave_one_out(dp, problem.residual_jacobian(est.x)))
@@ -270,7 +270,7 @@ def refine_at_estimate(est: Estimate, ident: Identifiability, candidates: Candid
     independent are added and LM continues, and the addition is accepted only if a
     nested-model F-test says the fit improved significantly (p < ADD_SIGNIFICANCE).
     """
-    if config.method not in ("lm", "hybrid") or est.optimisation.status != "converged":
+    if not config.least_squares or est.optimisation.status != "converged":
         return est, ident
     setup = est.problem.setup
     # judged with still joints held still: their parameters stay out whatever the estimate
@@ -318,7 +318,7 @@ def reweigh(est: Estimate, config: CalibrationConfig) -> tuple[Estimate, NoiseEs
     source = "stated" if model.stated(full) else "estimated"
     sigmas = (problem.setup.sigma_position, problem.setup.sigma_orientation)
     refits = 0
-    refit = config.method in ("lm", "hybrid") and est.optimisation.status == "converged"
+    refit = config.least_squares and est.optimisation.status == "converged"
     if source == "estimated" and problem.n_residuals > problem.n_params:
         if not refit:  # a swarm keeps its answer: σ is estimated once, for the report
             sigmas = block_sigmas(problem, est.x, model)
@@ -371,7 +371,7 @@ def judge(est: Estimate, config: CalibrationConfig, noise: NoiseEstimate) -> Jud
     gof = goodness_of_fit(est.problem, est.x, noise.source)
     notes: list[str] = []
     cov = None
-    if config.method in ("lm", "hybrid") and gof.dof > 0:
+    if config.least_squares and gof.dof > 0:
         scale = gof.reduced_chi2 if noise.source == "estimated" else max(1.0, gof.reduced_chi2)
         cov = covariance(est.problem.residual_jacobian(est.x), variance=scale)
     if gof.misfit():
@@ -385,7 +385,7 @@ def judge(est: Estimate, config: CalibrationConfig, noise: NoiseEstimate) -> Jud
     warning = implausible_deviations(est.problem.names, est.x, unc, corr)
     if warning:
         notes.append(warning)
-    if config.method in ("lm", "hybrid") and gof.dof <= 0:
+    if config.least_squares and gof.dof <= 0:
         unc = np.full(est.problem.n_params, np.nan)
     return Judgement(gof, unc, cov, notes)
 
@@ -413,7 +413,7 @@ def _status_notes(est: Estimate, config: CalibrationConfig) -> list[str]:
     opt = est.optimisation
     if opt.status in ("diverged", "failed"):
         return [f"optimiser {opt.method} {opt.status}: {opt.message}"]
-    if config.method in ("lm", "hybrid") and opt.status != "converged":
+    if config.least_squares and opt.status != "converged":
         return [f"Levenberg–Marquardt stopped before converging: {opt.message}"]
     return []
 

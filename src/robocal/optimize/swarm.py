@@ -38,7 +38,6 @@ from collections.abc import Callable
 import numpy as np
 
 from ..backend import resolve
-from ..presets import chen2023, kou2022, wen2019
 from .result import OptimizeResult, Progress
 
 Objective = Callable[[np.ndarray], np.ndarray]
@@ -213,12 +212,12 @@ def _with_start(x0: np.ndarray, start) -> np.ndarray:
 
 
 @_floats_may_overflow
-def pso(objective: Objective, lower, upper, *, particles: int = kou2022.PSO["particles"],
-        iterations: int = kou2022.PSO["iterations"], w: float = kou2022.PSO["w"], c1: float = kou2022.PSO["c1"],
-        c2: float = kou2022.PSO["c2"], seed: int | None = 0, callback: Progress | None = None,
-        backend: str = "auto", start: np.ndarray | None = None) -> OptimizeResult:
+def pso(objective: Objective, lower, upper, *, particles: int, iterations: int, w: float, c1: float, c2: float,
+        seed: int | None = 0, callback: Progress | None = None, backend: str = "auto",
+        start: np.ndarray | None = None) -> OptimizeResult:
     """Standard global-best PSO: v ← w v + c1 r1 (pbest − x) + c2 r2 (gbest − x); x ← x + v.
-    Defaults: Kou et al. (2022), Table 3.  start: a position for particle 0 (else random)."""
+    Kou et al. (2022), Table 3, give settings (:data:`robocal.presets.kou2022.PSO`).  start: a
+    position for particle 0 (else random)."""
     t0 = time.perf_counter()
     rng = np.random.default_rng(seed)
     x0, v0 = _uniform_start(rng, particles, lower, upper)
@@ -231,13 +230,13 @@ def pso(objective: Objective, lower, upper, *, particles: int = kou2022.PSO["par
 
 
 @_floats_may_overflow
-def ipso(objective: Objective, lower, upper, *, particles: int = wen2019.IPSO["particles"],
-         iterations: int = wen2019.IPSO["iterations"], c1: float = wen2019.IPSO["c1"],
-         c2: float = wen2019.IPSO["c2"], seed: int | None = 0, halton_scramble: bool = True,
-         callback: Progress | None = None, backend: str = "auto", start: np.ndarray | None = None) -> OptimizeResult:
+def ipso(objective: Objective, lower, upper, *, particles: int, iterations: int, c1: float, c2: float,
+         seed: int | None = 0, halton_scramble: bool = True, callback: Progress | None = None,
+         backend: str = "auto", start: np.ndarray | None = None) -> OptimizeResult:
     """IPSO of Wen et al. (2019): Halton initial positions and velocities, constriction factor
-    v ← K (v + c1 r1 (pbest − x) + c2 r2 (gbest − x)), K from φ = c1 + c2 (paper: 0.7298).
-    start: a position for particle 0 (else its Halton point)."""
+    v ← K (v + c1 r1 (pbest − x) + c2 r2 (gbest − x)), K from φ = c1 + c2 (paper: 0.7298;
+    settings :data:`robocal.presets.wen2019.IPSO`).  start: a position for particle 0 (else
+    its Halton point)."""
     from scipy.stats import qmc
 
     t0 = time.perf_counter()
@@ -261,16 +260,13 @@ def ipso(objective: Objective, lower, upper, *, particles: int = wen2019.IPSO["p
 
 
 @_floats_may_overflow
-def ldpso_bt(objective: Objective, lower, upper, *, particles: int = kou2022.LDPSO_BT["particles"],
-             min_particles: int = kou2022.LDPSO_BT["min_particles"],
-             iterations: int = kou2022.LDPSO_BT["iterations"], w1: float = kou2022.LDPSO_BT["w1"],
-             w2: float = kou2022.LDPSO_BT["w2"], switch: float = kou2022.LDPSO_BT["switch"],
-             c1: float = kou2022.LDPSO_BT["c1"], c2: float = kou2022.LDPSO_BT["c2"], seed: int | None = 0,
+def ldpso_bt(objective: Objective, lower, upper, *, particles: int, min_particles: int, iterations: int,
+             w1: float, w2: float, switch: float, c1: float, c2: float, seed: int | None = 0,
              callback: Progress | None = None, backend: str = "auto", start: np.ndarray | None = None
              ) -> OptimizeResult:
     """LDPSO-BT of Kou et al. (2022): linearly decreasing population and a two-stage velocity
-    update, standard with w1 for t ≤ switch·T, then v ← w2 v + c2 r2 (gbest − x).  start: a
-    position for particle 0 (else random)."""
+    update, standard with w1 for t ≤ switch·T, then v ← w2 v + c2 r2 (gbest − x) (settings
+    :data:`robocal.presets.kou2022.LDPSO_BT`).  start: a position for particle 0 (else random)."""
     t0 = time.perf_counter()
     rng = np.random.default_rng(seed)
     x0, v0 = _uniform_start(rng, particles, lower, upper)
@@ -295,14 +291,14 @@ def ldpso_bt(objective: Objective, lower, upper, *, particles: int = kou2022.LDP
 
 
 @_floats_may_overflow
-def pso_batch(objective: Objective, lower, upper, batch: int, *, particles: int = chen2023.PSO["particles"],
-              iterations: int = chen2023.PSO["iterations"], w: float = chen2023.PSO["w"],
-              c1: float = chen2023.PSO["c1"], c2: float = chen2023.PSO["c2"], seed: int | None = 0,
+def pso_batch(objective: Objective, lower, upper, batch: int, *, particles: int, iterations: int, w: float,
+              c1: float, c2: float, seed: int | None = 0,
               backend: str = "auto") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Independent global-best PSO swarms, one per problem of a batch, advanced together.
 
     objective maps X (batch, particles, k) to (batch, particles).  Same update, walls and
-    velocity limit as :func:`pso`; defaults: Chen et al. §4.2.  Returns the best x
+    velocity limit as :func:`pso`; Chen et al. §4.2 give settings
+    (:data:`robocal.presets.chen2023.PSO`).  Returns the best x
     (batch, k), its objective (batch,) and the best objective per iteration
     (iterations + 1, batch).
     """

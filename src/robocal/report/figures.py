@@ -72,8 +72,10 @@ def convergence(histories: dict[str, np.ndarray], title: str, ylabel: str = "bes
 
 def iteration_label(methods) -> str:
     """What one step of the x axis is: swarm generations, LM residual evaluations, or both."""
-    swarm = any(m in ("pso", "ipso", "ldpso-bt", "hybrid") for m in methods)
-    lm = any(m in ("lm", "hybrid") for m in methods)
+    from ..calibration.registry import METHODS
+
+    swarm = any(METHODS[m].swarm is not None for m in methods)
+    lm = any(METHODS[m].least_squares for m in methods)
     if swarm and lm:
         return "iteration (swarms: generation; LM: residual evaluation)"
     return "residual evaluation" if lm else "generation"

@@ -52,7 +52,7 @@ PER_POSE_LIMIT = 60
 
 def objective_label(result: CalibrationResult) -> str:
     """What the convergence history measures, with its unit."""
-    if result.method in ("lm", "hybrid"):
+    if result.config.least_squares:
         return "χ² (whitened sum of squares, dimensionless)"
     if result.objective == "sum_norms":
         return "best Σ|δp| (mm)"

@@ -9,6 +9,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
+from ..calibration.registry import METHODS
 from ..exceptions import InputError, Interrupted
 from .engine import map_runs
 from .runs import RunsFile, key_of, key_text, read_runs, run
@@ -48,7 +49,7 @@ def warm_up(study: Study) -> None:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             sim = simulate(robot, 12, measure=study.measure, seed=0)
-            short = {} if method == "lm" else {"iterations": 2, "particles": 10}
+            short = {} if METHODS[method].swarm is None else {"iterations": 2, "particles": 10}
             calibrate(robot, sim.measurements, method, frames="none", **{**study.calibration, **short})
         _WARM.add((study.robot, method))
 
