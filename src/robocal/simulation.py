@@ -17,7 +17,7 @@ from .model.kinematics import joint_parameter_names
 from .model.measurements import Measurements
 from .model.parameters import ParameterSpace, is_angle
 from .model.robot import Robot
-from .model.terms import JointTerms, mass_torques, nominal_masses
+from .model.terms import TERMS, JointTerms, mass_torques, nominal_masses
 from .presets import wen2019
 
 MEASURES = ("pose", "position")
@@ -167,28 +167,22 @@ def simulate(
 
 def planted_terms(robot: Robot, compliance: Mapping[int, float] | None,
                   harmonics: Mapping[int, Sequence[Sequence[float]]] | None) -> JointTerms | None:
-    """Joint terms from {joint: c} and {joint: [(a, b), …]} (1-based joints), checked."""
-    if not compliance and not harmonics:
-        return None
+    """Joint terms from {joint: c} and {joint: [(a, b), …]} (1-based joints), checked; each
+    term's arrays come from its entry of :data:`robocal.model.terms.TERMS`."""
     n = robot.n_joints
 
     def joint(j, option):
         j = opt.integer(j, option, minimum=1)
         if j > n:
             raise InputError(f"joint {j} does not exist (the robot has {n})", option=option)
-        return j - 1
+        return j
 
-    c = None
+    planted = {}
     if compliance:
-        c = np.zeros(n)
-        for j, value in compliance.items():
-            c[joint(j, "compliance")] = opt.number(value, "compliance")
-    h = None
+        planted["compliance"] = {joint(j, "compliance"): opt.number(v, "compliance") for j, v in compliance.items()}
     if harmonics:
-        width = max(len(v) for v in harmonics.values())
-        h = np.zeros((n, width, 2))
-        for j, pairs in harmonics.items():
-            i = joint(j, "harmonic")
-            for k, pair in enumerate(pairs):
-                h[i, k] = opt.floats(pair, "harmonic", (2,))
-    return JointTerms(compliance=c, harmonics=h)
+        planted["harmonics"] = {joint(j, "harmonic"): [opt.floats(pair, "harmonic", (2,)) for pair in pairs]
+                                for j, pairs in harmonics.items()}
+    if not planted:
+        return None
+    return JointTerms({k: v for name, values in planted.items() for k, v in TERMS[name].plant(values, n).items()})

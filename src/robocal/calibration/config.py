@@ -10,6 +10,7 @@ from ..backend import BACKENDS
 from ..exceptions import InputError
 from ..io.measurements import ReadOptions
 from ..model.candidates import FRAME_CHOICES
+from ..model.terms import TERMS
 from ..optimize.lm import LOSSES
 from .registry import METHODS as _REGISTRY
 from .registry import Method
@@ -19,7 +20,7 @@ OBJECTIVES = ("sum_squares", "sum_norms")
 #: IPSO's start: a Halton sequence scrambled with the seed, or the plain sequence
 HALTON = ("scrambled", "plain")
 #: what a model may hold beyond geometry (SPEC §10); ``auto`` chooses among them by cross-validation
-MODEL_TERMS = ("compliance", "harmonics", "residual")
+MODEL_TERMS = (*TERMS, "residual")
 #: named candidate sets: every joint parameter of the convention, or a paper's 24
 PARAMETER_SETS = ("auto", "all", "wen2019", "kou2022")
 

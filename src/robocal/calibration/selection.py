@@ -25,12 +25,25 @@ from ..model.measurements import Measurements
 from ..model.metrics import Metrics, pose_errors
 from ..model.residual import ResidualModel
 from ..model.robot import Robot
+from ..model.terms import TERMS
 from .config import CalibrationConfig
 from .methods import fit_lm
 from .residual import MAX_POINTS, fit_residual
 from .steps import Fit, Inputs, fit_parametric, term_spec
 
-LADDER: tuple[tuple[str, ...], ...] = ((), ("harmonics",), ("compliance",), ("compliance", "harmonics"))
+
+def ladder() -> list[tuple[str, ...]]:
+    """The parametric rungs: geometry, then every combination of the joint terms of
+    :data:`robocal.model.terms.TERMS`, fewer terms first and, among as many, the cheaper first
+    (each term's ``rung``); terms within a rung in registry order."""
+    from itertools import combinations
+
+    names = list(TERMS)
+    rungs = [c for k in range(len(names) + 1) for c in combinations(names, k)]
+    return sorted(rungs, key=lambda c: (len(c), sorted(TERMS[t].rung for t in c)))
+
+
+LADDER: tuple[tuple[str, ...], ...] = tuple(ladder())
 K_FOLDS = 5
 #: relative difference of cross-validated RMS within which the simpler model is kept
 TIE = 0.01
@@ -46,7 +59,7 @@ MAX_DOF_SHARE = 0.5
 
 
 def model_name(terms) -> str:
-    terms = [t for t in ("compliance", "harmonics", "residual") if t in terms]
+    terms = [t for t in (*TERMS, "residual") if t in terms]
     return "+".join(terms) if terms else "geometric"
 
 

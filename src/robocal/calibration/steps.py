@@ -34,7 +34,7 @@ from ..model.measurements import Measurements
 from ..model.metrics import Metrics
 from ..model.parameters import ParameterSpace, is_term
 from ..model.robot import Robot
-from ..model.terms import TermSpec
+from ..model.terms import TERMS, TermSpec
 from ..optimize.result import OptimizeResult, Progress
 from . import checks
 from .config import CalibrationConfig, resolve_params
@@ -443,14 +443,10 @@ class Fit:
 
 
 def term_spec(terms, meas: Measurements, config: CalibrationConfig) -> TermSpec:
-    """The joint terms of a model for these data: compliance on measured torques where the file
-    has them, else under gravity (with the payload's own compliances when it varies)."""
-    compliance = None
-    if "compliance" in terms:
-        compliance = "torque" if meas.torques is not None else "gravity"
-    varying_payload = meas.payload is not None and np.ptp(meas.payload) > 0
-    return TermSpec(compliance, compliance == "gravity" and varying_payload,
-                    config.harmonics if "harmonics" in terms else 0)
+    """The joint terms of a model for these data, each as its entry of
+    :data:`robocal.model.terms.TERMS` chooses from the data and the config's settings."""
+    settings = {"harmonics": config.harmonics}
+    return TermSpec({name: TERMS[name].option_for(meas, settings) for name in terms if name in TERMS})
 
 
 def fit_parametric(inputs: Inputs, config: CalibrationConfig, spec: TermSpec,

@@ -30,14 +30,14 @@ from ..model.kinematics import CONVENTIONS, prismatic_mask
 from ..model.region import Region
 from ..model.residual import ResidualModel
 from ..model.robot import Robot
-from ..model.terms import JointTerms
+from ..model.terms import TERMS, FileKey, JointTerms
 from .atomic import atomic_write, read_text
 from .builtins import builtin_names, builtin_text
 
 TOP_KEYS = {"name", "convention", "joint", "base", "tool", "targets", "source", "gravity", "residual", "region",
             "fallback"}
 GEOMETRY_KEYS = {"a", "alpha", "d", "theta", "beta", "limits", "type", "name"}
-TERM_KEYS = {"compliance", "harmonics", "gravity_deflection"}
+TERM_KEYS = {key.key for t in TERMS.values() for key in t.file_keys}
 JOINT_KEYS = GEOMETRY_KEYS | TERM_KEYS
 #: a urdf-convention robot's joints: origin xyz (mm) and rpy (deg), axis, type, zero offset
 URDF_JOINT_KEYS = {"xyz", "rpy", "axis", "type", "offset", "limits", "name"} | TERM_KEYS
@@ -214,27 +214,42 @@ def _pairs(value, width, source, where) -> np.ndarray:
     return np.array([_vector(v, width, source, where) for v in value])
 
 
+def _term_array(key: FileKey, joints: list[dict], n: int, source: str) -> np.ndarray | None:
+    """One term array from the per-joint ``key`` of every [[joint]] table (None if no joint has it)."""
+    if not any(key.key in j for j in joints):
+        return None
+    scale = math.pi / 180.0 if key.degrees else 1.0
+    if key.shape == "scalar":
+        return np.array([_number(j.get(key.key, 0.0), source, f"joint {i + 1}, key '{key.key}'")
+                         for i, j in enumerate(joints)]) * scale
+    if key.shape == "links":
+        out = np.zeros((n, n, 3))
+        for i, j in enumerate(joints):
+            if key.key in j:
+                rows = _pairs(j[key.key], 3, source, f"joint {i + 1}, key '{key.key}'")
+                if len(rows) != n - i:
+                    raise InputError(f"expected {n - i} [x, y, z] triples (links {i + 1}..{n}), got {len(rows)}",
+                                     source=source, where=f"joint {i + 1}, key '{key.key}'")
+                out[i, i:] = rows * scale
+        return out
+    rows = [_pairs(j[key.key], 2, source, f"joint {i + 1}, key '{key.key}'") if key.key in j else np.zeros((0, 2))
+            for i, j in enumerate(joints)]
+    width = max(len(r) for r in rows)
+    if not width:
+        return None
+    out = np.zeros((n, width, 2))
+    for i, r in enumerate(rows):
+        out[i, :len(r)] = r * scale
+    return out
+
+
 def _terms(joints: list[dict], data: dict, n: int, source: str) -> JointTerms | None:
-    """The joint terms of a robot file, or None when it has none (and no [gravity] table)."""
-    compliance, gravity, harmonics = np.zeros(n), np.zeros((n, n, 3)), []
-    has = set()
-    for i, j in enumerate(joints):
-        where = f"joint {i + 1}"
-        if "compliance" in j:
-            compliance[i] = _number(j["compliance"], source, f"{where}, key 'compliance'")
-            has.add("compliance")
-        if "gravity_deflection" in j:
-            rows = _pairs(j["gravity_deflection"], 3, source, f"{where}, key 'gravity_deflection'")
-            if len(rows) != n - i:
-                raise InputError(f"expected {n - i} [x, y, z] triples (links {i + 1}..{n}), got {len(rows)}",
-                                 source=source, where=f"{where}, key 'gravity_deflection'")
-            gravity[i, i:] = np.radians(rows)
-            has.add("gravity")
-        h = _pairs(j["harmonics"], 2, source, f"{where}, key 'harmonics'") if "harmonics" in j else np.zeros((0, 2))
-        harmonics.append(np.radians(h))
-        has |= {"harmonics"} if len(h) else set()
+    """The joint terms of a robot file (the per-joint keys of :data:`robocal.model.terms.TERMS`),
+    or None when it has none (and no [gravity] table)."""
+    arrays = {key.array: a for t in TERMS.values() for key in t.file_keys
+              if (a := _term_array(key, joints, n, source)) is not None}
     table = data.get("gravity")
-    if not has and table is None:
+    if not arrays and table is None:
         return None
     direction, com = np.array([0.0, 0.0, -1.0]), np.zeros(3)
     if isinstance(table, list):  # gravity = [x, y, z]: the direction alone
@@ -251,12 +266,7 @@ def _terms(joints: list[dict], data: dict, n: int, source: str) -> JointTerms | 
         if not np.linalg.norm(direction) > 0:
             raise InputError("the gravity direction must not be zero", source=source, where="[gravity] direction")
         com = np.array(_vector(table.get("payload_com", [0.0, 0.0, 0.0]), 3, source, "[gravity] payload_com"))
-    width = max(len(h) for h in harmonics)
-    padded = np.zeros((n, width, 2))
-    for i, h in enumerate(harmonics):
-        padded[i, :len(h)] = h
-    return JointTerms(compliance if "compliance" in has else None, gravity if "gravity" in has else None,
-                      padded if width else None, direction / np.linalg.norm(direction), com)
+    return JointTerms(arrays, direction / np.linalg.norm(direction), com)
 
 
 def _sibling(value, key: str, kind: str, source: str, directory: Path | None, purpose: str = "") -> Path:
@@ -398,17 +408,24 @@ def _list(values, fmt=_num) -> str:
 
 
 def _term_lines(terms: JointTerms | None, i: int) -> list[str]:
+    """Joint i's term keys (:data:`robocal.model.terms.TERMS`): a scalar when not zero, a list of
+    pairs when any is not zero, the links' rows always."""
     if terms is None:
         return []
     lines = []
-    if terms.compliance is not None and terms.compliance[i] != 0:
-        lines.append(f"compliance = {_num(terms.compliance[i])}  # rad/(N·m)")
-    if terms.gravity is not None:
-        rows = np.degrees(terms.gravity[i, i:])
-        lines.append(f"gravity_deflection = [{', '.join(_list(r) for r in rows)}]  # deg, links {i + 1}..")
-    if terms.harmonics is not None and np.any(terms.harmonics[i]):
-        lines.append(f"harmonics = [{', '.join(_list(r) for r in np.degrees(terms.harmonics[i]))}]  "
-                     "# deg: [cos(h q), sin(h q)], h = 1, 2, …")
+    for t in TERMS.values():
+        for key in t.file_keys:
+            values = terms.get(key.array)
+            if values is None:
+                continue
+            values = np.degrees(values) if key.degrees else values
+            comment = key.comment.format(i=i + 1)
+            if key.shape == "scalar" and values[i] != 0:
+                lines.append(f"{key.key} = {_num(values[i])}  # {comment}")
+            elif key.shape == "links":
+                lines.append(f"{key.key} = [{', '.join(_list(r) for r in values[i, i:])}]  # {comment}")
+            elif key.shape == "pairs" and np.any(values[i]):
+                lines.append(f"{key.key} = [{', '.join(_list(r) for r in values[i])}]  # {comment}")
     return lines
 
 
@@ -416,7 +433,7 @@ def _gravity_lines(terms: JointTerms | None) -> list[str]:
     if terms is None:
         return []
     default = np.allclose(terms.gravity_direction, [0, 0, -1]) and not np.any(terms.payload_com)
-    if default and terms.gravity is None and terms.compliance is None:
+    if default and TERMS["compliance"].option_of(terms) is None:
         return []
     return ["[gravity]", f"direction = {_list(terms.gravity_direction)}  # base frame",
             f"payload_com = {_list(terms.payload_com)}  # mm, flange frame", ""]

@@ -35,7 +35,7 @@ from .kinematics import (
     joint_value_columns,
 )
 from .robot import Robot
-from .terms import JointTerms, TermSpec, basis, joint_offsets
+from .terms import JointTerms, TermSpec, basis, joint_offsets, term_of, term_unit
 
 FRAME_AXES = ("x", "y", "z", "rx", "ry", "rz")
 _ANGLE_KINDS = frozenset(("alpha", "theta", "beta", "rx", "ry", "rz"))
@@ -51,15 +51,13 @@ def is_frame(name: str) -> bool:
 
 
 def is_term(name: str) -> bool:
-    """A joint-term parameter (compliance, gravity, harmonic)."""
-    return name.startswith(("compliance", "gravity", "harmonic"))
+    """A joint-term parameter (:data:`robocal.model.terms.TERMS`)."""
+    return term_of(name) is not None
 
 
 def unit(name: str) -> str:
-    """The unit of a parameter's value: mm, rad, or rad/(N·m) for a compliance."""
-    if name.startswith("compliance"):
-        return "rad/(N·m)"
-    return "rad" if is_angle(name) else "mm"
+    """The unit of a parameter's value: mm, rad, or a joint term's own (rad/(N·m) for a compliance)."""
+    return term_unit(name) or ("rad" if is_angle(name) else "mm")
 
 
 @dataclass(frozen=True, eq=False)
@@ -85,8 +83,8 @@ class JointData:
 
 def is_angle(name: str) -> bool:
     """True for parameters in rad (angles, gravity and harmonic terms), False for mm (and compliances)."""
-    if name.startswith(("gravity", "harmonic")):
-        return True
+    if is_term(name):
+        return term_unit(name) == "rad"
     kind = name.rsplit("_", 1)[-1] if is_frame(name) else name.rstrip("0123456789")
     return kind in _ANGLE_KINDS
 

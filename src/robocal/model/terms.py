@@ -24,6 +24,7 @@ degree do not change the basis) and the data, not on p.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -112,128 +113,312 @@ def nominal_masses(convention: str, geom: np.ndarray) -> tuple[np.ndarray, np.nd
 
 @dataclass(frozen=True)
 class TermSpec:
-    """Which joint terms a model has: compliance form (``torque``, ``gravity`` or None),
-    whether a varying payload gets its own compliances, and the number of harmonics."""
+    """Which joint terms a model has: term name → its option (see each :class:`Term`), e.g.
+    ``{"compliance": ("gravity", True), "harmonics": 2}``; absent terms are left out."""
 
-    compliance: str | None = None
-    payload: bool = False
-    harmonics: int = 0
+    options: Mapping[str, object] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        unknown = set(self.options) - set(TERMS)
+        if unknown:
+            raise ValueError(f"unknown joint term {sorted(unknown)[0]!r} (known: {', '.join(TERMS)})")
+        object.__setattr__(self, "options", {k: v for k, v in self.options.items() if v})
+
+    def terms(self):
+        """(term, option) of every term the spec has, in registry order (the parameter order)."""
+        return [(t, self.options[name]) for name, t in TERMS.items() if name in self.options]
 
     def names(self, n: int) -> list[str]:
-        out = []
-        if self.compliance == "torque" or (self.compliance == "gravity" and self.payload):
-            out += [f"compliance{i + 1}" for i in range(n)]
-        if self.compliance == "gravity":
-            out += [f"gravity{i + 1}_{j + 1}{a}" for i in range(n) for j in range(i, n) for a in "xyz"]
-        for i in range(n):
-            for h in range(1, self.harmonics + 1):
-                out += [f"harmonic{i + 1}_cos{h}", f"harmonic{i + 1}_sin{h}"]
-        return out
+        return [name for t, option in self.terms() for name in t.names(option, n)]
 
     @property
     def empty(self) -> bool:
-        return self.compliance is None and self.harmonics == 0
+        return not self.options
 
 
 @dataclass(frozen=True, eq=False)
 class JointTerms:
-    """The values of a robot's joint terms (see the module docstring); None where absent.
+    """The values of a robot's joint terms (see the module docstring): ``arrays`` maps each
+    term's array names to values (compliance (n,) rad/(N·m); gravity (n, n, 3) rad, entries
+    j < i unused; harmonics (n, H, 2) rad as (cos, sin) pairs); gravity_direction (3,) in the
+    base frame; payload_com (3,) mm in the flange frame."""
 
-    compliance (n,) rad/(N·m); gravity (n, n, 3) rad (entries j < i unused); harmonics
-    (n, H, 2) rad as (cos, sin) pairs; gravity_direction (3,) in the base frame;
-    payload_com (3,) mm in the flange frame.
-    """
-
-    compliance: np.ndarray | None = None
-    gravity: np.ndarray | None = None
-    harmonics: np.ndarray | None = None
+    arrays: Mapping[str, np.ndarray] = field(default_factory=dict)
     gravity_direction: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, -1.0]))
     payload_com: np.ndarray = field(default_factory=lambda: np.zeros(3))
 
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "arrays", {k: np.asarray(v, float) for k, v in self.arrays.items() if v is not None})
+
+    def get(self, array: str) -> np.ndarray | None:
+        return self.arrays.get(array)
+
     @property
     def empty(self) -> bool:
-        return self.compliance is None and self.gravity is None and self.harmonics is None
+        return not self.arrays
 
     @property
     def needs_torques(self) -> bool:
         """Torque-form compliance: Δq acts on measured joint torques, which the data must give."""
-        return self.compliance is not None and self.gravity is None and bool(np.any(self.compliance))
+        return any(t.needs_torques(self) for t in TERMS.values())
 
     def spec(self) -> TermSpec:
-        form = "gravity" if self.gravity is not None else ("torque" if self.compliance is not None else None)
-        return TermSpec(form, form == "gravity" and self.compliance is not None,
-                        0 if self.harmonics is None else self.harmonics.shape[1])
+        return TermSpec({name: t.option_of(self) for name, t in TERMS.items()})
 
     def vector(self, spec: TermSpec, n: int) -> np.ndarray:
         """Values in the order of ``spec.names(n)`` (zeros where this robot has none)."""
-        out = []
-        if spec.compliance == "torque" or (spec.compliance == "gravity" and spec.payload):
-            out.append(np.zeros(n) if self.compliance is None else self.compliance)
-        if spec.compliance == "gravity":
-            g = np.zeros((n, n, 3)) if self.gravity is None else self.gravity
-            out.append(np.concatenate([g[i, i:].ravel() for i in range(n)]))
-        if spec.harmonics:
-            h = np.zeros((n, spec.harmonics, 2))
-            if self.harmonics is not None:
-                k = min(spec.harmonics, self.harmonics.shape[1])
-                h[:, :k] = self.harmonics[:, :k]
-            out.append(h.ravel())
-        return np.concatenate(out) if out else np.zeros(0)
+        parts = [t.values(self, option, n) for t, option in spec.terms()]
+        return np.concatenate(parts) if parts else np.zeros(0)
 
     def with_vector(self, spec: TermSpec, n: int, values: np.ndarray) -> JointTerms:
         """These terms with the parameters of ``spec`` set to ``values``."""
         values = np.asarray(values, float)
-        k = 0
-        changes = {}
-        if spec.compliance == "torque" or (spec.compliance == "gravity" and spec.payload):
-            changes["compliance"], k = values[k:k + n].copy(), k + n
-        if spec.compliance == "gravity":
+        arrays, k = dict(self.arrays), 0
+        for t, option in spec.terms():
+            size = len(t.names(option, n))
+            arrays.update(t.arrays_of(option, n, values[k:k + size]))
+            k += size
+        return replace(self, arrays=arrays)
+
+
+@dataclass(frozen=True)
+class TermInputs:
+    """What a term's basis is computed from: the chain (convention, geometry (n, w)), the
+    commanded joints q (m, n) rad, the data's torques (m, n) N·m and payload (m,) kg (or None),
+    and the robot's own terms (for the gravity direction and the payload's centre)."""
+
+    convention: str
+    geom: np.ndarray
+    q: np.ndarray
+    torques: np.ndarray | None
+    payload: np.ndarray | None
+    terms: JointTerms
+
+
+@dataclass(frozen=True)
+class FileKey:
+    """A per-joint key of robot files holding one of a term's arrays: ``scalar`` (one number),
+    ``links`` (one [x, y, z] per link j ≥ i) or ``pairs`` ([cos, sin] per harmonic);
+    ``degrees``: written in degrees, held in rad."""
+
+    key: str
+    array: str
+    shape: str
+    degrees: bool
+    comment: str
+
+
+class Term:
+    """One kind of joint term: Δq = B(q, τ) · p, linear in its parameters p.
+
+    A term names its parameters for an option (:meth:`names`), builds their basis
+    (:meth:`basis`), moves values between the parameter vector and its arrays
+    (:meth:`values`, :meth:`arrays_of`), reads its option off a robot's arrays
+    (:meth:`option_of`), and says how robot files hold it (:attr:`file_keys`) and how a
+    simulation plants it (:meth:`plant`).  Adding a term is a subclass and an entry in
+    :data:`TERMS`; the parameter space, the pipeline, robot files and simulation take it from
+    there.
+    """
+
+    name: str = ""
+    #: the prefixes of its parameter names
+    prefixes: tuple[str, ...] = ()
+    #: where ``--model auto`` tries it among terms of as many: the cheaper first
+    rung: int = 0
+    file_keys: tuple[FileKey, ...] = ()
+
+    def unit_of(self, parameter: str) -> str:
+        """The unit of one of its parameters' values (rad unless said otherwise)."""
+        return "rad"
+
+    def names(self, option, n: int) -> list[str]:
+        raise NotImplementedError
+
+    def basis(self, option, inputs: TermInputs) -> np.ndarray:
+        raise NotImplementedError
+
+    def values(self, terms: JointTerms, option, n: int) -> np.ndarray:
+        raise NotImplementedError
+
+    def arrays_of(self, option, n: int, values: np.ndarray) -> dict[str, np.ndarray]:
+        raise NotImplementedError
+
+    def option_of(self, terms: JointTerms):
+        raise NotImplementedError
+
+    def needs_torques(self, terms: JointTerms) -> bool:
+        return False
+
+    def plant(self, planted, n: int) -> dict[str, np.ndarray]:
+        """Arrays of a simulated truth from the simulation's option (1-based joints)."""
+        raise NotImplementedError
+
+    def option_for(self, meas, settings: Mapping[str, object]):
+        """Its option in a model fitted to measurements ``meas`` with the calibration's settings."""
+        raise NotImplementedError
+
+
+class Compliance(Term):
+    """Δq_i = c_i τ_i: option ``("torque", False)`` on measured torques, or ``("gravity", payload)``
+    under gravity (``payload``: a varying payload adds its own compliances)."""
+
+    name = "compliance"
+    prefixes = ("compliance", "gravity")
+    rung = 2
+
+    def unit_of(self, parameter):
+        return "rad/(N·m)" if parameter.startswith("compliance") else "rad"
+    file_keys = (FileKey("compliance", "compliance", "scalar", False, "rad/(N·m)"),
+                 FileKey("gravity_deflection", "gravity", "links", True, "deg, links {i}.."))
+
+    @staticmethod
+    def _own(option) -> bool:
+        form, payload = option
+        return form == "torque" or (form == "gravity" and payload)
+
+    def names(self, option, n):
+        out = [f"compliance{i + 1}" for i in range(n)] if self._own(option) else []
+        if option[0] == "gravity":
+            out += [f"gravity{i + 1}_{j + 1}{a}" for i in range(n) for j in range(i, n) for a in "xyz"]
+        return out
+
+    def basis(self, option, x):
+        m, n = x.q.shape
+        cols = []
+        if self._own(option):
+            if option[0] == "torque":
+                tau = np.zeros(x.q.shape) if x.torques is None else \
+                    np.where(prismatic_mask(x.convention, x.geom), 0.0, np.asarray(x.torques, float))
+            else:
+                mass = np.zeros(m) if x.payload is None else np.asarray(x.payload, float)
+                tau = payload_torque(x.convention, x.geom, x.q, x.terms.gravity_direction, mass, x.terms.payload_com)
+            cols.append(np.einsum("mi,ik->mik", tau, np.eye(n)))
+        if option[0] == "gravity":
+            phi = gravity_basis(x.convention, x.geom, x.q, x.terms.gravity_direction)
+            for i in range(n):
+                b = np.zeros((m, n, 3 * (n - i)))
+                b[:, i, :] = phi[:, i, i:].reshape(m, -1)
+                cols.append(b)
+        return np.concatenate(cols, axis=2)
+
+    def values(self, terms, option, n):
+        out = []
+        if self._own(option):
+            c = terms.get("compliance")
+            out.append(np.zeros(n) if c is None else c)
+        if option[0] == "gravity":
+            g = terms.get("gravity")
+            g = np.zeros((n, n, 3)) if g is None else g
+            out.append(np.concatenate([g[i, i:].ravel() for i in range(n)]))
+        return np.concatenate(out)
+
+    def arrays_of(self, option, n, values):
+        out, k = {}, 0
+        if self._own(option):
+            out["compliance"], k = values[:n].copy(), n
+        if option[0] == "gravity":
             g = np.zeros((n, n, 3))
             for i in range(n):
                 size = 3 * (n - i)
                 g[i, i:] = values[k:k + size].reshape(n - i, 3)
                 k += size
-            changes["gravity"] = g
-        if spec.harmonics:
-            size = n * spec.harmonics * 2
-            changes["harmonics"], k = values[k:k + size].reshape(n, spec.harmonics, 2), k + size
-        return replace(self, **changes)
+            out["gravity"] = g
+        return out
+
+    def option_of(self, terms):
+        if terms.get("gravity") is not None:
+            return ("gravity", terms.get("compliance") is not None)
+        return ("torque", False) if terms.get("compliance") is not None else None
+
+    def option_for(self, meas, settings):
+        """On measured torques where the data have them, else under gravity, with the payload's
+        own compliances when it varies."""
+        if meas.torques is not None:
+            return ("torque", False)
+        return ("gravity", meas.payload is not None and bool(np.ptp(meas.payload) > 0))
+
+    def needs_torques(self, terms):
+        c = terms.get("compliance")
+        return c is not None and terms.get("gravity") is None and bool(np.any(c))
+
+    def plant(self, planted, n):
+        c = np.zeros(n)
+        for j, value in planted.items():
+            c[j - 1] = value
+        return {"compliance": c}
+
+
+class Harmonics(Term):
+    """Δq_i = Σ_{h=1..H} a_ih cos(h q_i) + b_ih sin(h q_i): option H, the number of harmonics."""
+
+    name = "harmonics"
+    prefixes = ("harmonic",)
+    rung = 1
+    file_keys = (FileKey("harmonics", "harmonics", "pairs", True, "deg: [cos(h q), sin(h q)], h = 1, 2, …"),)
+
+    def names(self, option, n):
+        return [f"harmonic{i + 1}_{kind}{h}" for i in range(n) for h in range(1, option + 1) for kind in ("cos", "sin")]
+
+    def basis(self, option, x):
+        m, n = x.q.shape
+        h = np.arange(1, option + 1)
+        trig = np.stack([np.cos(x.q[..., None] * h), np.sin(x.q[..., None] * h)], -1)  # (m, n, H, 2)
+        trig[:, prismatic_mask(x.convention, x.geom)] = 0.0  # periodic in an angle: turning joints only
+        b = np.zeros((m, n, n, option, 2))
+        b[:, np.arange(n), np.arange(n)] = trig
+        return b.reshape(m, n, -1)
+
+    def values(self, terms, option, n):
+        h = np.zeros((n, option, 2))
+        own = terms.get("harmonics")
+        if own is not None:
+            k = min(option, own.shape[1])
+            h[:, :k] = own[:, :k]
+        return h.ravel()
+
+    def arrays_of(self, option, n, values):
+        return {"harmonics": values.reshape(n, option, 2)}
+
+    def option_of(self, terms):
+        h = terms.get("harmonics")
+        return None if h is None else h.shape[1]
+
+    def option_for(self, meas, settings):
+        return int(settings["harmonics"])
+
+    def plant(self, planted, n):
+        width = max(len(v) for v in planted.values())
+        h = np.zeros((n, width, 2))
+        for j, pairs in planted.items():
+            for k, pair in enumerate(pairs):
+                h[j - 1, k] = pair
+        return {"harmonics": h}
+
+
+#: the joint terms, in the order their parameters follow the geometry's
+TERMS: dict[str, Term] = {t.name: t for t in (Compliance(), Harmonics())}
+
+
+def term_unit(parameter: str) -> str | None:
+    """The unit of a joint-term parameter (None for other parameters)."""
+    t = term_of(parameter)
+    return None if t is None else t.unit_of(parameter)
+
+
+def term_of(parameter: str) -> Term | None:
+    """The term a parameter name belongs to, or None for a geometric or frame parameter."""
+    for t in TERMS.values():
+        if parameter.startswith(t.prefixes):
+            return t
+    return None
 
 
 def basis(spec: TermSpec, convention: str, geom: np.ndarray, q: np.ndarray, torques: np.ndarray | None,
           payload: np.ndarray | None, terms: JointTerms | None = None) -> np.ndarray:
     """B (m, n, T) with Δq = B · p for the parameters p of ``spec`` (in ``spec.names`` order)."""
-    m, n = q.shape
-    terms = terms or JointTerms()
-    cols = []
-    if spec.compliance == "torque" or (spec.compliance == "gravity" and spec.payload):
-        tau = _torque_input(spec, convention, geom, q, torques, payload, terms)
-        cols.append(np.einsum("mi,ik->mik", tau, np.eye(n)))
-    if spec.compliance == "gravity":
-        phi = gravity_basis(convention, geom, q, terms.gravity_direction)
-        blocks = []
-        for i in range(n):
-            b = np.zeros((m, n, 3 * (n - i)))
-            b[:, i, :] = phi[:, i, i:].reshape(m, -1)
-            blocks.append(b)
-        cols.append(np.concatenate(blocks, axis=2))
-    if spec.harmonics:
-        h = np.arange(1, spec.harmonics + 1)
-        trig = np.stack([np.cos(q[..., None] * h), np.sin(q[..., None] * h)], -1)  # (m, n, H, 2)
-        trig[:, prismatic_mask(convention, geom)] = 0.0  # periodic in an angle: turning joints only
-        b = np.zeros((m, n, n, spec.harmonics, 2))
-        b[:, np.arange(n), np.arange(n)] = trig
-        cols.append(b.reshape(m, n, -1))
-    return np.concatenate(cols, axis=2) if cols else np.zeros((m, n, 0))
-
-
-def _torque_input(spec, convention, geom, q, torques, payload, terms) -> np.ndarray:
-    if spec.compliance == "torque":
-        if torques is None:
-            return np.zeros(q.shape)
-        return np.where(prismatic_mask(convention, geom), 0.0, np.asarray(torques, float))
-    mass = np.zeros(len(q)) if payload is None else np.asarray(payload, float)
-    return payload_torque(convention, geom, q, terms.gravity_direction, mass, terms.payload_com)
+    inputs = TermInputs(convention, geom, q, torques, payload, terms or JointTerms())
+    cols = [t.basis(option, inputs) for t, option in spec.terms()]
+    return np.concatenate(cols, axis=2) if cols else np.zeros(q.shape + (0,))
 
 
 def joint_offsets(terms: JointTerms | None, convention: str, geom: np.ndarray, q: np.ndarray,
