@@ -1,7 +1,7 @@
 """An independent simulator for planted-truth tests: it shares no code with robocal.
 
 Forward kinematics is the textbook product of 4×4 elementary matrices, one pose at a time,
-written here from SPEC §2; noise comes from numpy's generator and scipy's rotations.  Tests
+written here from MODEL §1; noise comes from numpy's generator and scipy's rotations.  Tests
 plant a truth with it and check what robocal recovers, so an error in robocal's kinematics
 cannot cancel out.
 """
@@ -11,7 +11,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-# Nominal tables from SPEC §5 and §6 (a mm, alpha deg, theta deg, d mm), copied here on purpose.
+# Nominal tables (a mm, alpha deg, theta deg, d mm) of Wen et al. Table 1 and of the KR5 arc's public DH
+# table, copied here on purpose.
 TABLES = {
     "er10l-c10": [(170, -90, 0, 0), (780, 0, -90, 0), (140, -90, 0, 0), (0, 90, 0, 1060), (0, -90, 0, 0),
                   (0, 0, 0, 125)],

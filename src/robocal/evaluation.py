@@ -1,4 +1,4 @@
-"""Evaluating a robot model on measured data: the error metrics of SPEC §8."""
+"""Evaluating a robot model on measured data: the error metrics of MODEL §6."""
 
 from __future__ import annotations
 

@@ -124,7 +124,7 @@ def test_the_command_line_round_trip_of_a_urdf_with_joint_terms(tmp_path, run_cl
 
 
 def test_the_target_hangs_from_the_tip_link(tmp_path):
-    """SPEC §11: the target link's fixed joint starts at the tip link, and the chain read to it
+    """MODEL §5: the target link's fixed joint starts at the tip link, and the chain read to it
     is the calibrated robot's (here the tip is tool0, below the flange by fixed joints)."""
     from robocal.io.urdf import parse_urdf, urdf_text
     from robocal.math.se3 import xyz_rpy_to_transform

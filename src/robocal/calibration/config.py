@@ -19,7 +19,7 @@ METHODS = tuple(_REGISTRY)
 OBJECTIVES = ("sum_squares", "sum_norms")
 #: IPSO's start: a Halton sequence scrambled with the seed, or the plain sequence
 HALTON = ("scrambled", "plain")
-#: what a model may hold beyond geometry (SPEC §10); ``auto`` chooses among them by cross-validation
+#: what a model may hold beyond geometry (MODEL §4); ``auto`` chooses among them by cross-validation
 MODEL_TERMS = (*TERMS, "residual")
 #: named candidate sets: every joint parameter of the convention, or a paper's 24
 PARAMETER_SETS = ("auto", "all", "wen2019", "kou2022")

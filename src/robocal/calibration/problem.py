@@ -9,7 +9,7 @@ Least squares works on whitened residuals: every position component divided by t
 position noise σp (mm), every orientation component by the orientation noise σr (rad),
 so that the sum of squares is χ² and the Jacobian gives the covariance directly.
 
-Swarm objectives (SPEC §3), all evaluated for a whole swarm (P, k) in one batched call:
+Swarm objectives (MODEL §2), all evaluated for a whole swarm (P, k) in one batched call:
 
 - ``sum_squares``: Wen et al. (2019) eq. 7, Σ_j k·|δ_j|² + |δp_j|² in mm², with the
   orientation weight k = (σp/σr)² mm²/rad² (position-only data reduce it to Σ|δp_j|²):

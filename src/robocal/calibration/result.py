@@ -1,4 +1,4 @@
-"""The result of a calibration, and its JSON (SPEC §6)."""
+"""The result of a calibration, and its JSON (MODEL §5)."""
 
 from __future__ import annotations
 
@@ -34,7 +34,7 @@ SIGNIFICANCE_SIGMAS = 2.0
 
 @dataclass
 class CalibrationResult:
-    """Everything a calibration produced.  :meth:`to_dict` gives the JSON of SPEC §6.
+    """Everything a calibration produced.  :meth:`to_dict` gives the JSON of MODEL §5.
 
     robot: the calibrated robot (frames included); initial: nominal geometry with the
     registered frames; nominal: the robot as given; names/x/uncertainty: the identified

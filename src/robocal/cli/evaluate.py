@@ -22,7 +22,7 @@ def evaluate_cmd(
     payload: float | None = typer.Option(None, "--payload", help="payload mass, kg, for data without a payload "
                                          "column"),
 ) -> None:
-    """Error metrics (SPEC §8) of a robot model on measured data."""
+    """Error metrics (MODEL §6) of a robot model on measured data."""
     import json
 
     from .. import options as opt

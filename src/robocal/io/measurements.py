@@ -1,4 +1,4 @@
-"""Measurement files (CSV, SPEC §6): joint values and measured poses.
+"""Measurement files (CSV, MODEL §5): joint values and measured poses.
 
 Columns: ``q1 … qn`` (deg; mm for a prismatic joint), ``x, y, z`` (mm), optionally ``rx, ry, rz`` (deg, rpy with
 ``R = Rz(rz) Ry(ry) Rx(rx)``) for full-pose data, ``pose_id`` (rows sharing one are one pose: its

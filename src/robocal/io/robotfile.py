@@ -1,11 +1,11 @@
-"""Robot files (TOML, SPEC §6) and the built-in robots.
+"""Robot files (TOML, MODEL §5) and the built-in robots.
 
 Files hold mm and degrees; a loaded :class:`~robocal.model.robot.Robot` holds mm and rad.
 Loading validates every key and names the file, the joint and the key on error.  Saving
 writes the shortest decimal degrees that convert back to the exact same radians, so
 ``load(save(robot))`` reproduces the robot bit for bit.
 
-Joint terms beyond geometry (SPEC §10, :mod:`robocal.model.terms`) are per-joint keys:
+Joint terms beyond geometry (MODEL §4, :mod:`robocal.model.terms`) are per-joint keys:
 ``compliance`` (rad/(N·m)), ``harmonics = [[a1, b1], [a2, b2], …]`` (degrees: the amplitude
 of cos(h q) and sin(h q)) and ``gravity_deflection = [[x, y, z], …]`` (degrees, one triple per
 link from this joint's own to the last); a ``[gravity]`` table gives ``direction`` (base

@@ -109,7 +109,7 @@ def log_so3(R: np.ndarray) -> np.ndarray:
 
 
 def orientation_error(R_measured: np.ndarray, R_model: np.ndarray) -> np.ndarray:
-    """δ = log(R_measured · R_modelᵀ) (SPEC §3): rotation vectors (..., 3) in rad about the
+    """δ = log(R_measured · R_modelᵀ) (MODEL §2): rotation vectors (..., 3) in rad about the
     axes of the frame both rotations are expressed in (the measuring frame)."""
     return log_so3(np.asarray(R_measured) @ np.swapaxes(np.asarray(R_model), -1, -2))
 

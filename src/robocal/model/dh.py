@@ -1,6 +1,6 @@
 """The DH family of conventions: batched forward kinematics and the twist Jacobian.
 
-Conventions (SPEC §2); lengths in mm, angles in rad, joint value ``q_i`` adds to the
+Conventions (MODEL §1); lengths in mm, angles in rad, joint value ``q_i`` adds to the
 joint offset ``theta_i``:
 
 - ``dh``     ``A_i = Rz(q_i+θ_i) · Tz(d_i) · Tx(a_i) · Rx(α_i)``

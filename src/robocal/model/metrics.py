@@ -1,4 +1,4 @@
-"""Pose errors of a model on measurements and their summary figures (SPEC §3, §8)."""
+"""Pose errors of a model on measurements and their summary figures (MODEL §2, §6)."""
 
 from __future__ import annotations
 

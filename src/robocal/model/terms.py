@@ -1,4 +1,4 @@
-"""Non-geometric joint terms: the joints reach q_eff = q + Δq(q, τ) (SPEC §10).
+"""Non-geometric joint terms: the joints reach q_eff = q + Δq(q, τ) (MODEL §4).
 
 - ``compliance`` — a joint gives way under load, Δq_i = c_i τ_i (c in rad/(N·m)).
   * With measured torques (``tau1..tauN`` columns, N·m), τ is as the file gives it

@@ -1,6 +1,6 @@
 """Geometry of the 2TPR&2TPS mechanism: joint points, rod zero lengths, platform poses.
 
-Frames and conventions (SPEC §5).  The fixed frame o sits at the midpoint of T3T4, the
+Frames and conventions (MODEL §7).  The fixed frame o sits at the midpoint of T3T4, the
 moving frame o1 at the midpoint of R1R2; lengths in mm, angles in rad.  A platform pose
 is (x, y, z, α, β, γ) with ``R = Rz(γ) Ry(β) Rx(α)`` and o1 = (x, y, z).  Limbs 1, 2 are
 T–P–S from T1, T2 to B1 = S1, B2 = S2; limbs 3, 4 are T–P–R from T3, T4 to B3 = R2,

@@ -1,4 +1,4 @@
-"""Study files (TOML, SPEC §12): which cells, how many seeds, and what every run does.
+"""Study files (TOML, MODEL §5): which cells, how many seeds, and what every run does.
 
 ```toml
 robot = "kr5-arc"              # built-in name or robot file (TOML or URDF)
