@@ -167,11 +167,11 @@ def test_swarms_reach_the_papers_regime_monotonically(method, robot, measure, er
     sim = simulate(r, 32 if robot == "er10l-c10" else 30, deviations=errors, seed=1, measure=measure)
     params = "wen2019" if method == "ipso" else "kou2022"
     res = calibrate(r, sim.measurements, method, params=params, seed=0, backend=backend)
-    h = res.optimisation.history
+    h = res.optimization.history
     assert np.all(np.diff(h) <= 0) and h[-1] < h[0]
     assert res.metrics["before"].position["max"] > 30
     assert res.metrics["after"].position["max"] < 1.0
-    assert res.optimisation.nfev > 0 and res.optimisation.nit == len(h) - 1
+    assert res.optimization.nfev > 0 and res.optimization.nit == len(h) - 1
 
 
 @pytest.mark.parametrize("method", ["pso", "ipso", "ldpso-bt", "hybrid", "lm"])
@@ -184,7 +184,7 @@ def test_fixed_seed_is_bit_for_bit_reproducible(method, backend):
     b = calibrate(r, sim.measurements, method, seed=5, **kw).to_dict()
     for d in (a, b):
         d.pop("time_s")
-        d["optimiser"].pop("time_s")
+        d["optimizer"].pop("time_s")
     assert json.dumps(a) == json.dumps(b)
     if method != "lm":
         c = calibrate(r, sim.measurements, method, seed=6, **kw).to_dict()

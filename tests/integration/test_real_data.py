@@ -61,7 +61,7 @@ def test_swarms_at_paper_settings_reach_lms_regime_on_real_data(split, method):
     cal, val = split
     res, _ = _run(cal.position_only(), val.position_only(), method, frames="base+tool")
     assert res.metrics["validation_after"].position["rms"] < 1.0
-    assert res.optimisation.status == "completed"
+    assert res.optimization.status == "completed"
 
 
 def test_without_frames_robocal_names_the_option(split):

@@ -84,11 +84,11 @@ def test_non_convergence_and_divergence_are_reported(monkeypatch):
     robot = load_robot("er10l-c10")
     sim = simulate(robot, 32, deviations="paper", seed=1)
     res = calibrate(robot, sim.measurements, "lm", max_evaluations=2)
-    assert res.optimisation.status == "max_evaluations" and not res.optimisation.success
+    assert res.optimization.status == "max_evaluations" and not res.optimization.success
     assert any("stopped before converging" in w for w in res.warnings)
     monkeypatch.setattr(Problem, "objective", lambda self, X, kind="sum_squares", backend=None: np.full(len(X), np.nan))
     res = calibrate(robot, sim.measurements, "pso", particles=10, iterations=5)
-    assert res.optimisation.status == "diverged"
+    assert res.optimization.status == "diverged"
     assert any("diverged" in w for w in res.warnings)
 
 
@@ -104,7 +104,7 @@ calls = []
 with warnings.catch_warnings():
     warnings.simplefilter("ignore")
     res = calibrate(robot, sim.measurements, "lm", progress=lambda t, total, best: calls.append((t, best)))
-print(json.dumps({"status": res.optimisation.status, "rms": res.metrics["after"].position["rms"],
+print(json.dumps({"status": res.optimization.status, "rms": res.metrics["after"].position["rms"],
                   "calls": len(calls), "first": calls[0][1], "last": calls[-1][1]}))
 """
 

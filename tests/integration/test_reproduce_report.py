@@ -44,7 +44,7 @@ def test_wen2019_quick_outputs(quick_all):
     assert a["validation_after"]["position"]["rms"] > 10
     # the summary shows what was measured, not a template: the IPSO time and LM's validation RMS
     text = (d / "summary.md").read_text()
-    assert f"| {fmt(b['ipso']['optimiser_time_s'], 3)} s for 60 generations |" in text
+    assert f"| {fmt(b['ipso']['optimizer_time_s'], 3)} s for 60 generations |" in text
     assert f"validate at {fmt(b['lm']['metrics']['validation_after']['position']['rms'])} mm RMS" in text
 
 

@@ -99,7 +99,7 @@ t = time.perf_counter()
 with warnings.catch_warnings():
     warnings.simplefilter("ignore")
     res = calibrate(robot, sim.measurements, "lm")
-print(json.dumps({{"time_s": time.perf_counter() - t, "status": res.optimisation.status,
+print(json.dumps({{"time_s": time.perf_counter() - t, "status": res.optimization.status,
                   "rms": res.metrics["after"].position["rms"]}}))
 """
 

@@ -1,4 +1,4 @@
-"""The calibration methods: which optimiser runs, on which parameters, with which settings.
+"""The calibration methods: which optimizer runs, on which parameters, with which settings.
 
 - ``lm``: Levenberg–Marquardt on the identifiable set, from the initial robot.
 - ``pso``, ``ipso``, ``ldpso-bt``: a swarm searches every candidate, dependent ones
@@ -28,15 +28,15 @@ FRAME_BOX = (5.0, 0.01)
 
 @dataclass(frozen=True)
 class Estimate:
-    """The optimiser's outcome and what it says about the identifiable parameters.
+    """The optimizer's outcome and what it says about the identifiable parameters.
 
-    optimisation: the optimiser's own result (for swarms, over the searched candidates);
+    optimization: the optimizer's own result (for swarms, over the searched candidates);
     x: estimates (mm, rad) of ``problem.names``; reexpression_gap_mm: for swarms, the
     largest position difference between the swarm's model and its re-expression.
     """
 
     problem: Problem
-    optimisation: OptimizeResult
+    optimization: OptimizeResult
     x: np.ndarray
     reexpression_gap_mm: float | None = None
 
@@ -105,7 +105,7 @@ def run_swarm(search: Problem, config: CalibrationConfig, progress: Progress | N
     return config.spec.swarm(objective, lower, upper, **kw)
 
 
-def optimise(problem: Problem, search: Problem, config: CalibrationConfig,
+def optimize(problem: Problem, search: Problem, config: CalibrationConfig,
              progress: Progress | None = None) -> Estimate:
     """Run the configured method: LM on ``problem`` (the identifiable set), swarms on ``search``."""
     if config.spec.swarm is None:

@@ -9,7 +9,7 @@ for ``auto``), the final guard, and the evaluation:
    (and tool offsets) in closed form, the noise weighting to start with;
 3. :func:`~.steps.choose_candidates`: the parameters offered, from the config;
 4. :func:`~.steps.analyse_identifiability`: the identifiable subset, the rest dropped with reasons;
-5. :func:`robocal.calibration.methods.optimise`: the configured method;
+5. :func:`robocal.calibration.methods.optimize`: the configured method;
 6. :func:`~.steps.screen_outliers`: with a robust loss, outliers left out and the inliers refitted;
 7. :func:`~.steps.reweigh`: σ estimated per residual block where not stated, and the fit repeated;
 8. :func:`~.steps.refine_at_estimate`: identifiability re-checked at the estimate (F-test);
@@ -79,7 +79,7 @@ def calibrate(
         warnings.warn(note, RobocalWarning, stacklevel=2)
     return CalibrationResult(
         config=cfg, robot=calibrated, initial=initial, nominal=inputs.nominal, names=est.problem.names, x=est.x,
-        uncertainty=fit.uncertainty, identifiability=fit.identifiability, optimisation=est.optimisation,
+        uncertainty=fit.uncertainty, identifiability=fit.identifiability, optimization=est.optimization,
         metrics=metrics, data=inputs.meas.source, n_poses=est.problem.meas.n_poses, full_pose=setup.full_pose,
         warnings=notes, time_s=time.perf_counter() - start, measurements=est.problem.meas,
         validation=inputs.validation, outliers=fit.screening.outliers, reexpression_gap_mm=est.reexpression_gap_mm,

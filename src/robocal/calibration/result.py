@@ -23,7 +23,7 @@ from .identifiability import Identifiability
 from .noise import NoiseEstimate
 
 #: version of the result JSON; 2 added ``schema_version``, the structured ``dropped`` reasons
-#: (kind, related), ``optimiser.method`` naming the solver that ran, status ``completed``,
+#: (kind, related), ``optimizer.method`` naming the solver that ran, status ``completed``,
 #: ``noise``, ``goodness_of_fit``, and per parameter ``absorbs`` and ``significant``; 3 added
 #: ``model``, ``model_selection``, ``error_budget``, ``residual_model`` and joint-term
 #: parameters (``compliance1``, ``gravity2_3x``, ``harmonic1_cos1``, …, with their units)
@@ -39,7 +39,7 @@ class CalibrationResult:
     robot: the calibrated robot (frames included); initial: nominal geometry with the
     registered frames; nominal: the robot as given; names/x/uncertainty: the identified
     parameters, their deviations from ``initial`` (mm, rad) and standard uncertainties
-    (None where not computed); optimisation: the optimiser's own result.  model: what the
+    (None where not computed); optimization: the optimizer's own result.  model: what the
     model holds beyond geometry (``geometric``, ``compliance+harmonics``, …); model_selection:
     the ladder of ``--model auto``; error_budget: what each part removes on the validation
     poses; geometric: the geometric calibration beside a richer model, when one was fitted.
@@ -53,7 +53,7 @@ class CalibrationResult:
     x: np.ndarray
     uncertainty: np.ndarray | None
     identifiability: Identifiability
-    optimisation: OptimizeResult
+    optimization: OptimizeResult
     metrics: dict[str, Metrics]
     data: str = ""
     n_poses: int = 0
@@ -135,7 +135,7 @@ class CalibrationResult:
                 # frame parameters are deviations from the closed-form registration, not from a file value
                 **({"relative_to": "registration"} if is_frame(n) else {}),
             })
-        opt = self.optimisation
+        opt = self.optimization
         cfg = self.config
         return {
             "schema_version": SCHEMA_VERSION,
@@ -174,7 +174,7 @@ class CalibrationResult:
             "objective_value": opt.fun,
             "iterations": opt.nit,
             "evaluations": opt.nfev,
-            "optimiser": {"method": opt.method, "time_s": opt.time_s, **_plain(opt.extra),
+            "optimizer": {"method": opt.method, "time_s": opt.time_s, **_plain(opt.extra),
                           "reexpression_gap_mm": self.reexpression_gap_mm},
             "history": [float(h) for h in opt.history],
             "outliers": list(self.outliers),
@@ -220,7 +220,7 @@ def _finite_or_none(v: float):
 
 
 def _plain(d: dict) -> dict:
-    """JSON-safe copy of optimiser extras (numpy scalars and arrays become Python values)."""
+    """JSON-safe copy of optimizer extras (numpy scalars and arrays become Python values)."""
     out = {}
     for k, v in d.items():
         if isinstance(v, dict):

@@ -326,7 +326,7 @@ def guard(chosen: Chosen) -> Chosen:
                        uncertainty=None if fit.uncertainty is None else np.full_like(fit.uncertainty, np.nan),
                        covariance=None)
         note = (f"the calibration fits the poses worse than the nominal model with its fitted frames ({rms:.4g} vs "
-                f"{rms_nominal:.4g} mm RMS; optimiser {est.optimisation.status}): the nominal joint geometry is "
+                f"{rms_nominal:.4g} mm RMS; optimizer {est.optimization.status}): the nominal joint geometry is "
                 "returned unchanged; check the data and the robot file")
         chosen = replace(chosen, name="geometric", fit=held, residual=None, notes=chosen.notes + [note])
     return chosen

@@ -8,7 +8,7 @@ what it found, and what it has to say as a list of notes (never a list it was ha
    tool offsets) in closed form, the noise weighting to start with;
 3. :func:`choose_candidates`: the parameters offered, from the config;
 4. :func:`analyse_identifiability`: the identifiable subset, the rest dropped with reasons;
-5. :func:`robocal.calibration.methods.optimise`: the configured method;
+5. :func:`robocal.calibration.methods.optimize`: the configured method;
 6. :func:`screen_outliers`: with a robust loss, outliers left out and the inliers refitted;
 7. :func:`reweigh`: σ estimated per residual block where not stated, and the fit repeated;
 8. :func:`refine_at_estimate`: identifiability re-checked at the estimate (F-test);
@@ -40,7 +40,7 @@ from . import checks
 from .config import CalibrationConfig, resolve_params
 from .diagnostics import GoodnessOfFit, goodness_of_fit, implausible_deviations, joint_patterns, misfit_message
 from .identifiability import NO_EFFECT, SECOND_ORDER, STILL, Identifiability, Reason, analyse
-from .methods import Estimate, fit_lm, optimise
+from .methods import Estimate, fit_lm, optimize
 from .noise import LINEAR_CHI2, MAX_REWEIGHTS, NoiseEstimate, block_sigmas, confirmed, settle, settled
 from .problem import Setup
 from .registration import choose_frames, fit_frames
@@ -227,7 +227,7 @@ def screen_outliers(est: Estimate, config: CalibrationConfig) -> tuple[Estimate,
     suggestion is not made for the continuous tail of an incomplete model.
     """
     problem = est.problem
-    if not config.least_squares or est.optimisation.status != "converged":
+    if not config.least_squares or est.optimization.status != "converged":
         return est, Screening([]), []
     dp, _ = problem.errors(est.x)
     flagged, sigma = robust_outliers(leave_one_out(dp, problem.residual_jacobian(est.x)))
@@ -246,8 +246,8 @@ def screen_outliers(est: Estimate, config: CalibrationConfig) -> tuple[Estimate,
     inliers = problem.setup.with_measurements(meas.subset(np.setdiff1d(np.arange(meas.n_poses), flagged)))
     refit_problem = inliers.problem(problem.names)
     lm = fit_lm(refit_problem, est.x, plain)
-    merged = est.optimisation.then(lm, method=est.optimisation.method,
-                                   message=f"{est.optimisation.message}; {len(flagged)} outliers removed, inliers "
+    merged = est.optimization.then(lm, method=est.optimization.method,
+                                   message=f"{est.optimization.message}; {len(flagged)} outliers removed, inliers "
                                            f"refitted: {lm.message}", extra={"robust_scale_mm": sigma})
     notes = [f"{len(flagged)} outlier poses left out ({test}): {meas.labels(flagged)}"]
     if len(flagged) > MAX_OUTLIER_FRACTION * meas.n_poses:
@@ -255,7 +255,7 @@ def screen_outliers(est: Estimate, config: CalibrationConfig) -> tuple[Estimate,
                      f"as outliers, more than {100 * MAX_OUTLIER_FRACTION:g} %: the model may be incomplete rather "
                      "than the data bad; compare the validation figures with and without them")
     screening = Screening(outliers, problem.space.apply(problem.full(keep_all.x)))
-    return est.replace(problem=refit_problem, optimisation=merged, x=lm.x), screening, notes
+    return est.replace(problem=refit_problem, optimization=merged, x=lm.x), screening, notes
 
 
 def refine_at_estimate(est: Estimate, ident: Identifiability, candidates: Candidates,
@@ -270,7 +270,7 @@ def refine_at_estimate(est: Estimate, ident: Identifiability, candidates: Candid
     independent are added and LM continues, and the addition is accepted only if a
     nested-model F-test says the fit improved significantly (p < ADD_SIGNIFICANCE).
     """
-    if not config.least_squares or est.optimisation.status != "converged":
+    if not config.least_squares or est.optimization.status != "converged":
         return est, ident
     setup = est.problem.setup
     # judged with still joints held still: their parameters stay out whatever the estimate
@@ -286,7 +286,7 @@ def refine_at_estimate(est: Estimate, ident: Identifiability, candidates: Candid
     # A parameter that separates only weakly makes LM crawl along a valley; the refit is a
     # test of whether the addition pays, so it gets a bounded budget.
     lm = fit_lm(wider, deviation[wider.active], config, max_nfev=REFIT_EVALUATIONS)
-    p = f_test(est.optimisation.fun, lm.fun, len(added), wider.n_residuals - len(names))
+    p = f_test(est.optimization.fun, lm.fun, len(added), wider.n_residuals - len(names))
     if lm.status != "converged" or p >= ADD_SIGNIFICANCE:
         second = {n: Reason(SECOND_ORDER, ident.reasons[n].related, p, ident.reasons[n].coefficients) for n in added}
         reasons = {**ident.reasons, **second}
@@ -302,8 +302,8 @@ def refine_at_estimate(est: Estimate, ident: Identifiability, candidates: Candid
         warnings=final.warnings + [f"{', '.join(added)} identifiable only away from the nominal model (added after "
                                    f"the first fit, F-test p={p:.2g}); expect large uncertainties"],
     )
-    merged = est.optimisation.then(lm, method=est.optimisation.method, extra={"added_at_estimate": added},
-                                   message=f"{est.optimisation.message}; refit adding {', '.join(added)}: "
+    merged = est.optimization.then(lm, method=est.optimization.method, extra={"added_at_estimate": added},
+                                   message=f"{est.optimization.message}; refit adding {', '.join(added)}: "
                                            f"{lm.message}")
     order = [names.index(n) for n in kept]
     return Estimate(setup.problem(kept), merged, lm.x[order], est.reexpression_gap_mm), refined
@@ -318,7 +318,7 @@ def reweigh(est: Estimate, config: CalibrationConfig) -> tuple[Estimate, NoiseEs
     source = "stated" if model.stated(full) else "estimated"
     sigmas = (problem.setup.sigma_position, problem.setup.sigma_orientation)
     refits = 0
-    refit = config.least_squares and est.optimisation.status == "converged"
+    refit = config.least_squares and est.optimization.status == "converged"
     if source == "estimated" and problem.n_residuals > problem.n_params:
         if not refit:  # a swarm keeps its answer: σ is estimated once, for the report
             sigmas = block_sigmas(problem, est.x, model)
@@ -342,9 +342,9 @@ def reweigh(est: Estimate, config: CalibrationConfig) -> tuple[Estimate, NoiseEs
                 step = fit_lm(problem, est.x, config)
             refits += 1
             # χ² under new weights is another scale: the history stays that of the first weights
-            est = Estimate(problem, est.optimisation.then(step, method=est.optimisation.method, message=(
-                f"{est.optimisation.message}; reweighted (σp {sigmas[0]:.3g} mm): {step.message}"),
-                history=est.optimisation.history), step.x, est.reexpression_gap_mm)
+            est = Estimate(problem, est.optimization.then(step, method=est.optimization.method, message=(
+                f"{est.optimization.message}; reweighted (σp {sigmas[0]:.3g} mm): {step.message}"),
+                history=est.optimization.history), step.x, est.reexpression_gap_mm)
             if step.status != "converged" or confirmed(problem, est.x, target, model):
                 break
     return est, NoiseEstimate(sigmas[0], sigmas[1] if full else None, source, refits)
@@ -410,9 +410,9 @@ def evaluate(initial: Robot, calibrated: Robot, meas: Measurements, all_rows: Me
 
 
 def _status_notes(est: Estimate, config: CalibrationConfig) -> list[str]:
-    opt = est.optimisation
+    opt = est.optimization
     if opt.status in ("diverged", "failed"):
-        return [f"optimiser {opt.method} {opt.status}: {opt.message}"]
+        return [f"optimizer {opt.method} {opt.status}: {opt.message}"]
     if config.least_squares and opt.status != "converged":
         return [f"Levenberg–Marquardt stopped before converging: {opt.message}"]
     return []
@@ -455,7 +455,7 @@ def fit_parametric(inputs: Inputs, config: CalibrationConfig, spec: TermSpec,
     setup = register(inputs, config, spec)
     candidates = choose_candidates(setup, config, inputs.frames)
     ident, notes = analyse_identifiability(setup, candidates)
-    est = optimise(setup.problem(ident.kept), setup.problem(searched_names(candidates, ident)), config, progress)
+    est = optimize(setup.problem(ident.kept), setup.problem(searched_names(candidates, ident)), config, progress)
     est, screening, said = screen_outliers(est, config)
     notes += said + _status_notes(est, config)
     est, noise = reweigh(est, config)

@@ -38,7 +38,7 @@ def _print_summary(result, robot_name: str, data: Path) -> None:
         out.print(table("error budget on the validation poses: position RMS (mm)", ("model", "RMS", "removed"),
                         rows, text_columns=(0,)))
     out.print(noise_line(result))
-    ident, opt = result.identifiability, result.optimisation
+    ident, opt = result.identifiability, result.optimization
     out.print(f"model {result.model}: " + f"{len(result.names)} parameters identified, {len(ident.dropped)} dropped"
               + (f" ({', '.join(ident.dropped)})" if ident.dropped else "")
               + f"; condition number {ident.condition:.3g}; {opt.status} ({opt.method}) after {opt.nit} iterations, "

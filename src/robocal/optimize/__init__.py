@@ -1,4 +1,4 @@
-"""Optimisers: Levenberg–Marquardt and the particle-swarm family of the papers.
+"""Optimizers: Levenberg–Marquardt and the particle-swarm family of the papers.
 
 - :mod:`.result` — :class:`OptimizeResult`, modelled on scipy's: ``x`` and ``fun`` agree,
   ``success`` is False whenever a cap stopped the run, ``method`` names what ran.

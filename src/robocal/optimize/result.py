@@ -1,4 +1,4 @@
-"""The outcome of one optimisation, with scipy's semantics."""
+"""The outcome of one optimization, with scipy's semantics."""
 
 from __future__ import annotations
 
@@ -19,7 +19,7 @@ Progress = Callable[[int, int, float], None]
 
 @dataclass
 class OptimizeResult:
-    """Outcome of one optimisation (modelled on scipy's OptimizeResult).
+    """Outcome of one optimization (modelled on scipy's OptimizeResult).
 
     x: the solution; fun: the objective at x (always f(x)); history: best objective
     after each iteration (index 0 = initial population or starting point); nit:

@@ -62,8 +62,8 @@ def run(study: Study, key: RunKey) -> dict:
     except (ArithmeticError, ValueError, np.linalg.LinAlgError) as exc:  # a run's failure is a result
         return row(key, spec, f"error: {exc.__class__.__name__}", time_s=time.perf_counter() - start)
     m = res.metrics
-    return row(key, spec, res.optimisation.status, m["before"].position["rms"], m["after"].position["rms"],
-               m["validation_after"].position["rms"], res.optimisation.nit, res.optimisation.nfev, res.time_s)
+    return row(key, spec, res.optimization.status, m["before"].position["rms"], m["after"].position["rms"],
+               m["validation_after"].position["rms"], res.optimization.nit, res.optimization.nfev, res.time_s)
 
 
 def row(key: RunKey, spec: str, status: str, before=math.nan, after=math.nan, validation=math.nan, iterations=0,

@@ -148,7 +148,7 @@ def summary_markdown(study: Study, rows: list[dict], *, elapsed_s: float | None 
                                      if elapsed_s else "") + (f" on {executor}" if executor else "") + ".", "",
              "## Cells", "",
              f"Median over the seeds, with a distribution-free {100 * LEVEL:g} % confidence interval of the median "
-             "in brackets; success: the optimiser ended by its own criterion.", "",
+             "in brackets; success: the optimizer ended by its own criterion.", "",
              "| method | poses | noise (mm) | runs | success | validation RMS (mm) | time (s) |",
              "|---|---|---|---|---|---|---|"]
     for c in cells:

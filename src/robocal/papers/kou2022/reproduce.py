@@ -26,13 +26,13 @@ SAME_FITNESS = 0.10
 
 
 def _swarm_stats(rs: list[CalibrationResult]) -> dict:
-    fit = np.array([r.optimisation.fun for r in rs])
-    times = np.array([r.optimisation.time_s for r in rs])  # optimiser only, kernels compiled beforehand
+    fit = np.array([r.optimization.fun for r in rs])
+    times = np.array([r.optimization.time_s for r in rs])  # optimizer only, kernels compiled beforehand
     best = rs[int(np.argmin(fit))]
     return {
         "fitness_mean": float(fit.mean()), "fitness_best": float(fit.min()), "fitness_all": fit.tolist(),
         "time_mean_s": float(times.mean()), "time_median_s": float(np.median(times)), "time_all_s": times.tolist(),
-        "evaluations": rs[0].optimisation.nfev,
+        "evaluations": rs[0].optimization.nfev,
         "best_run": entry(best), "axis_max_after_best": best.metrics["after"].axis_max,
         "axis_max_after_mean": {ax: float(np.mean([r.metrics["after"].axis_max[ax] for r in rs])) for ax in "xyz"},
         "validation_rms_mean": float(np.mean([r.metrics["validation_after"].position["rms"] for r in rs])),
@@ -45,13 +45,13 @@ def _figures(out: Path, robot, meas, swarm_runs: dict, lm: CalibrationResult, hy
     for method, label, name in (("pso", "after PSO (Fig. 3)", "errors_after_pso.png"),
                                 ("ldpso-bt", "after LDPSO-BT (Fig. 4)", "errors_after_ldpso_bt.png")):
         rs = swarm_runs[method]
-        best = rs[int(np.argmin([r.optimisation.fun for r in rs]))]
+        best = rs[int(np.argmin([r.optimization.fun for r in rs]))]
         figures.save_png(figures.axis_errors(pose_errors(best.robot, meas)[0], label), out / name)
-    median = {m: sorted(rs, key=lambda r: r.optimisation.fun)[len(rs) // 2] for m, rs in swarm_runs.items()}
-    figures.save_png(figures.convergence({f"{m} (median run)": r.optimisation.history for m, r in median.items()},
+    median = {m: sorted(rs, key=lambda r: r.optimization.fun)[len(rs) // 2] for m, rs in swarm_runs.items()}
+    figures.save_png(figures.convergence({f"{m} (median run)": r.optimization.history for m, r in median.items()},
                                          "Kou 2022 KR5 arc: best Σ|δp| per iteration", "best Σ|δp| (mm)",
                                          "generation"), out / "convergence.png")
-    figures.save_png(figures.convergence({"lm": lm.optimisation.history, "hybrid": hybrid.optimisation.history},
+    figures.save_png(figures.convergence({"lm": lm.optimization.history, "hybrid": hybrid.optimization.history},
                                          "KR5 arc: LM and hybrid", "best Σ|δp|² (mm²)",
                                          figures.iteration_label(["lm", "hybrid"])), out / "convergence_lm.png")
 
@@ -98,7 +98,7 @@ def kou2022(out: Path, *, quick: bool = False, runs: int = 10, seed: int = 0, sa
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         # one-off costs (numba compilation or cache loading, first calls) are measured apart,
-        # so that the timed runs are the optimisers' own work
+        # so that the timed runs are the optimizers' own work
         warm = time.perf_counter()
         _warm(robot, sim.measurements, common)
         warm_up_s = time.perf_counter() - warm
@@ -122,7 +122,7 @@ def kou2022(out: Path, *, quick: bool = False, runs: int = 10, seed: int = 0, sa
         "planted_errors": planted, "before": lm.metrics["before"].to_dict(),
         "validation_before": lm.metrics["validation_before"].to_dict(), "swarms": stats,
         # paired ratios of interleaved runs: machine load drifting during the study hits both alike
-        "time_ratios": [a.optimisation.time_s / b.optimisation.time_s
+        "time_ratios": [a.optimization.time_s / b.optimization.time_s
                         for a, b in zip(swarm_runs["ldpso-bt"], swarm_runs["pso"])],
         "warm_up_s": warm_up_s,
         "executor": (f"Dask scheduler {scheduler}" if scheduler else
@@ -188,7 +188,7 @@ def summary(r: dict) -> str:
         f"`results.json`); {POSES} joint sets uniform inside the joint limits; position only, no noise; objective",
         f"eq. 4, Σ|δp|. {r['runs']} runs each (seeds {r['seed']}…{r['seed'] + r['runs'] - 1}), PSO and LDPSO-BT",
         ("interleaved so that machine load affects both alike." if r.get("executor", "this process") == "this process"
-         else f"run on {r['executor']}, each timed on its own worker.") + " Time is the optimiser's own wall time, "
+         else f"run on {r['executor']}, each timed on its own worker.") + " Time is the optimizer's own wall time, "
         "after a",
         f"warm-up that compiled or loaded the kernels ({fmt(r['warm_up_s'], 3)} s, not counted); the time saving is",
         "the median over the pairs of runs of 1 − t(LDPSO-BT)/t(PSO).", "",
@@ -211,7 +211,7 @@ def summary(r: dict) -> str:
         lines.append(f"| {m} | {_axes(e['metrics']['after']['axis_max'])} | "
                      f"{fmt(e['metrics']['validation_before']['position']['rms'])} → "
                      f"{fmt(e['metrics']['validation_after']['position']['rms'])} | "
-                     f"{fmt(e['optimiser_time_s'], 3)} | {e['evaluations']} |")
+                     f"{fmt(e['optimizer_time_s'], 3)} | {e['evaluations']} |")
     dropped = ", ".join(d["name"] for d in r["lm"]["dropped"]) or "none"
     lines += ["", f"Not identifiable from position-only data, so not reported by any method: {dropped}. Swarms "
               "search all 24", "parameters as the paper does, and their solution is then re-expressed in the "

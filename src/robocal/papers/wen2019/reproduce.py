@@ -29,7 +29,7 @@ def entry(res: CalibrationResult) -> dict:
     """What a summary needs of one calibration."""
     d = res.to_dict()
     keep = ("metrics", "iterations", "evaluations", "objective_value", "status", "dropped", "parameters", "history")
-    return {**{k: d[k] for k in keep}, "optimiser_time_s": res.optimisation.time_s, "total_time_s": res.time_s}
+    return {**{k: d[k] for k in keep}, "optimizer_time_s": res.optimization.time_s, "total_time_s": res.time_s}
 
 
 CASES = {
@@ -52,7 +52,7 @@ def _figures(out: Path, key: str, label: str, robot, meas, runs: dict[str, Calib
     before_dp, before_dr = pose_errors(robot, meas)
     after = {m: pose_errors(runs[m].robot, meas)[0] for m in ("ipso", "lm")}
     # LM starts whitened by σp = 1 mm and σr = 0.01 rad: its χ² is this objective in mm² (k = 1e4)
-    figures.save_png(figures.convergence({m: r.optimisation.history for m, r in runs.items()},
+    figures.save_png(figures.convergence({m: r.optimization.history for m, r in runs.items()},
                                          f"Wen 2019 ER10L-C10 {label}", "best Σ k|δ|² + |δp|² (mm², k = 1e4 mm²/rad²)",
                                          figures.iteration_label(runs)), out / f"convergence_{key}.png")
     figures.save_png(figures.position_errors(before_dp, after, f"ER10L-C10 {label}"),
@@ -102,14 +102,14 @@ def _metric_row(name: str, e: dict) -> str:
     cells = [name, fmt(b["mean"]), fmt(a["mean"]), fmt(a["std"]), fmt(a["max"])]
     cells += [fmt(m["after"]["orientation"][ax]["mean"]) for ax in "xyz"]
     cells += [fmt(m["validation_before"]["position"]["rms"]), fmt(m["validation_after"]["position"]["rms"]),
-              fmt(e["recovery"]["length_mm"]), fmt(e["recovery"]["angle_rad"]), fmt(e["optimiser_time_s"], 3),
+              fmt(e["recovery"]["length_mm"]), fmt(e["recovery"]["angle_rad"]), fmt(e["optimizer_time_s"], 3),
               str(e["evaluations"])]
     return "| " + " | ".join(cells) + " |"
 
 
 def _published_rows(b: dict) -> list[str]:
     P = PUBLISHED
-    ipso_t = b["ipso"]["optimiser_time_s"]
+    ipso_t = b["ipso"]["optimizer_time_s"]
     gens = len(b["ipso"]["history"]) - 1
     full = gens >= IPSO["iterations"]
     ob, oa = P["real_orientation_before"]["z"][0], P["real_orientation_after"]["z"][0]
@@ -139,7 +139,7 @@ def summary(r: dict) -> str:
         "mm²/rad², LM and hybrid whiten by the noise they estimate per residual block), the",
         f"paper's 24 parameters, IPSO with {IPSO['particles']} particles, c1 = c2 = {IPSO['c1']}, constriction "
         f"K = 0.7298, {gens} generations, start in ±0.5 mm / ±0.01 rad by (scrambled) Halton points. Validation:",
-        "200 fresh poses of the same true robot, measured the same way. Times are the optimisers' own, after a",
+        "200 fresh poses of the same true robot, measured the same way. Times are the optimizers' own, after a",
         f"warm-up that compiled or loaded the kernels ({fmt(r['warm_up_s'], 3)} s, not counted).", "",
         "## Published against measured", "",
         "| published figure | paper | robocal | verdict |", "|---|---|---|---|",
@@ -150,7 +150,7 @@ def summary(r: dict) -> str:
         lines += [f"## {case['label']}", "",
                   "| method | before mean (mm) | after mean | after std | after max | orient. X after mean (deg) "
                   "| orient. Y | orient. Z | validation before rms | validation after rms | max param. error (mm) "
-                  "| max param. error (rad) | optimiser time (s) | evaluations |",
+                  "| max param. error (rad) | optimizer time (s) | evaluations |",
                   "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
         lines += [_metric_row(m, e) for m, e in case["methods"].items()] + [""]
     va = {m: e["metrics"]["validation_after"]["position"]["rms"] for m, e in a.items()}
