@@ -95,11 +95,11 @@ def test_auto_chooses_compliance_and_not_harmonics_for_deflection_under_load(com
     meas, fresh = compliant
     res, said = _calibrate("kr5-arc", meas, frames="none", model="auto", validate=fresh)
     assert res.model == "compliance"  # no harmonics, and no residual process fitted to noise
-    rows = {r["model"]: r for r in res.model_selection}
+    rows = {r.model: r for r in res.model_selection}
     assert {"geometric", "harmonics", "compliance", "compliance+harmonics"} <= set(rows)
-    assert rows["compliance"]["cv_rms_mm"] < 0.5 * rows["geometric"]["cv_rms_mm"]
+    assert rows["compliance"].cv_rms_mm < 0.5 * rows["geometric"].cv_rms_mm
     assert any(s.startswith("model auto: ") for s in said)
-    budget = [r["model"] for r in res.error_budget]
+    budget = [r.model for r in res.error_budget]
     assert budget[:2] == ["nominal geometry, frames fitted", "geometric calibration"]
 
 
@@ -281,6 +281,6 @@ def test_a_seven_joint_arm_with_torque_columns(tmp_path, measure, quiet):
     assert res.model == "compliance"
     for j, c in planted.items():
         assert res.parameter(f"compliance{j}") == pytest.approx(c, rel=0.15)
-    geometric = res.error_budget[1]["validation_rms_mm"]
+    geometric = res.error_budget[1].validation_rms_mm
     assert res.metrics["validation_after"].position["rms"] < 0.5 * geometric
     assert res.metrics["validation_after"].position["rms"] < 1.3 * NOISE * math.sqrt(3)

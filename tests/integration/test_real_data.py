@@ -81,11 +81,11 @@ def test_auto_model_beats_geometry_on_the_held_out_half_and_travels_with_the_exp
     cal, val = split
     res, said = _run(cal, val, model="auto", frames="base+tool")
     geometric = res.error_budget[1]
-    assert geometric["model"] == "geometric calibration"
+    assert geometric.model == "geometric calibration"
     auto = res.metrics["validation_after"].position["rms"]
-    assert auto <= 0.9 * geometric["validation_rms_mm"]
+    assert auto <= 0.9 * geometric.validation_rms_mm
     assert res.model != "geometric" and len(res.model_selection) >= 5
-    assert min(r["cv_rms_mm"] for r in res.model_selection) < 0.9 * res.model_selection[0]["cv_rms_mm"]
+    assert min(r.cv_rms_mm for r in res.model_selection) < 0.9 * res.model_selection[0].cv_rms_mm
     assert any(s.startswith("model auto: ") for s in said)
     written = res.export(tmp_path / "ur10.toml")
     from robocal.io.measurements import save_measurements

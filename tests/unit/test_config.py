@@ -47,3 +47,21 @@ def test_defaults_and_coercions():
     assert CalibrationConfig.build(c, method="lm").method == "lm"
     with pytest.raises(TypeError):
         CalibrationConfig.build(None, speed=3)
+
+
+def test_the_calibrate_command_and_the_config_cannot_drift_apart():
+    """Every option of ``robocal calibrate`` sets the config field of its name or is one of the
+    command's own; every config field a user sets has its option (or is set another way)."""
+    import inspect
+    from dataclasses import fields
+
+    from robocal.calibration.config import CalibrationConfig
+    from robocal.cli.calibrate import CLI_ONLY, CONFIG_FIELDS, calibrate_cmd
+
+    options = set(inspect.signature(calibrate_cmd).parameters)
+    config = {f.name for f in fields(CalibrationConfig)}
+    assert set(CONFIG_FIELDS) <= config
+    assert options == set(CONFIG_FIELDS) | set(CLI_ONLY)
+    # set otherwise: --position-only → use_orientation; per-setting swarm overrides and LM's cap
+    # are for the Python API and studies
+    assert config - set(CONFIG_FIELDS) == {"use_orientation", "swarm", "max_evaluations"}

@@ -12,6 +12,7 @@ from ..io.measurements import ReadOptions
 from ..model.candidates import FRAME_CHOICES
 from ..model.terms import TERMS
 from ..optimize.lm import LOSSES
+from .noise import NoiseModel
 from .registry import METHODS as _REGISTRY
 from .registry import Method
 
@@ -26,8 +27,80 @@ PARAMETER_SETS = ("auto", "all", "wen2019", "kou2022")
 
 
 @dataclass(frozen=True)
+class SwarmSettings:
+    """What a swarm method runs with besides its paper's settings: particles and iterations
+    (None: the paper's), the search box (± mm, ± rad; None: the method's), IPSO's Halton
+    start, further overrides of the paper's settings (``w``, ``c1``, …, those the method
+    allows) and the objectives' backend."""
+
+    method: Method
+    particles: int | None = None
+    iterations: int | None = None
+    box: tuple[float, float] | None = None
+    halton: str = "scrambled"
+    overrides: Mapping[str, float] = field(default_factory=dict)
+    backend: str = "auto"
+
+    def __post_init__(self) -> None:
+        set_ = object.__setattr__
+        set_(self, "particles", opt.optional_integer(self.particles, "particles", minimum=1))
+        set_(self, "iterations", opt.optional_integer(self.iterations, "iterations", minimum=1))
+        if self.box is not None:
+            box = opt.floats(self.box, "box", (2,))
+            if min(box) <= 0:
+                raise InputError(f"half-widths must be > 0, got {self.box!r}", option="box")
+            set_(self, "box", box)
+        allowed = self.method.overridable
+        for key, value in dict(self.overrides).items():
+            if key not in allowed:
+                raise InputError(f"unknown setting {key!r} for {self.method.name} (allowed: "
+                                 f"{', '.join(allowed) or 'none'})", option="swarm")
+            opt.number(value, f"swarm {key}", minimum=0.0)
+        set_(self, "overrides", dict(self.overrides))
+        opt.choice(self.halton, HALTON, "halton", "Halton start")
+        opt.choice(self.backend, BACKENDS, "backend", "backend")
+
+    def settings(self) -> dict:
+        """The settings of a run: the paper's, overridden."""
+        out = {**self.method.settings, **self.overrides}
+        if self.particles is not None:
+            out["particles"] = self.particles
+        if self.iterations is not None:
+            out["iterations"] = self.iterations
+        return out
+
+
+@dataclass(frozen=True)
+class ModelSettings:
+    """What the model holds beyond geometry: ``geometric``, ``auto`` or terms joined by ``+``
+    (canonical order), the harmonics' count H, and a payload (kg) where the data have none."""
+
+    name: str = "geometric"
+    harmonics: int = 2
+    payload: float | None = None
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "name", _model(self.name))
+        object.__setattr__(self, "harmonics", opt.integer(self.harmonics, "harmonics", minimum=1))
+        if self.payload is not None:
+            object.__setattr__(self, "payload", opt.number(self.payload, "payload", minimum=0.0))
+
+    @property
+    def terms(self) -> frozenset[str]:
+        """The terms beyond geometry asked for (empty for geometric and auto)."""
+        return frozenset() if self.name in ("geometric", "auto") else frozenset(self.name.split("+")) - {"geometric"}
+
+
+@dataclass(frozen=True)
 class CalibrationConfig:
     """What a calibration is asked to do.  Units: mm, rad (k in mm²/rad²).
+
+    The options are given flat, as keywords (the command line's names); each group is checked
+    by its own typed settings, which the calibration reads: :attr:`noise_model` (noise,
+    angle_noise, k), :attr:`swarm_settings` (particles, iterations, box, halton, swarm,
+    backend), :attr:`model_settings` (model, harmonics, payload) and :attr:`read_settings`
+    (joint_unit, length_unit); method, frames, params, seed, objective, loss and f_scale,
+    max_evaluations and use_orientation are its own.
 
     noise / angle_noise: the measuring device's standard deviation per axis, position (mm)
     and orientation (rad, as a rotation vector); residuals are whitened by them.  A value
@@ -87,39 +160,24 @@ class CalibrationConfig:
             set_(self, "seed", opt.integer(self.seed, "seed", minimum=0))
         if self.objective is not None:
             opt.choice(self.objective, OBJECTIVES, "objective", "objective")
-        for name in ("noise", "angle_noise"):
-            if getattr(self, name) is not None:
-                set_(self, name, opt.number(getattr(self, name), name, minimum=0.0, strict=True))
-        if self.k is not None:
-            set_(self, "k", opt.number(self.k, "k", minimum=0.0, strict=True))
-            if self.angle_noise is not None:
-                raise InputError("give the orientation noise or the weight k, not both", option="k")
+        noise = NoiseModel.checked(self.noise, self.angle_noise, self.k)
+        set_(self, "noise", noise.position)
+        set_(self, "angle_noise", noise.orientation)
+        set_(self, "k", noise.k)
         opt.choice(self.loss, LOSSES, "loss", "loss")
         if self.loss != "linear" and not self.spec.least_squares:
             raise InputError(f"a robust loss applies to lm and hybrid, not {self.method}", option="loss")
         set_(self, "f_scale", opt.number(self.f_scale, "f_scale", minimum=0.0, strict=True))
-        set_(self, "particles", opt.optional_integer(self.particles, "particles", minimum=1))
-        set_(self, "iterations", opt.optional_integer(self.iterations, "iterations", minimum=1))
         set_(self, "max_evaluations", opt.optional_integer(self.max_evaluations, "max_evaluations", minimum=1))
-        if self.box is not None:
-            box = opt.floats(self.box, "box", (2,))
-            if min(box) <= 0:
-                raise InputError(f"half-widths must be > 0, got {self.box!r}", option="box")
-            set_(self, "box", box)
-        allowed = self.spec.overridable
-        for key, value in dict(self.swarm).items():
-            if key not in allowed:
-                raise InputError(f"unknown setting {key!r} for {self.method} (allowed: {', '.join(allowed) or 'none'})",
-                                 option="swarm")
-            opt.number(value, f"swarm {key}", minimum=0.0)
-        set_(self, "swarm", dict(self.swarm))
-        opt.choice(self.halton, HALTON, "halton", "Halton start")
-        opt.choice(self.backend, BACKENDS, "backend", "backend")
+        swarm = self.swarm_settings
+        for name in ("particles", "iterations", "box"):
+            set_(self, name, getattr(swarm, name))
+        set_(self, "swarm", swarm.overrides)
         ReadOptions(joint_unit=self.joint_unit, length_unit=self.length_unit)  # checks both
-        set_(self, "model", _model(self.model))
-        set_(self, "harmonics", opt.integer(self.harmonics, "harmonics", minimum=1))
-        if self.payload is not None:
-            set_(self, "payload", opt.number(self.payload, "payload", minimum=0.0))
+        model = ModelSettings(self.model, self.harmonics, self.payload)
+        set_(self, "model", model.name)
+        set_(self, "harmonics", model.harmonics)
+        set_(self, "payload", model.payload)
         if not self.spec.least_squares and (self.model == "auto" or self.model_terms - {"residual"}):
             raise InputError(f"joint terms ({self.model}) are fitted by lm or hybrid, not {self.method}",
                              option="model")
@@ -143,13 +201,27 @@ class CalibrationConfig:
     @property
     def model_terms(self) -> frozenset[str]:
         """The terms beyond geometry the model asks for (empty for geometric and auto)."""
-        return frozenset() if self.model in ("geometric", "auto") else frozenset(self.model.split("+")) - {"geometric"}
+        return self.model_settings.terms
 
     @property
-    def noise_model(self):
-        from .noise import NoiseModel
-
+    def noise_model(self) -> NoiseModel:
+        """The noise stated: σp (mm), σr (rad) or the weight k."""
         return NoiseModel(self.noise, self.angle_noise, self.k)
+
+    @property
+    def swarm_settings(self) -> SwarmSettings:
+        return SwarmSettings(self.spec, self.particles, self.iterations, self.box, self.halton, self.swarm,
+                             self.backend)
+
+    @property
+    def model_settings(self) -> ModelSettings:
+        return ModelSettings(self.model, self.harmonics, self.payload)
+
+    @property
+    def read_settings(self) -> ReadOptions:
+        """How data files are read: their joint and length units (the robot's part comes with
+        :meth:`read_options`)."""
+        return ReadOptions(joint_unit=self.joint_unit, length_unit=self.length_unit)
 
     @property
     def spec(self) -> Method:

@@ -46,12 +46,7 @@ class Estimate:
 
 def settings(config: CalibrationConfig) -> dict:
     """The swarm settings of a run: the paper's, overridden by the config."""
-    out = {**config.spec.settings, **config.swarm}
-    if config.particles is not None:
-        out["particles"] = config.particles
-    if config.iterations is not None:
-        out["iterations"] = config.iterations
-    return out
+    return config.swarm_settings.settings()
 
 
 def swarm_box(names: list[str], method: str, box: tuple[float, float] | None) -> tuple[np.ndarray, np.ndarray]:

@@ -43,6 +43,19 @@ class NoiseModel:
     orientation: float | None = None
     k: float | None = None
 
+    @classmethod
+    def checked(cls, noise, angle_noise, k) -> NoiseModel:
+        """From option values (``noise`` mm, ``angle_noise`` rad, ``k``), each checked: > 0 and
+        finite, and not both angle_noise and k."""
+        from .. import options as opt
+        from ..exceptions import InputError
+
+        values = {name: None if v is None else opt.number(v, name, minimum=0.0, strict=True)
+                  for name, v in (("noise", noise), ("angle_noise", angle_noise), ("k", k))}
+        if values["k"] is not None and values["angle_noise"] is not None:
+            raise InputError("give the orientation noise or the weight k, not both", option="k")
+        return cls(values["noise"], values["angle_noise"], values["k"])
+
     def initial(self) -> tuple[float, float]:
         """Weights to start with: the stated values, else 1 mm and the default ratio k."""
         ratio = math.sqrt(self.k if self.k is not None else DEFAULT_K)

@@ -32,6 +32,34 @@ SCHEMA_VERSION = 3
 SIGNIFICANCE_SIGMAS = 2.0
 
 
+@dataclass(frozen=True)
+class LadderRow:
+    """One rung of ``--model auto``: its cross-validated position RMS (mm), its parameter count,
+    and for a residual process the points it is conditioned on."""
+
+    model: str
+    cv_rms_mm: float
+    n_params: int
+    residual_points: int | None = None
+
+    def to_dict(self) -> dict:
+        out = {"model": self.model, "cv_rms_mm": self.cv_rms_mm, "n_params": self.n_params}
+        return out if self.residual_points is None else {**out, "residual_points": self.residual_points}
+
+
+@dataclass(frozen=True)
+class BudgetRow:
+    """One stage of the error budget: the validation position RMS (mm) with it, and what it
+    removed from the stage before (None for the first)."""
+
+    model: str
+    validation_rms_mm: float
+    removed_mm: float | None
+
+    def to_dict(self) -> dict:
+        return {"model": self.model, "validation_rms_mm": self.validation_rms_mm, "removed_mm": self.removed_mm}
+
+
 @dataclass
 class CalibrationResult:
     """Everything a calibration produced.  :meth:`to_dict` gives the JSON of MODEL §5.
@@ -69,8 +97,8 @@ class CalibrationResult:
     covariance: np.ndarray | None = field(default=None, repr=False)
     frames: str = "none"
     model: str = "geometric"
-    model_selection: list[dict] = field(default_factory=list)
-    error_budget: list[dict] = field(default_factory=list)
+    model_selection: list[LadderRow] = field(default_factory=list)
+    error_budget: list[BudgetRow] = field(default_factory=list)
     geometric: Robot | None = field(default=None, repr=False)
 
     @property
@@ -147,8 +175,8 @@ class CalibrationResult:
             "goodness_of_fit": None if self.goodness_of_fit is None else self.goodness_of_fit.to_dict(),
             "loss": cfg.loss,
             "model": self.model,
-            "model_selection": list(self.model_selection),
-            "error_budget": list(self.error_budget),
+            "model_selection": [r.to_dict() for r in self.model_selection],
+            "error_budget": [r.to_dict() for r in self.error_budget],
             "residual_model": None if self.robot.residual is None else self.robot.residual.summary(),
             "region": None if self.robot.region is None else self.robot.region.to_dict(),
             "fallback": None if self.robot.fallback is None else "the geometric fit, outside the region",

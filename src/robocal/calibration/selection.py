@@ -29,6 +29,7 @@ from ..model.terms import TERMS
 from .config import CalibrationConfig
 from .methods import fit_lm
 from .residual import MAX_POINTS, fit_residual
+from .result import BudgetRow, LadderRow
 from .steps import Fit, Inputs, fit_parametric, term_spec
 
 
@@ -71,11 +72,11 @@ class Chosen:
     name: str
     fit: Fit
     residual: ResidualModel | None = None
-    table: list[dict] = field(default_factory=list)
+    table: list[LadderRow] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
     geometric: Fit | None = None
 
-    def budget(self, calibrated: Robot, validation: Measurements | None) -> list[dict]:
+    def budget(self, calibrated: Robot, validation: Measurements | None) -> list[BudgetRow]:
         """What each part of the model removes on the validation poses: position RMS (mm) of the
         nominal joints with fitted frames, the geometric fit, the fit with joint terms (each term
         refitted with the geometry: a term alone would take geometry's share too), and the
@@ -92,7 +93,7 @@ class Chosen:
         rows, last = [], None
         for label, robot in steps:
             rms = Metrics.of(robot, validation).position["rms"]
-            rows.append({"model": label, "validation_rms_mm": rms, "removed_mm": None if last is None else last - rms})
+            rows.append(BudgetRow(label, rms, None if last is None else last - rms))
             last = rms
         return rows
 
@@ -279,8 +280,8 @@ def fit_model(inputs: Inputs, config: CalibrationConfig, progress=None) -> Chose
             errors, kernels = cross_validate_residual(c.fit, cv, config.seed)
             candidates.append(Candidate(c.terms, True, c.fit, errors, kernels))
     chosen = choose(candidates, groups)
-    rows = [{"model": c.name, "cv_rms_mm": c.cv_rms, "n_params": c.fit.n_params,
-             **({"residual_points": int(min(len(c.errors), MAX_POINTS))} if c.residual else {})} for c in candidates]
+    rows = [LadderRow(c.name, c.cv_rms, c.fit.n_params, int(min(len(c.errors), MAX_POINTS)) if c.residual else None)
+            for c in candidates]
     residual = residual_on_all(chosen.fit, config.seed, chosen.kernels) if chosen.residual else None
     notes = [f"model auto: {chosen.name} (cross-validated position RMS {chosen.cv_rms:.4g} mm; geometric "
              f"{candidates[0].cv_rms:.4g} mm; a richer model is kept only if it predicts held-out poses "

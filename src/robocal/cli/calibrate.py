@@ -8,9 +8,25 @@ import typer
 
 from .common import base_link_option, tip_link_option
 
+#: the config's fields an option of the same name sets (angle_noise in degrees here, rad there)
+CONFIG_FIELDS = ("method", "frames", "params", "seed", "objective", "noise", "angle_noise", "k", "loss", "f_scale",
+                 "particles", "iterations", "box", "halton", "backend", "model", "harmonics", "payload", "joint_unit",
+                 "length_unit")
+#: the command's own options: its inputs and outputs, how to read them, and what it prints
+CLI_ONLY = ("robot", "data", "validate", "out", "export", "report", "column", "base_link", "tip_link", "quiet",
+            "position_only")
+
 
 def _print_summary(result, robot_name: str, data: Path) -> None:
-    from ..report.tables import FRAME_COLUMNS, PARAMETER_COLUMNS, frame_rows, noise_line, parameter_rows
+    from ..report.tables import (
+        FRAME_COLUMNS,
+        PARAMETER_COLUMNS,
+        budget_rows,
+        frame_rows,
+        ladder_rows,
+        noise_line,
+        parameter_rows,
+    )
     from .common import console, metrics_table, table
 
     m = result.metrics
@@ -28,13 +44,11 @@ def _print_summary(result, robot_name: str, data: Path) -> None:
                     text_columns=(0, len(PARAMETER_COLUMNS) - 1)))
     out.print(table("frames", FRAME_COLUMNS, frame_rows(result), "left"))
     if result.model_selection:
-        rows = [(r["model"], f"{r['cv_rms_mm']:.4f}", str(r["n_params"]),
-                 "chosen" if r["model"] == result.model else "") for r in result.model_selection]
+        rows = ladder_rows(result)
         out.print(table("model selection: 5-fold cross-validated position RMS (mm) on the calibration poses",
                         ("model", "cv RMS", "parameters", ""), rows, text_columns=(0, 3)))
     if result.error_budget:
-        rows = [(r["model"], f"{r['validation_rms_mm']:.4f}",
-                 "" if r["removed_mm"] is None else f"{r['removed_mm']:.4f}") for r in result.error_budget]
+        rows = budget_rows(result)
         out.print(table("error budget on the validation poses: position RMS (mm)", ("model", "RMS", "removed"),
                         rows, text_columns=(0,)))
     out.print(noise_line(result))
@@ -86,6 +100,9 @@ def calibrate_cmd(
     quiet: bool = typer.Option(False, "--quiet", "-q", help="no table, no progress bar"),
 ) -> None:
     """Identify a robot's geometric parameters from measured poses."""
+    # the options named like the config's fields are its fields (tests/unit/test_config.py
+    # checks that every option is one or is listed as the command line's own)
+    given = {k: v for k, v in locals().items() if k in CONFIG_FIELDS}
     import math
     import warnings
 
@@ -97,12 +114,8 @@ def calibrate_cmd(
     from .common import check_outputs, console, print_warnings, progress_bar
 
     check_outputs((robot, data, validate), out=out, export=export, report=report)
-    cfg = CalibrationConfig(method=method, frames=frames, params=params, seed=seed, objective=objective,
-                            use_orientation=not position_only, loss=loss, f_scale=f_scale, particles=particles,
-                            iterations=iterations, box=box, halton=halton, backend=backend, noise=noise,
-                            angle_noise=None if angle_noise is None else math.radians(angle_noise), k=k,
-                            joint_unit=joint_unit, length_unit=length_unit, model=model, harmonics=harmonics,
-                            payload=payload)
+    cfg = CalibrationConfig(**{**given, "use_orientation": not position_only,
+                               "angle_noise": None if angle_noise is None else math.radians(angle_noise)})
     nominal = load_robot(robot, base_link=base_link, tip_link=tip_link)
     total = None if method == "lm" else settings(cfg)["iterations"]
     with progress_bar(not quiet and method != "lm", method, total) as callback, warnings.catch_warnings():

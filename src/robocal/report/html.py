@@ -13,7 +13,15 @@ from ..io.atomic import atomic_write
 from ..model.metrics import Metrics, pose_errors
 from ..model.parameters import is_angle, is_frame
 from . import figures
-from .tables import FRAME_COLUMNS, PARAMETER_COLUMNS, frame_rows, noise_line, parameter_rows
+from .tables import (
+    FRAME_COLUMNS,
+    PARAMETER_COLUMNS,
+    budget_rows,
+    frame_rows,
+    ladder_rows,
+    noise_line,
+    parameter_rows,
+)
 
 _CSS = """
 body{font-family:system-ui,sans-serif;margin:2em auto;max-width:1000px;color:#222}
@@ -112,15 +120,13 @@ def _model_tables(result: CalibrationResult) -> list[str]:
     """The ladder of ``--model auto`` and the error budget on the validation poses."""
     parts = []
     if result.model_selection:
-        rows = [(r["model"], f"{r['cv_rms_mm']:.4f}", str(r["n_params"]),
-                 "chosen" if r["model"] == result.model else "") for r in result.model_selection]
+        rows = ladder_rows(result)
         parts += [f"<h2>Model selection</h2><p>Model {html.escape(result.model)}, chosen by 5-fold cross-validation "
                   "on the calibration poses (folds by pose): each model refitted without a fold predicts it. A "
                   "richer model is kept only if it predicts the held-out poses better than a simpler one.</p>",
                   _table(("model", "cross-validated position RMS (mm)", "parameters", ""), rows)]
     if result.error_budget:
-        rows = [(r["model"], f"{r['validation_rms_mm']:.4f}",
-                 "" if r["removed_mm"] is None else f"{r['removed_mm']:.4f}") for r in result.error_budget]
+        rows = budget_rows(result)
         parts += ["<h2>Error budget</h2><p>Position RMS on the validation poses as each part of the model is "
                   "added: what each removes.</p>", _table(("model", "validation RMS (mm)", "removed (mm)"), rows)]
     return parts

@@ -113,3 +113,15 @@ def noise_line(result) -> str:
     if result.robot.residual is not None:
         text += " — of the parametric fit; its residual correction is judged by cross-validation"
     return text
+
+
+def ladder_rows(result: CalibrationResult) -> list[tuple[str, ...]]:
+    """The rungs of ``--model auto`` as table rows: model, cv RMS (mm), parameters, chosen."""
+    return [(r.model, f"{r.cv_rms_mm:.4f}", str(r.n_params), "chosen" if r.model == result.model else "")
+            for r in result.model_selection]
+
+
+def budget_rows(result: CalibrationResult) -> list[tuple[str, ...]]:
+    """The error budget as table rows: stage, validation RMS (mm), removed (mm)."""
+    return [(r.model, f"{r.validation_rms_mm:.4f}", "" if r.removed_mm is None else f"{r.removed_mm:.4f}")
+            for r in result.error_budget]
