@@ -112,3 +112,22 @@ def gravity_torques(g: dict[str, np.ndarray], q: np.ndarray, masses, centres, st
         dq[i] = step
         tau[i] = (work(q + dq) - work(q - dq)) / (2 * step)
     return tau
+
+
+def uniform_deviations(name: str, length: float, angle: float, rng: np.random.Generator) -> dict[str, float]:
+    """Deviations of a, d (uniform in ±length mm) and α, θ (±angle rad) of every joint."""
+    n = len(TABLES[name])
+    out = {}
+    for i in range(1, n + 1):
+        for kind, half in (("a", length), ("alpha", angle), ("theta", angle), ("d", length)):
+            out[f"{kind}{i}"] = float(rng.uniform(-half, half))
+    return out
+
+
+def measurements(name: str, deviations: dict[str, float], n: int, seed: int, **kw):
+    """A campaign of :func:`campaign` as robocal's data container (only the container: every
+    number is this module's)."""
+    from robocal.model.measurements import Measurements
+
+    c = campaign(name, deviations, n, np.random.default_rng(seed), **kw)
+    return Measurements(q=c["q"], position=c["position"], rotation=c["rotation"])

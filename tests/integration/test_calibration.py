@@ -2,6 +2,7 @@
 
 import json
 
+import independent as ind
 import numpy as np
 import pytest
 
@@ -17,16 +18,14 @@ from robocal.simulation import simulate
 
 pytestmark = pytest.mark.usefixtures("quiet")
 
-
-def _fresh(truth, n, seed, measure="pose"):
-    """Noise-free validation poses of the same true robot."""
-    return simulate(truth, n, deviations="none", seed=seed, measure=measure).measurements
+#: the KR5's planted errors (±0.25 mm, ±0.05 rad, Kou et al.'s range), drawn once
+KR5_ERRORS = ind.uniform_deviations("kr5-arc", 0.25, 0.05, np.random.default_rng(3))
 
 
 def test_lm_recovers_wen2019_errors_exactly_from_full_pose_data():
     robot = load_robot("er10l-c10")
-    sim = simulate(robot, 32, deviations="paper", seed=1)
-    res = calibrate(robot, sim.measurements, "lm")
+    meas = ind.measurements("er10l-c10", WEN2019_ERRORS, 32, 1, noise=0.0)
+    res = calibrate(robot, meas, "lm")
     assert res.identifiability.dropped == ["d2"]  # axes 2 ∥ 3: beta2 carries the pair, as in the paper
     for name in res.names:
         assert abs(res.parameter(name) - WEN2019_ERRORS.get(name, 0.0)) < 1e-6, name
@@ -37,10 +36,10 @@ def test_lm_recovers_wen2019_errors_exactly_from_full_pose_data():
 
 def test_noisy_full_pose_validation_is_at_the_true_parameter_set_floor():
     robot = load_robot("er10l-c10")
-    sim = simulate(robot, 32, deviations="paper", seed=1, noise=0.02, angle_noise=np.radians(0.001))
-    val = _fresh(sim.truth, 200, seed=77)
-    auto = calibrate(robot, sim.measurements, "lm", validate=val)
-    floor = calibrate(robot, sim.measurements, "lm", validate=val, params=WEN2019_PARAMS)  # exactly the planted set
+    meas = ind.measurements("er10l-c10", WEN2019_ERRORS, 32, 1, noise=0.02, angle_noise=np.radians(0.001))
+    val = ind.measurements("er10l-c10", WEN2019_ERRORS, 200, 77, noise=0.0)
+    auto = calibrate(robot, meas, "lm", validate=val)
+    floor = calibrate(robot, meas, "lm", validate=val, params=WEN2019_PARAMS)  # exactly the planted set
     a = auto.metrics["validation_after"].position["rms"]
     f = floor.metrics["validation_after"].position["rms"]
     assert a <= 1.1 * f and a < 0.05
@@ -61,13 +60,13 @@ def _fd_position_jacobian(robot, q, names, h=1e-6):
 
 def test_kr5_dropped_set_is_exactly_the_unidentifiable_one_and_fit_is_exact():
     robot = load_robot("kr5-arc")
-    sim = simulate(robot, 30, deviations="uniform:0.25,0.05", seed=3, measure="position")
-    res = calibrate(robot, sim.measurements, "lm", params="kou2022")
+    meas = ind.measurements("kr5-arc", KR5_ERRORS, 30, 3, noise=0.0, measure="position")
+    res = calibrate(robot, meas, "lm", params="kou2022")
     assert res.metrics["after"].position["max"] < 1e-6
     assert res.metrics["before"].axis_max["x"] > 10
     candidates = res.names + res.identifiability.dropped
     # independent rank at the estimate, from finite differences, angles scaled to mm by the reach
-    J = _fd_position_jacobian(res.robot, sim.measurements.q, candidates)
+    J = _fd_position_jacobian(res.robot, meas.q, candidates)
     J = J / np.linalg.norm(J, axis=0).clip(1e-300)
     rank = np.linalg.matrix_rank(J, tol=1e-7 * np.sqrt(J.shape[0]))
     assert rank == len(res.names)
@@ -76,7 +75,7 @@ def test_kr5_dropped_set_is_exactly_the_unidentifiable_one_and_fit_is_exact():
     # at the nominal model the textbook dependencies show: θ6 and α6 with the point on axis 6,
     # d2 with d3 for parallel axes 2 ∥ 3
     space = ParameterSpace.of(robot)
-    Jn, _, _ = space.jacobian(np.zeros(space.size), sim.measurements.q)
+    Jn, _, _ = space.jacobian(np.zeros(space.size), meas.q)
     idx = space.index(candidates)
     at_nominal = analyse(
         Jn[:, :3, idx].transpose(0, 1, 2).reshape(-1, len(idx)),
@@ -91,15 +90,15 @@ def test_kr5_dropped_set_is_exactly_the_unidentifiable_one_and_fit_is_exact():
 
 def test_kr5_noisy_keeps_the_nominal_identifiable_set():
     robot = load_robot("kr5-arc")
-    sim = simulate(robot, 30, deviations="uniform:0.25,0.05", seed=3, measure="position", noise=0.02)
-    val = _fresh(sim.truth, 200, 9, "position")
-    res = calibrate(robot, sim.measurements, "lm", validate=val)
+    meas = ind.measurements("kr5-arc", KR5_ERRORS, 30, 3, noise=0.02, measure="position")
+    val = ind.measurements("kr5-arc", KR5_ERRORS, 200, 9, noise=0.0, measure="position")
+    res = calibrate(robot, meas, "lm", validate=val)
     # axes 2 ∥ 3: β2 is offered (DH + β), and with it d2 stays dependent on d3
     assert set(res.identifiability.dropped) == {"d2", "a5", "alpha5", "alpha6", "theta6"}
     assert "beta2" in res.names and res.identifiability.reasons["d2"].kind == "dependent"
     assert res.identifiability.absorbed_by("d3") == [("d2", pytest.approx(1.0))]
     # in plain DH (the paper's 24), d2 separates to second order at the estimate; the F-test declines it
-    dh = calibrate(robot, sim.measurements, "lm", validate=val, params="kou2022")
+    dh = calibrate(robot, meas, "lm", validate=val, params="kou2022")
     assert dh.identifiability.reasons["d2"].kind == "second_order"
     assert "F-test" in dh.identifiability.reasons["d2"].text()
     assert res.metrics["validation_after"].position["rms"] < 0.05
@@ -109,19 +108,20 @@ def test_kr5_noisy_keeps_the_nominal_identifiable_set():
     "name,measure,errors", [("er10l-c10", "pose", "paper"), ("kr5-arc", "position", "uniform:0.25,0.05")]
 )
 def test_unknown_measuring_frame_and_tool_need_no_initial_guess(name, measure, errors):
+    from scipy.spatial.transform import Rotation
+
     robot = load_robot(name)
-    sim = simulate(
-        robot,
-        40,
-        deviations=errors,
-        seed=2,
-        measure=measure,
-        base=(2500.0, -1800.0, 400.0, 0.3, -0.2, 0.8),
-        tool=(20.0, -35.0, 110.0, 0.1, 0.2, 0.3),
-    )
-    res = calibrate(robot, sim.measurements, "lm", frames="base+tool")
+    deviations = WEN2019_ERRORS if errors == "paper" else KR5_ERRORS
+    base, tool = np.eye(4), np.eye(4)
+    base[:3, :3] = Rotation.from_euler("ZYX", [0.8, -0.2, 0.3]).as_matrix()  # rpy (0.3, −0.2, 0.8) rad
+    base[:3, 3] = (2500.0, -1800.0, 400.0)
+    tool[:3, :3] = Rotation.from_euler("ZYX", [0.3, 0.2, 0.1]).as_matrix()
+    tool[:3, 3] = (20.0, -35.0, 110.0)
+    frames = {"base": base, "tool": tool, "measure": measure, "noise": 0.0}
+    meas = ind.measurements(name, deviations, 40, 2, **frames)
+    res = calibrate(robot, meas, "lm", frames="base+tool")
     assert res.metrics["after"].position["max"] < 1e-6
-    val = _fresh(sim.truth, 100, 5, measure)
+    val = ind.measurements(name, deviations, 100, 5, **frames)
     assert Metrics.of(res.robot, val).position["max"] < 1e-6
     # base rotation and joint 1 share θ1 and d1: those fold into the frame
     assert {"theta1", "d1"} <= set(res.identifiability.dropped)

@@ -2,6 +2,7 @@
 
 import json
 
+import independent as ind
 import numpy as np
 import pytest
 
@@ -9,6 +10,7 @@ from robocal.calibration import calibrate
 from robocal.calibration.problem import Problem
 from robocal.io.robotfile import load_robot
 from robocal.model.measurements import Measurements
+from robocal.presets.wen2019 import TABLE2_DEVIATIONS as WEN2019_ERRORS
 from robocal.simulation import simulate
 
 pytestmark = pytest.mark.usefixtures("quiet")
@@ -29,10 +31,13 @@ def _with_outliers(meas, fraction, seed):
 )
 def test_robust_fit_recovers_the_clean_calibration_and_lists_outliers(name, measure, errors):
     robot = load_robot(name)
-    sim = simulate(robot, 100, deviations=errors, seed=1, noise=0.02, angle_noise=np.radians(0.001), measure=measure)
-    val = simulate(sim.truth, 200, seed=2, measure=measure).measurements
-    dirty, bad = _with_outliers(sim.measurements, 0.05, seed=3)
-    clean = calibrate(robot, sim.measurements, "lm", validate=val)
+    deviations = WEN2019_ERRORS if errors == "paper" else ind.uniform_deviations(name, 0.1, 0.005,
+                                                                                   np.random.default_rng(1))
+    clean_data = ind.measurements(name, deviations, 100, 1, noise=0.02, angle_noise=np.radians(0.001),
+                                  measure=measure)
+    val = ind.measurements(name, deviations, 200, 2, noise=0.0, measure=measure)
+    dirty, bad = _with_outliers(clean_data, 0.05, seed=3)
+    clean = calibrate(robot, clean_data, "lm", validate=val)
     plain = calibrate(robot, dirty, "lm", validate=val)
     robust = calibrate(robot, dirty, "lm", validate=val, loss="huber", f_scale=0.1)
     c = clean.metrics["validation_after"].position["rms"]
