@@ -34,3 +34,91 @@ def resolve(backend: str = "auto") -> str:
             raise InputError("numba is not installed (pip install 'robocal[fast]')", option="backend")
         return "numba"
     return "numba" if numba_installed() and not os.environ.get("ROBOCAL_NO_NUMBA") else "numpy"
+
+
+#: chain evaluations per kernel call below which the numba kernels run on one thread.  Measured
+#: on the 2-core development machine (benchmarks/bench_threads.py): quiet, a second thread halves
+#: every call from 40 evaluations up; with one busy process per core, a call that waits at the
+#: parallel region's barrier for a preempted thread loses a scheduler slice (6–8 ms) whatever
+#: its size, up to 70× a serial call of a swarm's size.  Above this size (≈ 20 ms of serial
+#: work) a lost slice costs less than the second core gains.
+PARALLEL_MIN_WORK = 200_000
+
+
+def idle_cores() -> int:
+    """Cores this process may use that the rest of the system leaves free (at least 1): the
+    1-minute load less this process's own running thread."""
+    try:
+        cores = len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        cores = os.cpu_count() or 1
+    try:
+        busy = max(0.0, os.getloadavg()[0] - 1.0)
+    except (AttributeError, OSError):
+        busy = 0.0
+    return max(1, min(cores, int(cores - busy + 0.5)))
+
+
+def kernel_threads(work: int) -> int:
+    """Threads for a numba kernel call of ``work`` chain evaluations: one below
+    :data:`PARALLEL_MIN_WORK`, else the idle cores (never more than numba was started with)."""
+    if work < PARALLEL_MIN_WORK:
+        return 1
+    import numba
+
+    return max(1, min(numba.config.NUMBA_NUM_THREADS, idle_cores()))
+
+
+class threads_for:
+    """Run numba kernels on :func:`kernel_threads` threads for the block (this thread only, as
+    numba's setting is), restoring the previous count after."""
+
+    def __init__(self, work: int):
+        self.work = work
+
+    def __enter__(self):
+        import numba
+
+        self.previous = numba.get_num_threads()
+        numba.set_num_threads(min(self.previous, kernel_threads(self.work)))
+        return self
+
+    def __exit__(self, *exc):
+        import numba
+
+        numba.set_num_threads(self.previous)
+        return False
+
+
+#: matrices smaller than this on a side run BLAS/LAPACK on one thread: on the 2-core development
+#: machine a second thread pays for a Cholesky or a product only from about 2000 on a side
+#: (benchmarks/bench_threads.py), and costs up to twice the time on the many small calls of a
+#: calibration (k × k normal equations, n ≤ 2000 residual-process points, tall Jacobians)
+BLAS_PARALLEL_SIDE = 2000
+
+
+class blas_threads:
+    """For the block, BLAS and LAPACK (numpy's and scipy's) on one thread when the largest dense
+    matrix side is below :data:`BLAS_PARALLEL_SIDE`, else as they were.  threadpoolctl (a
+    scikit-learn dependency) sets the libraries loaded at entry, so scipy's linear algebra is
+    loaded first; the previous limits come back on exit."""
+
+    def __init__(self, side: int):
+        self.side = side
+        self._limits = None
+
+    def __enter__(self):
+        if self.side >= BLAS_PARALLEL_SIDE:
+            return self
+        try:
+            import scipy.linalg  # noqa: F401  (its BLAS, so that the limit reaches it)
+            from threadpoolctl import threadpool_limits
+        except ImportError:
+            return self
+        self._limits = threadpool_limits(1, user_api="blas")
+        return self
+
+    def __exit__(self, *exc):
+        if self._limits is not None:
+            self._limits.restore_original_limits()
+        return False

@@ -21,6 +21,7 @@ from ..optimize.result import OptimizeResult, Progress
 from .config import CalibrationConfig
 from .problem import Problem
 from .registry import METHODS
+from .timing import stage
 
 #: swarms search frame parameters at least this far (mm, rad) around the registration
 FRAME_BOX = (5.0, 0.01)
@@ -63,9 +64,10 @@ def swarm_box(names: list[str], method: str, box: tuple[float, float] | None) ->
 def fit_lm(problem: Problem, x0: np.ndarray, config: CalibrationConfig, progress: Progress | None = None,
            max_nfev: int | None = None) -> OptimizeResult:
     # residuals are whitened: the loss scale, given in mm, is counted in units of σp
-    return levenberg_marquardt(problem.residuals, problem.residual_jacobian, x0, loss=config.loss,
-                               f_scale=config.f_scale / problem.setup.sigma_position,
-                               max_nfev=max_nfev or config.max_evaluations, callback=progress)
+    with stage("optimize"):
+        return levenberg_marquardt(problem.residuals, problem.residual_jacobian, x0, loss=config.loss,
+                                   f_scale=config.f_scale / problem.setup.sigma_position,
+                                   max_nfev=max_nfev or config.max_evaluations, callback=progress)
 
 
 def reexpress(search: Problem, x_search: np.ndarray, problem: Problem) -> tuple[np.ndarray, float]:
@@ -97,7 +99,10 @@ def run_swarm(search: Problem, config: CalibrationConfig, progress: Progress | N
     def objective(X):
         return search.objective(X, config.objective_kind)
 
-    return config.spec.swarm(objective, lower, upper, **kw)
+    with stage("compile"):  # compiled (or loaded from numba's cache) before the swarm's clock starts
+        objective(np.zeros((1, len(search.names))))
+    with stage("optimize"):
+        return config.spec.swarm(objective, lower, upper, **kw)
 
 
 def optimize(problem: Problem, search: Problem, config: CalibrationConfig,

@@ -23,20 +23,22 @@ calibration's own and not that of finding the tracker frame.
 
 from __future__ import annotations
 
-import time
 import warnings
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from pathlib import Path
 
+from ..backend import blas_threads
 from ..exceptions import RobocalWarning
 from ..model.measurements import Measurements
 from ..model.region import Region
 from ..model.robot import Robot
 from ..optimize.result import Progress
 from .config import CalibrationConfig
+from .residual import MAX_POINTS
 from .result import CalibrationResult
 from .selection import fit_model, guard
 from .steps import evaluate, load_inputs
+from .timing import stage, timed
 
 
 def calibrate(
@@ -48,6 +50,7 @@ def calibrate(
     validate: str | Path | Measurements | None = None,
     columns: Mapping[str, str] | None = None,
     progress: Progress | None = None,
+    stages: Callable[[str], None] | None = None,
     **options,
 ) -> CalibrationResult:
     """Calibrate ``robot`` (file, built-in name or Robot) on ``data`` (file or Measurements).
@@ -55,13 +58,28 @@ def calibrate(
     Options are those of :class:`CalibrationConfig` (``frames``, ``params``, ``model``, …),
     given as keywords or as ``config``.  validate: poses not used to identify, for honest
     figures.  columns: map of file column names to robocal's.  progress: called with
-    (iteration, total, best objective).  Warnings are issued as :class:`RobocalWarning` and
+    (iteration, total, best objective).  stages: called with a line saying what ``--model
+    auto`` is at (model, fold; for a progress display).  The result's ``time_s`` is the
+    optimizers' wall time; ``timings`` splits the whole call into stages
+    (:mod:`robocal.calibration.timing`).  Warnings are issued as :class:`RobocalWarning` and
     listed in the result.
     """
-    start = time.perf_counter()
     cfg = CalibrationConfig.build(config, **({"method": method} if config is None else {}), **options)
-    inputs = load_inputs(robot, data, validate, cfg, columns)
-    chosen = guard(fit_model(inputs, cfg, progress))
+    with timed() as clock:
+        result = _calibrate(robot, data, validate, cfg, columns, progress, stages)
+    result.timings = clock.to_dict()
+    result.time_s = clock.seconds["optimize"]
+    for note in result.warnings:
+        warnings.warn(note, RobocalWarning, stacklevel=2)
+    return result
+
+
+def _calibrate(robot, data, validate, cfg: CalibrationConfig, columns, progress, stages) -> CalibrationResult:
+    with stage("load"):
+        inputs = load_inputs(robot, data, validate, cfg, columns)
+    # the largest dense matrices: the residual process's (at most MAX_POINTS a side) and k × k
+    with blas_threads(min(inputs.meas.n_poses, MAX_POINTS)):
+        chosen = guard(fit_model(inputs, cfg, progress, stages))
     notes = list(inputs.notes)
     fit = chosen.fit
     notes += fit.notes + chosen.notes
@@ -73,17 +91,18 @@ def calibrate(
         geometric = (chosen.geometric or fit).robot
         calibrated = calibrated.with_fallback(geometric.replace(
             name=f"{inputs.nominal.name} (calibrated, geometric fit)", region=region, residual=None))
-    metrics, said = evaluate(initial, calibrated, est.problem.meas, inputs.meas, inputs.validation, fit.screening)
+    with stage("evaluate"):
+        metrics, said = evaluate(initial, calibrated, est.problem.meas, inputs.meas, inputs.validation,
+                                 fit.screening)
+        budget = chosen.budget(calibrated, inputs.validation)
     notes += said
-    for note in notes:
-        warnings.warn(note, RobocalWarning, stacklevel=2)
     return CalibrationResult(
         config=cfg, robot=calibrated, initial=initial, nominal=inputs.nominal, names=est.problem.names, x=est.x,
         uncertainty=fit.uncertainty, identifiability=fit.identifiability, optimization=est.optimization,
         metrics=metrics, data=inputs.meas.source, n_poses=est.problem.meas.n_poses, full_pose=setup.full_pose,
-        warnings=notes, time_s=time.perf_counter() - start, measurements=est.problem.meas,
+        warnings=notes, measurements=est.problem.meas,
         validation=inputs.validation, outliers=fit.screening.outliers, reexpression_gap_mm=est.reexpression_gap_mm,
         noise=fit.noise, goodness_of_fit=fit.goodness, covariance=fit.covariance, frames=inputs.frames,
-        model=chosen.name, model_selection=chosen.table, error_budget=chosen.budget(calibrated, inputs.validation),
+        model=chosen.name, model_selection=chosen.table, error_budget=budget,
         geometric=None if chosen.geometric is None or chosen.geometric is fit else chosen.geometric.robot,
     )

@@ -25,7 +25,7 @@ from functools import cached_property
 
 import numpy as np
 
-from ..backend import resolve
+from ..backend import resolve, threads_for
 from ..math.so3 import apply_right_jacobian_inv, orientation_error
 from ..model.kinematics import joint_kinds
 from ..model.measurements import Measurements
@@ -70,6 +70,14 @@ class Setup:
 
     def with_noise(self, sigma_position: float, sigma_orientation: float) -> Setup:
         return replace(self, sigma_position=sigma_position, sigma_orientation=sigma_orientation)
+
+    def warm_up(self) -> None:
+        """Compile (or load from numba's cache) the kernel the full-pose Jacobian uses, so that no
+        optimizer's time includes it."""
+        if self.full_pose and resolve(self.backend) == "numba":
+            from ..model import kernels
+
+            kernels.apply_right_jacobian_inv(np.zeros((1, 3)), np.zeros((1, 1, 3)))
 
     def around(self, robot) -> Setup:
         """The same setup with the parameter space around another robot (e.g. the estimate)."""
@@ -179,12 +187,14 @@ class Problem:
         kernels = c["kernels"]
         common = (c["qtrig"], c["tidx"], c["pm"], c["Rm"], self._Rm is not None, self.k,
                   0 if kind == "sum_squares" else 1)
-        if not self._frames_active:
-            # each particle adds its joint deviations to the nominal geometry inside the kernel
-            return kernels.objective_joints(c["conv"], self.space.robot.geometry, c["geom_cols"], X, c["base"],
-                                            c["tools"], *common)
-        geom, base, tools = self.space.expand(self.full(X))
-        return kernels.objective(c["conv"], geom, base, tools, *common)
+        work = len(X) * self.meas.n_poses
+        with threads_for(work):
+            if not self._frames_active:
+                # each particle adds its joint deviations to the nominal geometry inside the kernel
+                return kernels.objective_joints(c["conv"], self.space.robot.geometry, c["geom_cols"], X, c["base"],
+                                                c["tools"], *common)
+            geom, base, tools = self.space.expand(self.full(X))
+            return kernels.objective(c["conv"], geom, base, tools, *common)
 
     def residuals(self, x: np.ndarray) -> np.ndarray:
         """Whitened residual vector [δp/σp (3m), δ/σr (3m)] of one solution (k_active,): its
@@ -212,7 +222,8 @@ class Problem:
             if self._backend == "numba":  # this kernel is convention-free
                 from ..model import kernels
 
-                Jr = kernels.apply_right_jacobian_inv(dr, w)
+                with threads_for(w.size):
+                    Jr = kernels.apply_right_jacobian_inv(dr, w)
             else:
                 Jr = apply_right_jacobian_inv(dr, w)
             out[:, 3 * m :] = -self._wr * Jr.reshape(k, 3 * m)

@@ -16,8 +16,6 @@ data on each fold's training poses at a fraction of the cost.
 
 from __future__ import annotations
 
-import warnings
-
 import numpy as np
 
 from ..model.residual import Block, ResidualModel
@@ -32,33 +30,23 @@ ORIENTATION_HYPER_POINTS = 500
 MAX_POINTS = 2000
 
 
-def _limited(iterations: int):
-    """An optimizer for GaussianProcessRegressor: L-BFGS-B stopped after ``iterations``."""
-    from scipy.optimize import minimize
-
-    def optimizer(obj_func, initial_theta, bounds):
-        r = minimize(obj_func, initial_theta, jac=True, bounds=bounds, method="L-BFGS-B",
-                     options={"maxiter": iterations})
-        return r.x, r.fun
-
-    return optimizer
-
-
 def _tuned(q, y, start, iterations: int | None):
     """The kernel of maximum marginal likelihood on (q, y): from scratch, or from ``start``
-    for at most ``iterations`` L-BFGS-B iterations."""
-    from sklearn.gaussian_process import GaussianProcessRegressor
+    for at most ``iterations`` L-BFGS-B iterations.  The optimisation scikit-learn's
+    ``GaussianProcessRegressor.fit`` runs (same objective, start, bounds and L-BFGS-B), on the
+    lean likelihood of :mod:`robocal.calibration.likelihood`."""
+    from scipy.optimize import minimize
     from sklearn.gaussian_process.kernels import RBF, ConstantKernel, WhiteKernel
+
+    from .likelihood import MarginalLikelihood, standardise
 
     if start is None:
         start = (ConstantKernel(1.0, (1e-3, 1e2)) * RBF(np.ones(q.shape[1]), (MIN_LENGTH_SCALE, MAX_LENGTH_SCALE))
                  + WhiteKernel(0.5, (MIN_NOISE, 10.0)))
-    optimizer = "fmin_l_bfgs_b" if iterations is None else _limited(iterations)
-    gp = GaussianProcessRegressor(start, normalize_y=True, optimizer=optimizer, random_state=0)
-    with warnings.catch_warnings():  # a length scale at its upper bound just means "no dependence on this joint"
-        warnings.simplefilter("ignore")
-        gp.fit(q, y)
-    return gp.kernel_
+    objective = MarginalLikelihood(q, standardise(y))
+    result = minimize(objective, start.theta, jac=True, bounds=start.bounds, method="L-BFGS-B",
+                      options={} if iterations is None else {"maxiter": iterations})
+    return start.clone_with_theta(result.x)
 
 
 #: random probes of the stochastic trace estimate of a process's degrees of freedom
@@ -93,22 +81,44 @@ def _block(q, y, keep, kernel, rng: np.random.Generator) -> Block:
                  y_scale=np.atleast_1d(final._y_train_std).astype(float), dof=dof)
 
 
+def _blocks(errors: np.ndarray):
+    return (slice(0, 3), slice(3, 6))[: errors.shape[1] // 3]
+
+
+def _tune_block(q, y, order, k: int, start, iterations: int | None, points: int | None):
+    cap = points or (HYPER_POINTS if k == 0 else ORIENTATION_HYPER_POINTS)
+    pick = order[:cap]
+    return _tuned(q[pick], y[pick], start, iterations)
+
+
+def tune_kernels(q: np.ndarray, errors: np.ndarray, seed: int | None = 0, start: tuple | None = None,
+                 iterations: int | None = None, points: int | None = None) -> tuple:
+    """The kernels (one per block: positions, orientations) of maximum marginal likelihood on at
+    most ``points`` poses (default :data:`HYPER_POINTS`, :data:`ORIENTATION_HYPER_POINTS`) drawn
+    with the seed: from ``start`` (a kernel per block, or None: from scratch), for at most
+    ``iterations`` L-BFGS-B iterations (None: to convergence)."""
+    q, errors = np.asarray(q, float), np.asarray(errors, float)
+    order = np.random.default_rng(seed).permutation(len(q))
+    return tuple(_tune_block(q, errors[:, cols], order, k, None if start is None or k >= len(start) else start[k],
+                             iterations, points) for k, cols in enumerate(_blocks(errors)))
+
+
 def fit_residual(q: np.ndarray, errors: np.ndarray, seed: int | None = 0, kernels: tuple | None = None,
-                 iterations: int | None = None) -> tuple[ResidualModel, tuple]:
+                 iterations: int | None = None, points: int | None = None) -> tuple[ResidualModel, tuple]:
     """A :class:`ResidualModel` of ``errors`` (m, 3 or 6) at commanded joints ``q`` (m, n) rad,
     and its kernels.  kernels: one per block (positions, orientations), None to tune it from
-    scratch; a given kernel is used as it is, or, with ``iterations``, re-tuned from there."""
+    scratch; a given kernel is used as it is, or, with ``iterations``, re-tuned from there (on at
+    most ``points`` poses, see :func:`tune_kernels`)."""
     rng = np.random.default_rng(seed)
     q, errors = np.asarray(q, float), np.asarray(errors, float)
     order = rng.permutation(len(q))
     keep = np.sort(rng.permutation(len(q))[:MAX_POINTS])
     blocks, fitted = [], []
-    for k, cols in enumerate((slice(0, 3), slice(3, 6))[: errors.shape[1] // 3]):
+    for k, cols in enumerate(_blocks(errors)):
         given = None if kernels is None or k >= len(kernels) else kernels[k]
         kernel = given
         if given is None or iterations is not None:
-            pick = order[:HYPER_POINTS if k == 0 else ORIENTATION_HYPER_POINTS]
-            kernel = _tuned(q[pick], errors[pick, cols], given, None if given is None else iterations)
+            kernel = _tune_block(q, errors[:, cols], order, k, given, iterations, points)
         blocks.append(_block(q, errors[:, cols], keep, kernel, rng))
         fitted.append(kernel)
     return ResidualModel(q[keep].copy(), tuple(blocks)), tuple(fitted)

@@ -26,8 +26,11 @@ from .noise import NoiseEstimate
 #: (kind, related), ``optimizer.method`` naming the solver that ran, status ``completed``,
 #: ``noise``, ``goodness_of_fit``, and per parameter ``absorbs`` and ``significant``; 3 added
 #: ``model``, ``model_selection``, ``error_budget``, ``residual_model`` and joint-term
-#: parameters (``compliance1``, ``gravity2_3x``, ``harmonic1_cos1``, …, with their units)
-SCHEMA_VERSION = 3
+#: parameters (``compliance1``, ``gravity2_3x``, ``harmonic1_cos1``, …, with their units); 4
+#: (migration: ``time_s`` was the whole call and is now the optimizers' wall time, the whole call
+#: is ``timings.total_s``) added ``timings`` {load_s, compile_s, optimize_s, statistics_s,
+#: model_s, evaluate_s, total_s}, ``region`` and ``fallback``
+SCHEMA_VERSION = 4
 #: a deviation smaller than this many standard uncertainties is "not significant"
 SIGNIFICANCE_SIGMAS = 2.0
 
@@ -88,6 +91,7 @@ class CalibrationResult:
     full_pose: bool = False
     warnings: list[str] = field(default_factory=list)
     time_s: float = 0.0
+    timings: dict = field(default_factory=dict)
     measurements: Measurements | None = field(default=None, repr=False)
     validation: Measurements | None = field(default=None, repr=False)
     outliers: list[dict] = field(default_factory=list)
@@ -208,6 +212,7 @@ class CalibrationResult:
             "outliers": list(self.outliers),
             "warnings": list(self.warnings),
             "time_s": self.time_s,
+            "timings": dict(self.timings),
         }
 
     def save(self, path: str | Path) -> None:

@@ -28,9 +28,10 @@ from ..model.robot import Robot
 from ..model.terms import TERMS
 from .config import CalibrationConfig
 from .methods import fit_lm
-from .residual import MAX_POINTS, fit_residual
+from .residual import MAX_POINTS, fit_residual, tune_kernels
 from .result import BudgetRow, LadderRow
 from .steps import Fit, Inputs, fit_parametric, term_spec
+from .timing import staged
 
 
 def ladder() -> list[tuple[str, ...]]:
@@ -128,17 +129,46 @@ class CrossValidation:
         return rms(self.errors)
 
 
+def _pose_rows(problem, index: np.ndarray) -> np.ndarray:
+    """The residual rows of poses ``index``: their positions, and orientations for full-pose data."""
+    m = problem.meas.n_poses
+    rows = (3 * index[:, None] + np.arange(3)).ravel()
+    if problem.n_residuals > 3 * m:
+        rows = np.concatenate([rows, 3 * m + rows])
+    return rows
+
+
+@staged("model")
 def cross_validate(fit: Fit, config: CalibrationConfig) -> CrossValidation:
-    """Refit the fitted model on K−1 folds from its full-data estimate and predict the K-th."""
+    """Refit the fitted model on K−1 folds and predict the K-th.
+
+    Each fold's refit starts from the full-data estimate and takes the Gauss–Newton step of its
+    training poses, from the full-data Jacobian less the held-out rows (a k×k solve); where the
+    problem is linear there (the χ² the step reaches misses the χ² it predicts by less than
+    :data:`~robocal.calibration.noise.LINEAR_CHI2`), that step is the refit LM would converge to,
+    else LM continues from it.  Either way the estimate is the training poses' own optimum.
+    """
+    from .noise import LINEAR_CHI2
+
     problem, x0 = fit.estimate.problem, fit.estimate.x
     meas = problem.meas
     plain = CalibrationConfig.build(config, loss="linear")
     errors = np.zeros((meas.n_poses, 3))
     index_sets = folds(meas, K_FOLDS, config.seed)
+    J, r = problem.residual_jacobian(x0), problem.residuals(x0)
     estimates = []
     for test in index_sets:
         train = np.setdiff1d(np.arange(meas.n_poses), test)
-        x = fit_lm(problem.setup.with_measurements(meas.subset(train)).problem(problem.names), x0, plain).x
+        on_train = problem.setup.with_measurements(meas.subset(train)).problem(problem.names)
+        keep = np.ones(len(r), bool)
+        keep[_pose_rows(problem, test)] = False
+        Jt, rt = J[keep], r[keep]
+        step = np.linalg.lstsq(Jt, -rt, rcond=None)[0]
+        x = x0 + step
+        predicted = float(np.sum((rt + Jt @ step) ** 2))
+        reached = on_train.residuals(x)
+        if not abs(float(reached @ reached) - predicted) <= LINEAR_CHI2:
+            x = fit_lm(on_train, x, plain).x
         dp, _ = problem.setup.with_measurements(meas.subset(test)).problem(problem.names).errors(x)
         errors[test] = dp
         estimates.append(x)
@@ -154,7 +184,9 @@ def residual_errors(fit: Fit, x: np.ndarray, index: np.ndarray | None = None) ->
     return meas, dp if dr is None else np.concatenate([dp, dr], axis=1)
 
 
-def cross_validate_residual(fit: Fit, cv: CrossValidation, seed: int | None) -> tuple[np.ndarray, tuple]:
+@staged("model")
+def cross_validate_residual(fit: Fit, cv: CrossValidation, seed: int | None,
+                            start: tuple | None = None) -> tuple[np.ndarray, tuple]:
     """Held-out position errors (m, 3) mm of the parametric model plus a residual process, and
     the position kernel tuned on all the poses.
 
@@ -163,16 +195,19 @@ def cross_validate_residual(fit: Fit, cv: CrossValidation, seed: int | None) -> 
     makes a process fitted to pure noise look better than none, and would be chosen.  The fold
     starts from the kernel of all the poses and runs :data:`FOLD_TUNING` iterations (from
     scratch, eight hyperparameters on a thousand poses take a minute per fold); on pure noise
-    that is enough to leave the held-out poses unexplained, as they should be.
+    that is enough to leave the held-out poses unexplained, as they should be.  ``start``: the
+    kernel of another candidate's process on the same poses, from which this one's tuning on all
+    the poses starts (a warm start, not a shortcut: it runs to convergence).
     """
     meas, e = residual_errors(fit, fit.estimate.x)
-    _, kernels = fit_residual(meas.q, e[:, :3], seed)
-    corrected = np.zeros_like(cv.errors)
+    kernels = tune_kernels(meas.q, e[:, :3], seed, start)
+
+    corrected = np.array(cv.errors, copy=True)
     for test, x in zip(cv.folds, cv.estimates):
         train = np.setdiff1d(np.arange(len(cv.errors)), test)
         train_meas, e_train = residual_errors(fit, x, train)
         gp, _ = fit_residual(train_meas.q, e_train[:, :3], seed, kernels, iterations=FOLD_TUNING)
-        corrected[test] = cv.errors[test] - gp.predict(meas.q[test])
+        corrected[test] -= gp.predict(meas.q[test])
     return corrected, kernels
 
 
@@ -230,6 +265,7 @@ def choose(candidates: list[Candidate], groups: np.ndarray) -> Candidate:
     return best
 
 
+@staged("model")
 def residual_on_all(fit: Fit, seed: int | None, kernels: tuple | None = None) -> ResidualModel:
     """The residual model of a fit on all its poses (the position kernel reused when given)."""
     meas, e = residual_errors(fit, fit.estimate.x)
@@ -250,9 +286,11 @@ def spent_dof(fit: Fit, residual: ResidualModel | None) -> list[str]:
             "measure more poses"]
 
 
-def fit_model(inputs: Inputs, config: CalibrationConfig, progress=None) -> Chosen:
-    """The model the config asks for, or, for ``auto``, the one cross-validation chooses."""
+def fit_model(inputs: Inputs, config: CalibrationConfig, progress=None, stages=None) -> Chosen:
+    """The model the config asks for, or, for ``auto``, the one cross-validation chooses;
+    ``stages`` (a callable, or None) hears what the ladder is at."""
     meas = inputs.meas
+    say = stages or (lambda text: None)
     if config.model != "auto":
         terms = config.model_terms
         if "residual" in terms and len(set(pose_groups(meas))) < MIN_RESIDUAL_POSES:
@@ -266,8 +304,11 @@ def fit_model(inputs: Inputs, config: CalibrationConfig, progress=None) -> Chose
             geometric = fit_parametric(inputs, config, term_spec((), meas, config))
         return Chosen(model_name(terms), fit, residual, notes=spent_dof(fit, residual), geometric=geometric)
     groups = pose_groups(meas)
+    residuals = groups.max() + 1 >= MIN_RESIDUAL_POSES
+    steps = len(LADDER) + (2 if residuals else 0)
     ladder = []
-    for terms in LADDER:
+    for k, terms in enumerate(LADDER):
+        say(f"model {k + 1}/{steps}: {model_name(terms)}, fit and {K_FOLDS} folds")
         fit = fit_parametric(inputs, config, term_spec(terms, meas, config), progress)
         cv = cross_validate(fit, config)
         ladder.append((Candidate(terms, False, fit, cv.errors), cv))
@@ -275,10 +316,14 @@ def fit_model(inputs: Inputs, config: CalibrationConfig, progress=None) -> Chose
     # the residual process on the chosen parametric model, and on geometry alone: a process can
     # take structure that joint terms would have taken more coarsely
     candidates = [c for c, _ in ladder]
+    start = None
     for c, cv in ladder:
-        if groups.max() + 1 >= MIN_RESIDUAL_POSES and c.terms in dict.fromkeys((parametric.terms, ())):
-            errors, kernels = cross_validate_residual(c.fit, cv, config.seed)
+        if residuals and c.terms in dict.fromkeys((parametric.terms, ())):
+            name = model_name(c.terms + ("residual",))
+            say(f"model {len(candidates) + 1}/{steps}: {name}, kernel and {K_FOLDS} folds")
+            errors, kernels = cross_validate_residual(c.fit, cv, config.seed, start)
             candidates.append(Candidate(c.terms, True, c.fit, errors, kernels))
+            start = kernels
     chosen = choose(candidates, groups)
     rows = [LadderRow(c.name, c.cv_rms, c.fit.n_params, int(min(len(c.errors), MAX_POINTS)) if c.residual else None)
             for c in candidates]
@@ -289,6 +334,7 @@ def fit_model(inputs: Inputs, config: CalibrationConfig, progress=None) -> Chose
     return Chosen(chosen.name, chosen.fit, residual, rows, notes, geometric=candidates[0].fit)
 
 
+@staged("evaluate")
 def guard(chosen: Chosen) -> Chosen:
     """The last check before a model is returned: it must fit the calibration poses at least as
     well as the geometric fit (a richer model that does not has failed to converge or was

@@ -53,6 +53,7 @@ from .statistics import (
     leave_one_out,
     robust_outliers,
 )
+from .timing import stage
 
 #: significance level of the F-test that decides whether parameters that become
 #: identifiable at the estimate are worth adding
@@ -140,7 +141,8 @@ def register(inputs: Inputs, config: CalibrationConfig, spec: TermSpec = TermSpe
     the parameter space around the result, and the noise weighting to start with.  A swarm
     then searches a few millimetres around frames that are already right."""
     sigma_p, sigma_r = config.noise_model.initial()
-    initial = fit_frames(complete_model(inputs.nominal, config), inputs.meas, inputs.frames, sigma_p, sigma_r)
+    with stage("optimize"):
+        initial = fit_frames(complete_model(inputs.nominal, config), inputs.meas, inputs.frames, sigma_p, sigma_r)
     space = ParameterSpace.of(initial, inputs.meas.target_names if inputs.frames == "base+tool" else None, spec)
     return Setup(space, inputs.meas, sigma_p, sigma_r, config.use_orientation, config.backend)
 
@@ -453,16 +455,21 @@ def fit_parametric(inputs: Inputs, config: CalibrationConfig, spec: TermSpec,
                    progress: Progress | None = None) -> Fit:
     """Steps 2–9 for one parametric model."""
     setup = register(inputs, config, spec)
+    with stage("compile"):
+        setup.warm_up()
     candidates = choose_candidates(setup, config, inputs.frames)
-    ident, notes = analyse_identifiability(setup, candidates)
-    est = optimize(setup.problem(ident.kept), setup.problem(searched_names(candidates, ident)), config, progress)
-    est, screening, said = screen_outliers(est, config)
-    notes += said + _status_notes(est, config)
-    est, noise = reweigh(est, config)
-    refined, ident = refine_at_estimate(est, ident, candidates, config)
-    if refined is not est:  # parameters were added: their weights are settled again
-        est, noise = reweigh(refined, config)
-    judged = judge(est, config, noise)
+    with stage("statistics"):
+        ident, notes = analyse_identifiability(setup, candidates)
+    with stage("optimize"):
+        est = optimize(setup.problem(ident.kept), setup.problem(searched_names(candidates, ident)), config, progress)
+    with stage("statistics"):  # the refits inside count as optimizing
+        est, screening, said = screen_outliers(est, config)
+        notes += said + _status_notes(est, config)
+        est, noise = reweigh(est, config)
+        refined, ident = refine_at_estimate(est, ident, candidates, config)
+        if refined is not est:  # parameters were added: their weights are settled again
+            est, noise = reweigh(refined, config)
+        judged = judge(est, config, noise)
     return Fit(setup, candidates, ident, est, screening, noise, judged.goodness, judged.uncertainty,
                judged.covariance, notes + judged.notes)
 
