@@ -58,8 +58,8 @@ def calibrate(
     Options are those of :class:`CalibrationConfig` (``frames``, ``params``, ``model``, …),
     given as keywords or as ``config``.  validate: poses not used to identify, for honest
     figures.  columns: map of file column names to robocal's.  progress: called with
-    (iteration, total, best objective).  stages: called with a line saying what ``--model
-    auto`` is at (model, fold; for a progress display).  The result's ``time_s`` is the
+    (iteration, total, best objective).  stages: called as ``--model auto`` starts each model
+    with (models done, models in all, a line saying which), for a progress display.  The result's ``time_s`` is the
     optimizers' wall time; ``timings`` splits the whole call into stages
     (:mod:`robocal.calibration.timing`).  Warnings are issued as :class:`RobocalWarning` and
     listed in the result.

@@ -288,9 +288,9 @@ def spent_dof(fit: Fit, residual: ResidualModel | None) -> list[str]:
 
 def fit_model(inputs: Inputs, config: CalibrationConfig, progress=None, stages=None) -> Chosen:
     """The model the config asks for, or, for ``auto``, the one cross-validation chooses;
-    ``stages`` (a callable, or None) hears what the ladder is at."""
+    ``stages`` (a callable, or None) hears what the ladder is at: (step, steps, what)."""
     meas = inputs.meas
-    say = stages or (lambda text: None)
+    say = stages or (lambda step, steps, text: None)
     if config.model != "auto":
         terms = config.model_terms
         if "residual" in terms and len(set(pose_groups(meas))) < MIN_RESIDUAL_POSES:
@@ -308,7 +308,7 @@ def fit_model(inputs: Inputs, config: CalibrationConfig, progress=None, stages=N
     steps = len(LADDER) + (2 if residuals else 0)
     ladder = []
     for k, terms in enumerate(LADDER):
-        say(f"model {k + 1}/{steps}: {model_name(terms)}, fit and {K_FOLDS} folds")
+        say(k, steps, f"model {k + 1}/{steps}: {model_name(terms)}, fit and {K_FOLDS} folds")
         fit = fit_parametric(inputs, config, term_spec(terms, meas, config), progress)
         cv = cross_validate(fit, config)
         ladder.append((Candidate(terms, False, fit, cv.errors), cv))
@@ -320,7 +320,7 @@ def fit_model(inputs: Inputs, config: CalibrationConfig, progress=None, stages=N
     for c, cv in ladder:
         if residuals and c.terms in dict.fromkeys((parametric.terms, ())):
             name = model_name(c.terms + ("residual",))
-            say(f"model {len(candidates) + 1}/{steps}: {name}, kernel and {K_FOLDS} folds")
+            say(len(candidates), steps, f"model {len(candidates) + 1}/{steps}: {name}, kernel and {K_FOLDS} folds")
             errors, kernels = cross_validate_residual(c.fit, cv, config.seed, start)
             candidates.append(Candidate(c.terms, True, c.fit, errors, kernels))
             start = kernels

@@ -72,6 +72,28 @@ def progress_bar(enabled: bool, label: str, total: int | None, best: bool = True
         yield callback
 
 
+@contextlib.contextmanager
+def stage_status(enabled: bool):
+    """Yields a callback (done, total, text) showing a long job's stage on a TTY, with the time
+    so far and an estimate of what is left from the stages done; or None."""
+    if not enabled or not sys.stderr.isatty():
+        yield None
+        return
+    import time
+
+    from rich.console import Console
+
+    start = time.perf_counter()
+    with Console(stderr=True).status("starting") as status:
+
+        def callback(done, total, text):
+            elapsed = time.perf_counter() - start
+            left = f", about {elapsed / done * (total - done):.0f} s left" if done else ""
+            status.update(f"{text} ({elapsed:.0f} s{left})")
+
+        yield callback
+
+
 def say_on_stderr(quiet: bool):
     """A ``say`` callback printing dim progress lines on stderr, or nothing when quiet."""
     if quiet:
