@@ -101,6 +101,8 @@ def run_swarm(search: Problem, config: CalibrationConfig, progress: Progress | N
 
     with stage("compile"):  # compiled (or loaded from numba's cache) before the swarm's clock starts
         objective(np.zeros((1, len(search.names))))
+        if config.spec.halton:
+            from scipy.stats import qmc  # noqa: F401  (its import is not the swarm's time)
     with stage("optimize"):
         return config.spec.swarm(objective, lower, upper, **kw)
 

@@ -219,7 +219,7 @@ def worse_p_value(simple: np.ndarray, best: np.ndarray, groups: np.ndarray) -> f
     """One-sided p-value of "the simpler model predicts held-out poses worse than the best":
     a paired t-test on the per-pose difference of squared held-out errors (reflectors of one
     pose summed, since they share the pose's joint errors)."""
-    from scipy import stats
+    from scipy.special import stdtr  # Student's t distribution function
 
     d = np.bincount(groups, np.sum(simple**2, axis=1) - np.sum(best**2, axis=1))
     if len(d) < 3 or not np.any(d):
@@ -227,7 +227,7 @@ def worse_p_value(simple: np.ndarray, best: np.ndarray, groups: np.ndarray) -> f
     spread = d.std(ddof=1)
     if spread == 0:
         return 0.0 if d.mean() > 0 else 1.0
-    return float(stats.t.sf(d.mean() / (spread / np.sqrt(len(d))), len(d) - 1))
+    return float(stdtr(len(d) - 1, -d.mean() / (spread / np.sqrt(len(d)))))
 
 
 @dataclass
