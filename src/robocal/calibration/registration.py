@@ -118,23 +118,45 @@ def choose_frames(robot: Robot, meas: Measurements) -> FrameChoice:
         given = _rms(robot, meas, targets)
         if given < AUTO_MIN_GAIN_MM:  # no registration can gain a millimetre
             return FrameChoice("none", given, None)
-    # the frames are fitted as they will be used (closed form, then LM on position and, for
-    # full-pose data, orientation): a base that matches positions alone may not survive the
-    # orientations, and what is said must be what is then shown
-    fitted = fit_frames(robot, meas, "base+tool")
-    both = _rms(fitted, meas, meas.targets)
+    # decided on the closed forms (cheap at any size), then the chosen frames fitted as they will
+    # be used (closed form, then LM on position and, for full-pose data, orientation), whose
+    # figure is the one said: what is said is what is then shown
+    closed = register_frames(robot, meas, "base+tool")
+    both = _rms(closed, meas, meas.targets)
     if unknown:
-        return FrameChoice("base+tool", None, both, f"reflector '{unknown[0]}' has no tool frame in the robot file, "
-                           f"so base and tools are identified (frames base+tool; {both:.4g} mm RMS registered)",
+        fitted = fit_frames(robot, meas, "base+tool")
+        rms = _rms(fitted, meas, meas.targets)
+        return FrameChoice("base+tool", None, rms, f"reflector '{unknown[0]}' has no tool frame in the robot file, "
+                           f"so base and tools are identified (frames base+tool; {rms:.4g} mm RMS registered)",
                            fitted)
     given = _rms(robot, meas, targets)
     if given <= AUTO_FACTOR * both or given - both < AUTO_MIN_GAIN_MM:
         return FrameChoice("none", given, None)
-    base_only = fit_frames(robot, meas, "base")
-    base = _rms(base_only, meas, targets)
-    if base <= 1.5 * both + 0.5:
-        return FrameChoice("base", given, base, robot=base_only)
-    return FrameChoice("base+tool", given, both, robot=fitted)
+    base_only = register_frames(robot, meas, "base")
+    if _rms(base_only, meas, targets) <= 1.5 * both + 0.5 and not _turned_tool(base_only, closed, meas, targets):
+        fitted = fit_frames(robot, meas, "base")
+        return FrameChoice("base", given, _rms(fitted, meas, targets), robot=fitted)
+    fitted = fit_frames(robot, meas, "base+tool")
+    return FrameChoice("base+tool", given, _rms(fitted, meas, meas.targets), robot=fitted)
+
+
+#: a base-only registration whose orientations miss by this much more (deg, mean) than base and
+#: tool together leaves a turned tool unexplained: the data need the tool too
+TURNED_TOOL_DEG = 1.0
+
+
+def _turned_tool(base_only: Robot, both: Robot, meas: Measurements, targets) -> bool:
+    """Full-pose data whose measured target is turned against the flange: the positions may
+    register with the base alone, the orientations cannot."""
+    if meas.rotation is None:
+        return False
+    from ..math.so3 import orientation_error
+
+    def mean_deg(robot, tg):
+        R = robot.fk(meas.q, tg, meas.torques, meas.payload)[:, :3, :3]
+        return float(np.degrees(np.linalg.norm(orientation_error(meas.rotation, R), axis=1).mean()))
+
+    return mean_deg(base_only, targets) > mean_deg(both, meas.targets) + TURNED_TOOL_DEG
 
 
 def _fit_frames_whole(robot: Robot, meas: Measurements, mode: str, sigma_position: float,

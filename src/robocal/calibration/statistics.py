@@ -87,8 +87,8 @@ def leave_one_out(position_errors: np.ndarray, J: np.ndarray) -> np.ndarray:
     P = covariance(J)  # (JᵀJ)⁻¹, on a k×k factor
     if not np.all(np.isfinite(P)):
         return position_errors
-    Jp = J[:3 * m].reshape(m, 3, -1)
-    H = np.einsum("mak,kl,mbl->mab", Jp, P, Jp)
+    A = (J[:3 * m] @ np.linalg.cholesky(P)).reshape(m, 3, -1)  # P = L Lᵀ: H_ii = (J_i L)(J_i L)ᵀ
+    H = np.einsum("mak,mbk->mab", A, A)
     I_H = np.eye(3) - H
     ok = np.linalg.det(I_H) > 1e-6
     out = position_errors.copy()

@@ -219,6 +219,14 @@ class Screening:
     with_outliers: Robot | None = None
 
 
+#: below this many poses per estimated parameter, outliers are judged on leave-one-out residuals
+LEVERAGE_POSES_PER_PARAMETER = 20
+
+
+def poses_per_parameter(problem) -> float:
+    return problem.meas.n_poses / max(1, problem.n_params)
+
+
 def screen_outliers(est: Estimate, config: CalibrationConfig) -> tuple[Estimate, Screening, list[str]]:
     """Step 6: poses that fail the outlier test (:func:`~robocal.calibration.statistics.robust_outliers`).
 
@@ -232,7 +240,10 @@ def screen_outliers(est: Estimate, config: CalibrationConfig) -> tuple[Estimate,
     if not config.least_squares or est.optimization.status != "converged":
         return est, Screening([]), []
     dp, _ = problem.errors(est.x)
-    flagged, sigma = robust_outliers(leave_one_out(dp, problem.residual_jacobian(est.x)))
+    # leverage matters where poses are few against the parameters; with many, each pose's share
+    # of the fit is about k/m and the residuals are their own leave-one-out values
+    few = poses_per_parameter(problem) < LEVERAGE_POSES_PER_PARAMETER
+    flagged, sigma = robust_outliers(leave_one_out(dp, problem.residual_jacobian(est.x)) if few else dp)
     if not flagged.size:
         return est, Screening([]), []
     meas = problem.meas
