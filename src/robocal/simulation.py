@@ -17,7 +17,7 @@ from .model.kinematics import joint_parameter_names
 from .model.measurements import Measurements
 from .model.parameters import ParameterSpace, is_angle
 from .model.robot import Robot
-from .model.terms import TERMS, JointTerms, mass_torques, nominal_masses
+from .model.terms import TERMS, JointInputs, JointTerms, mass_torques, nominal_masses
 from .presets import wen2019
 
 MEASURES = ("pose", "position")
@@ -154,7 +154,7 @@ def simulate(
         q_act = q_act + rng.normal(0.0, joint_noise, q_cmd.shape)
     if joint_noise_uniform > 0:
         q_act = q_act + rng.uniform(-joint_noise_uniform, joint_noise_uniform, q_cmd.shape)
-    T = truth.fk(q_act, torques=torques)
+    T = truth.fk(q_act, inputs=JointInputs(torques=torques))
     pos = T[:, :3, 3] + (rng.normal(0.0, noise, (len(q_cmd), 3)) if noise > 0 else 0.0)
     rot = None
     if measure == "pose":

@@ -112,7 +112,7 @@ def test_radian_limits_are_rejected():
 
 def test_joint_terms_and_the_residual_file_round_trip(tmp_path, rng):
     from robocal.model.residual import Block, ResidualModel
-    from robocal.model.terms import JointTerms
+    from robocal.model.terms import JointInputs, JointTerms
 
     r = load_robot("kr5-arc")
     gravity = np.zeros((6, 6, 3))
@@ -136,8 +136,9 @@ def test_joint_terms_and_the_residual_file_round_trip(tmp_path, rng):
     q = rng.uniform(-2, 2, (40, 6))
     torques = rng.normal(0, 50, (40, 6))
     payload = rng.uniform(0, 5, 40)
-    np.testing.assert_allclose(back.fk(q, None, torques, payload), robot.fk(q, None, torques, payload), atol=1e-12)
-    assert not np.allclose(robot.fk(q, None, torques, payload), r.fk(q), atol=1e-3)  # the terms do act
+    inputs = JointInputs(torques, payload)
+    np.testing.assert_allclose(back.fk(q, None, inputs), robot.fk(q, None, inputs), atol=1e-12)
+    assert not np.allclose(robot.fk(q, None, inputs), r.fk(q), atol=1e-3)  # the terms do act
 
 
 def test_a_gravity_table_alone_sets_the_direction():

@@ -8,7 +8,16 @@ from robocal.io.robotfile import load_robot
 from robocal.math.so3 import orientation_error
 from robocal.model.kinematics import chain_frames
 from robocal.model.parameters import ParameterSpace
-from robocal.model.terms import G, JointTerms, TermSpec, basis, gravity_basis, joint_axes_and_links, payload_torque
+from robocal.model.terms import (
+    G,
+    JointInputs,
+    JointTerms,
+    TermSpec,
+    basis,
+    gravity_basis,
+    joint_axes_and_links,
+    payload_torque,
+)
 
 
 def _explicit_gravity_torques(robot, q, masses, points, direction):
@@ -68,7 +77,7 @@ def test_term_jacobian_matches_finite_differences(spec, rng):
     torques = rng.normal(size=(7, 6)) * 50
     payload = rng.uniform(0, 5, 7)
     space = ParameterSpace.of(robot, terms=spec)
-    joints = space.joint_data(q, torques, payload)
+    joints = space.joint_data(q, JointInputs(torques, payload))
     dev = rng.normal(size=space.size) * 1e-3
     J, R, _ = space.jacobian(dev, q, joints=joints)
     t0 = space.size - space.n_term_params
@@ -95,8 +104,9 @@ def test_values_round_trip_and_apply_moves_the_joints(rng):
     space = ParameterSpace.of(robot, terms=spec)
     calibrated = space.apply(np.concatenate([np.zeros(space.size - len(names)), values]))
     q = rng.uniform(-2, 2, (10, 6))
-    B = basis(spec, "dh", robot.geometry, q, None, np.full(10, 2.0), calibrated.terms)
-    np.testing.assert_allclose(calibrated.effective_joints(q, payload=np.full(10, 2.0)), q + B @ values, atol=1e-15)
+    load = JointInputs(payload=np.full(10, 2.0))
+    B = basis(spec, "dh", robot.geometry, q, load, calibrated.terms)
+    np.testing.assert_allclose(calibrated.effective_joints(q, load), q + B @ values, atol=1e-15)
     # harmonic 1 of joint 4 is exactly a cos(q4) + b sin(q4)
     h = JointTerms({"harmonics": np.zeros((6, 1, 2))})
     h.get("harmonics")[3, 0] = (2e-3, -1e-3)

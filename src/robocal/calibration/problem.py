@@ -96,7 +96,7 @@ class Problem:
         self._wp, self._wr = 1.0 / setup.sigma_position, 1.0 / setup.sigma_orientation
         self.uses_orientation = setup.full_pose
         self.target_idx = self.space.target_index(self.meas.targets)
-        self.joints = self.space.joint_data(self.meas.q, self.meas.torques, self.meas.payload)
+        self.joints = self.space.joint_data(self.meas.q, self.meas.inputs)
         self._Rm = self.meas.rotation if self.uses_orientation else None
         self._frames_active = bool(np.any(self.active >= self.space.n_joint_params))
         self._backend = resolve(setup.backend)  # read once: ROBOCAL_NO_NUMBA as it is when the problem is set up

@@ -34,7 +34,7 @@ from ..math.so3 import matrix_to_rpy, orientation_error
 from ..model.jointspace import condition_numbers
 from ..model.metrics import Metrics
 from ..model.robot import Robot
-from ..model.terms import missing_torques
+from ..model.terms import JointInputs, missing_torques
 from .ik import ROT_WEIGHT, SINGULAR_CONDITION, STATUSES, solve_ik
 
 
@@ -214,8 +214,9 @@ def compensate(nominal: Robot, calibrated: Robot, goals: Goals, *, truth: Robot 
     load = goals.payload
     if load is None and payload is not None:
         load = np.full(goals.n, opt.number(payload, "payload", minimum=0.0))
+    inputs = JointInputs(torques=goals.torques, payload=load)
     sol = solve_ik(calibrated, T_cal[:, :3, 3], T_cal[:, :3, :3] if full else None, q_nom, rot_weight=rot_weight,
-                   torques=goals.torques, payload=load, targets=targets)
+                   inputs=inputs, targets=targets)
     notes += [w for w in (missing_torques(calibrated.terms, goals.torques, goals.source),
                           calibrated.outside_note(sol.q)) if w]
     # a jump at a goal where the controller's own model is singular is the singularity's doing
@@ -231,7 +232,7 @@ def compensate(nominal: Robot, calibrated: Robot, goals: Goals, *, truth: Robot 
     if truth is not None:
         T_true = truth.base @ invert(nominal.base) @ T_des
         for attr, q in (("before", q_nom), ("after", sol.q)):
-            Tq = truth.fk(q, targets, goals.torques, load)
+            Tq = truth.fk(q, targets, inputs)
             setattr(result, f"true_{attr}", T_true[:, :3, 3] - Tq[:, :3, 3])
             if full:
                 setattr(result, f"true_rot_{attr}", orientation_error(T_true[:, :3, :3], Tq[:, :3, :3]))

@@ -10,6 +10,7 @@ import numpy as np
 from ..math.so3 import orientation_error
 from ..model.jointspace import condition_numbers, joint_jacobian
 from ..model.robot import Robot
+from ..model.terms import JointInputs
 
 STATUSES = ("ok", "branch", "unreachable", "limit", "singular", "no_convergence")
 
@@ -41,16 +42,14 @@ class IKSolution:
 class _Residual:
     """Pose error of a robot against the goals, weighted: (position mm, rot_weight × rotation)."""
 
-    def __init__(self, robot: Robot, position, rotation, rot_weight: float, torques=None, payload=None,
-                 targets=None):
+    def __init__(self, robot: Robot, position, rotation, rot_weight: float, inputs=None, targets=None):
         self.robot, self.position, self.rotation, self.w = robot, position, rotation, rot_weight
-        self.torques, self.payload = torques, payload
+        self.inputs = inputs
         self.targets = None if targets is None else np.asarray(targets, dtype=object)
 
     def __call__(self, q, rows=slice(None)):
         T = self.robot.fk(q, None if self.targets is None else list(self.targets[rows]),
-                          None if self.torques is None else self.torques[rows],
-                          None if self.payload is None else self.payload[rows])
+                          None if self.inputs is None else self.inputs.subset(rows))
         dp = self.position[rows] - T[:, :3, 3]
         dr = None if self.rotation is None else orientation_error(self.rotation[rows], T[:, :3, :3])
         e = dp if dr is None else np.concatenate([dp, self.w * dr], axis=1)
@@ -95,8 +94,8 @@ def _statuses(reached, moved, cond, at_limit, stalled) -> list[str]:
 
 
 def solve_ik(robot: Robot, position: np.ndarray, rotation: np.ndarray | None, q0: np.ndarray, *,
-             rot_weight: float = ROT_WEIGHT, max_iter: int = 100, limits: bool = True, torques=None,
-             payload=None, targets=None) -> IKSolution:
+             rot_weight: float = ROT_WEIGHT, max_iter: int = 100, limits: bool = True,
+             inputs: JointInputs | None = None, targets=None) -> IKSolution:
     """Joints reaching each goal pose (or position when rotation is None), batched.
 
     Positions in mm and rotations in the robot's measuring frame; q0 (m, n) rad starts each
@@ -108,7 +107,8 @@ def solve_ik(robot: Robot, position: np.ndarray, rotation: np.ndarray | None, q0
     from the goal); ``no_convergence``.
 
     The pose is the robot's whole model (:meth:`Robot.fk`): joint terms, at the goals' joint
-    torques (m, n) N·m and payload (m,) kg where they need them, and the residual correction;
+    :class:`~robocal.model.terms.JointInputs` (torques, payload, directions, time) where they
+    need them, and the residual correction;
     targets: per goal, the robot's tool frame to place (a reflector's name), default its tool.
     The step uses the geometric joint Jacobian, which the terms change by a few hundredths of
     a percent: the solve converges on the full model's pose all the same.
@@ -121,7 +121,7 @@ def solve_ik(robot: Robot, position: np.ndarray, rotation: np.ndarray | None, q0
     start = q.copy()
     lam = np.full(m, 1e-6)
     iters = np.zeros(m, dtype=int)
-    residual = _Residual(robot, position, rotation, rot_weight, torques, payload, targets)
+    residual = _Residual(robot, position, rotation, rot_weight, inputs, targets)
     dp, dr, cost, e = residual(q)
     done = np.zeros(m, bool)
     stalled = np.zeros(m, bool)

@@ -31,6 +31,13 @@ class Measurements:
     torques: np.ndarray | None = None
     payload: np.ndarray | None = None
 
+    @property
+    def inputs(self):
+        """What joint terms act on besides the joints (:class:`robocal.model.terms.JointInputs`)."""
+        from .terms import JointInputs
+
+        return JointInputs(self.torques, self.payload)
+
     def __post_init__(self) -> None:
         object.__setattr__(self, "q", np.atleast_2d(np.asarray(self.q, dtype=float)))
         object.__setattr__(self, "position", np.atleast_2d(np.asarray(self.position, dtype=float)))

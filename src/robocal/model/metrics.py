@@ -15,7 +15,7 @@ def pose_errors(robot: Robot, meas: Measurements) -> tuple[np.ndarray, np.ndarra
     """Position errors δp = p_measured − p_model (m, 3) in mm, and for full-pose data the
     orientation errors δ = log(R_measured · R_modelᵀ) (m, 3) in rad about the measuring
     frame's axes (None for position-only data)."""
-    T = robot.fk(meas.q, meas.targets, meas.torques, meas.payload)
+    T = robot.fk(meas.q, meas.targets, meas.inputs)
     dp = meas.position - T[:, :3, 3]
     if meas.rotation is None:
         return dp, None

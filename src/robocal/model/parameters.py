@@ -35,7 +35,7 @@ from .kinematics import (
     joint_value_columns,
 )
 from .robot import Robot
-from .terms import JointTerms, TermSpec, basis, joint_offsets, term_of, term_unit
+from .terms import JointInputs, JointTerms, TermSpec, basis, joint_offsets, term_of, term_unit
 
 FRAME_AXES = ("x", "y", "z", "rx", "ry", "rz")
 _ANGLE_KINDS = frozenset(("alpha", "theta", "beta", "rx", "ry", "rz"))
@@ -69,13 +69,13 @@ class JointData:
     basis: np.ndarray
 
     @classmethod
-    def of(cls, robot: Robot, spec: TermSpec, q: np.ndarray, torques=None, payload=None) -> JointData | None:
+    def of(cls, robot: Robot, spec: TermSpec, q: np.ndarray, inputs: JointInputs | None = None) -> JointData | None:
         """The joint data of ``robot`` at commanded q, or None when there is nothing to add."""
         if (robot.terms is None or robot.terms.empty) and spec.empty:
             return None
         q = np.atleast_2d(q)
-        return cls(joint_offsets(robot.terms, robot.convention, robot.geometry, q, torques, payload),
-                   basis(spec, robot.convention, robot.geometry, q, torques, payload, robot.terms))
+        return cls(joint_offsets(robot.terms, robot.convention, robot.geometry, q, inputs),
+                   basis(spec, robot.convention, robot.geometry, q, inputs, robot.terms))
 
     def subset(self, index) -> JointData:
         return JointData(self.offset[index], self.basis[index])
@@ -119,9 +119,9 @@ class ParameterSpace:
     def n_term_params(self) -> int:
         return len(self.terms.names(self.robot.n_joints))
 
-    def joint_data(self, q: np.ndarray, torques=None, payload=None) -> JointData | None:
+    def joint_data(self, q: np.ndarray, inputs: JointInputs | None = None) -> JointData | None:
         """The per-pose term inputs of this space's robot at commanded q (None without terms)."""
-        return JointData.of(self.robot, self.terms, q, torques, payload)
+        return JointData.of(self.robot, self.terms, q, inputs)
 
     # --- indexing --------------------------------------------------------------
     @property

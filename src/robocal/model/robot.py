@@ -13,7 +13,7 @@ from .kinematics import chain_pose, check_convention, geometry_width, prismatic_
 from .kinematics import reach as chain_reach
 from .region import Region, describe_margin
 from .residual import ResidualModel
-from .terms import JointTerms, joint_offsets
+from .terms import JointInputs, JointTerms, joint_offsets
 
 
 @dataclass(frozen=True, eq=False)
@@ -111,25 +111,26 @@ class Robot:
         except KeyError as exc:
             raise ValueError(f"robot has no tool frame for target {exc.args[0]!r}") from None
 
-    def effective_joints(self, q, torques=None, payload=None) -> np.ndarray:
+    def effective_joints(self, q, inputs: JointInputs | None = None) -> np.ndarray:
         """Joint values (m, n) rad the arm reaches for commanded q: q + Δq of its joint terms."""
         q = np.atleast_2d(np.asarray(q, float))
-        return q + joint_offsets(self.terms, self.convention, self.geometry, q, torques, payload)
+        return q + joint_offsets(self.terms, self.convention, self.geometry, q, inputs)
 
-    def fk(self, q, targets: Sequence[str] | None = None, torques=None, payload=None) -> np.ndarray:
+    def fk(self, q, targets: Sequence[str] | None = None, inputs: JointInputs | None = None) -> np.ndarray:
         """End poses (m, 4, 4) in the measuring frame for commanded joints q (m, n) rad, with the
-        robot's joint terms (torques (m, n) N·m and payload (m,) kg where they need them) and
-        its residual correction (:mod:`robocal.model.residual`)."""
+        robot's joint terms (on the poses' :class:`~robocal.model.terms.JointInputs`: torques,
+        payload, directions of motion, time, where they need them) and its residual correction
+        (:mod:`robocal.model.residual`)."""
         q = np.atleast_2d(np.asarray(q, float))
-        R, p = chain_pose(self.convention, self.geometry, self.effective_joints(q, torques, payload), self.base,
+        R, p = chain_pose(self.convention, self.geometry, self.effective_joints(q, inputs), self.base,
                           self.tool_frames(targets))
         if self.residual is not None:
             R, p = self.residual.correct(q, R, p, self.base[:3, :3])
         if self.fallback is not None and self.region is not None:
-            R, p = self._blend(q, R, p, targets, torques, payload)
+            R, p = self._blend(q, R, p, targets, inputs)
         return homogeneous(R, p)
 
-    def _blend(self, q, R, p, targets, torques, payload):
+    def _blend(self, q, R, p, targets, inputs):
         """Outside the calibrated region the pose blends into the geometric fallback's."""
         w = self.region.weight(q)
         rows = np.flatnonzero(w < 1.0)
@@ -137,20 +138,17 @@ class Robot:
             return R, p
         from ..math.so3 import exp_so3, orientation_error
 
-        def pick(a):
-            return None if a is None else np.asarray(a)[rows]
-
         T = self.fallback_robot.fk(q[rows], None if targets is None else [targets[i] for i in rows],
-                                   pick(torques), pick(payload))
+                                   None if inputs is None else inputs.subset(rows))
         R, p = R.copy(), p.copy()
         share = (1.0 - w[rows])[:, None]
         p[rows] = p[rows] + share * (T[:, :3, 3] - p[rows])
         R[rows] = exp_so3(share * orientation_error(T[:, :3, :3], R[rows])) @ R[rows]
         return R, p
 
-    def positions(self, q, targets: Sequence[str] | None = None, torques=None, payload=None) -> np.ndarray:
+    def positions(self, q, targets: Sequence[str] | None = None, inputs: JointInputs | None = None) -> np.ndarray:
         """Measured-point positions (m, 3) mm in the measuring frame for commanded joints q (m, n) rad."""
-        return self.fk(q, targets, torques, payload)[:, :3, 3]
+        return self.fk(q, targets, inputs)[:, :3, 3]
 
     @property
     def geometric(self) -> bool:

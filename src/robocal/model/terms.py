@@ -181,18 +181,46 @@ class JointTerms:
         return replace(self, arrays=arrays)
 
 
+@dataclass(frozen=True, eq=False)
+class JointInputs:
+    """Per pose, what joint terms act on besides the commanded joints: torques (m, n) N·m,
+    payload (m,) kg, directions (m, n) of each joint's move into the pose (+1, −1; 0 unknown)
+    and time (m,) s; None where the data do not give one."""
+
+    torques: np.ndarray | None = None
+    payload: np.ndarray | None = None
+    directions: np.ndarray | None = None
+    time: np.ndarray | None = None
+
+    def subset(self, rows) -> JointInputs:
+        def pick(a):
+            return None if a is None else np.asarray(a)[rows]
+
+        return JointInputs(pick(self.torques), pick(self.payload), pick(self.directions), pick(self.time))
+
+
+NO_INPUTS = JointInputs()
+
+
 @dataclass(frozen=True)
 class TermInputs:
     """What a term's basis is computed from: the chain (convention, geometry (n, w)), the
-    commanded joints q (m, n) rad, the data's torques (m, n) N·m and payload (m,) kg (or None),
-    and the robot's own terms (for the gravity direction and the payload's centre)."""
+    commanded joints q (m, n) rad, the data's :class:`JointInputs`, and the robot's own terms
+    (for the gravity direction and the payload's centre)."""
 
     convention: str
     geom: np.ndarray
     q: np.ndarray
-    torques: np.ndarray | None
-    payload: np.ndarray | None
+    inputs: JointInputs
     terms: JointTerms
+
+    @property
+    def torques(self) -> np.ndarray | None:
+        return self.inputs.torques
+
+    @property
+    def payload(self) -> np.ndarray | None:
+        return self.inputs.payload
 
 
 @dataclass(frozen=True)
@@ -413,23 +441,22 @@ def term_of(parameter: str) -> Term | None:
     return None
 
 
-def basis(spec: TermSpec, convention: str, geom: np.ndarray, q: np.ndarray, torques: np.ndarray | None,
-          payload: np.ndarray | None, terms: JointTerms | None = None) -> np.ndarray:
+def basis(spec: TermSpec, convention: str, geom: np.ndarray, q: np.ndarray, inputs: JointInputs | None = None,
+          terms: JointTerms | None = None) -> np.ndarray:
     """B (m, n, T) with Δq = B · p for the parameters p of ``spec`` (in ``spec.names`` order)."""
-    inputs = TermInputs(convention, geom, q, torques, payload, terms or JointTerms())
+    inputs = TermInputs(convention, geom, q, inputs or NO_INPUTS, terms or JointTerms())
     cols = [t.basis(option, inputs) for t, option in spec.terms()]
     return np.concatenate(cols, axis=2) if cols else np.zeros(q.shape + (0,))
 
 
 def joint_offsets(terms: JointTerms | None, convention: str, geom: np.ndarray, q: np.ndarray,
-                  torques: np.ndarray | None = None, payload: np.ndarray | None = None) -> np.ndarray:
+                  inputs: JointInputs | None = None) -> np.ndarray:
     """Δq (m, n) rad of a robot's own terms at commanded joints q (zeros without terms)."""
     q = np.atleast_2d(q)
     if terms is None or terms.empty:
         return np.zeros(q.shape)
     spec = terms.spec()
-    return np.einsum("mit,t->mi", basis(spec, convention, geom, q, torques, payload, terms),
-                     terms.vector(spec, q.shape[1]))
+    return np.einsum("mit,t->mi", basis(spec, convention, geom, q, inputs, terms), terms.vector(spec, q.shape[1]))
 
 
 def missing_torques(terms: JointTerms | None, torques, source: str) -> str | None:
