@@ -14,7 +14,7 @@ from .math.se3 import frame_from_values
 from .math.so3 import exp_so3
 from .model.candidates import parallel_pairs
 from .model.kinematics import joint_parameter_names
-from .model.measurements import Measurements
+from .model.measurements import Measurements, move_directions
 from .model.parameters import ParameterSpace, is_angle
 from .model.robot import Robot
 from .model.terms import TERMS, JointInputs, JointTerms, mass_torques, nominal_masses
@@ -106,6 +106,7 @@ def simulate(
     tool: Sequence[float] | None = None,
     compliance: Mapping[int, float] | None = None,
     harmonics: Mapping[int, Sequence[Sequence[float]]] | None = None,
+    backlash: Mapping[int, float] | None = None,
 ) -> Simulation:
     """Simulate a measurement campaign on a robot with planted deviations.
 
@@ -122,7 +123,9 @@ def simulate(
     torques of a plausible mass model (:func:`robocal.model.terms.nominal_masses`) at the
     commanded joints, written to the measurements as ``tau1..tauN``.  harmonics: {joint:
     [(a_1, b_1), (a_2, b_2), …]} rad planted as Δq_i = Σ_h a_h cos(h q_i) + b_h sin(h q_i).
-    The true robot carries both as joint terms (torque form).
+    backlash: {joint: b rad} planted as Δq_i = b_i · dir_i, dir_i the sign of joint i's move
+    into the pose in the order the poses are drawn (the file's row order; the first pose's is
+    unknown, 0).  The true robot carries them as joint terms (compliance in torque form).
     """
     opt.choice(measure, MEASURES, "measure", "measure")
     for name, value in (("noise", noise), ("angle_noise", angle_noise), ("joint_noise", joint_noise),
@@ -141,7 +144,7 @@ def simulate(
         truth = truth.replace(base=frame_from_values(base))
     if tool is not None:
         truth = truth.replace(tool=frame_from_values(tool))
-    terms = planted_terms(robot, compliance, harmonics)
+    terms = planted_terms(robot, compliance, harmonics, backlash)
     if terms is not None:
         truth = truth.replace(terms=terms)
     q_cmd = random_joints(robot, n_poses, rng, joint_range) if q is None else np.asarray(q, float)
@@ -154,21 +157,23 @@ def simulate(
         q_act = q_act + rng.normal(0.0, joint_noise, q_cmd.shape)
     if joint_noise_uniform > 0:
         q_act = q_act + rng.uniform(-joint_noise_uniform, joint_noise_uniform, q_cmd.shape)
-    T = truth.fk(q_act, inputs=JointInputs(torques=torques))
+    directions = move_directions(q_cmd)  # the poses are measured in the order drawn
+    T = truth.fk(q_act, inputs=JointInputs(torques=torques, directions=directions))
     pos = T[:, :3, 3] + (rng.normal(0.0, noise, (len(q_cmd), 3)) if noise > 0 else 0.0)
     rot = None
     if measure == "pose":
         rot = T[:, :3, :3]
         if angle_noise > 0:
             rot = exp_so3(rng.normal(0.0, angle_noise, (len(q_cmd), 3))) @ rot
-    return Simulation(Measurements(q=q_cmd, position=pos, rotation=rot, source="<simulated>", torques=torques),
-                      truth, planted)
+    return Simulation(Measurements(q=q_cmd, position=pos, rotation=rot, source="<simulated>", torques=torques,
+                                   directions=directions, order="row order"), truth, planted)
 
 
 def planted_terms(robot: Robot, compliance: Mapping[int, float] | None,
-                  harmonics: Mapping[int, Sequence[Sequence[float]]] | None) -> JointTerms | None:
-    """Joint terms from {joint: c} and {joint: [(a, b), …]} (1-based joints), checked; each
-    term's arrays come from its entry of :data:`robocal.model.terms.TERMS`."""
+                  harmonics: Mapping[int, Sequence[Sequence[float]]] | None,
+                  backlash: Mapping[int, float] | None = None) -> JointTerms | None:
+    """Joint terms from {joint: c}, {joint: [(a, b), …]} and {joint: b} (1-based joints),
+    checked; each term's arrays come from its entry of :data:`robocal.model.terms.TERMS`."""
     n = robot.n_joints
 
     def joint(j, option):
@@ -183,6 +188,9 @@ def planted_terms(robot: Robot, compliance: Mapping[int, float] | None,
     if harmonics:
         planted["harmonics"] = {joint(j, "harmonic"): [opt.floats(pair, "harmonic", (2,)) for pair in pairs]
                                 for j, pairs in harmonics.items()}
+    if backlash:
+        planted["backlash"] = {joint(j, "backlash"): opt.number(v, "backlash", minimum=0.0)
+                               for j, v in backlash.items()}
     if not planted:
         return None
     return JointTerms({k: v for name, values in planted.items() for k, v in TERMS[name].plant(values, n).items()})

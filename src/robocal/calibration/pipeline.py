@@ -74,13 +74,23 @@ def calibrate(
     return result
 
 
+def order_notes(fit, meas: Measurements) -> list[str]:
+    """What terms that depend on the measuring order took it from."""
+    terms = fit.setup.space.terms.options
+    if "backlash" not in terms:
+        return []
+    source = {"dir columns": "the dir1..dirN columns", "time order": "the time column's order",
+              "row order": "the rows' order (no dir1..dirN or time columns)"}.get(meas.order, "no order")
+    return [f"backlash: each joint's direction of approach from {source} of {meas.source}"]
+
+
 def _calibrate(robot, data, validate, cfg: CalibrationConfig, columns, progress, stages) -> CalibrationResult:
     with stage("load"):
         inputs = load_inputs(robot, data, validate, cfg, columns)
     # the largest dense matrices: the residual process's (at most MAX_POINTS a side) and k × k
     with blas_threads(min(inputs.meas.n_poses, MAX_POINTS)):
         chosen = guard(fit_model(inputs, cfg, progress, stages))
-    notes = list(inputs.notes)
+    notes = list(inputs.notes) + order_notes(chosen.fit, inputs.meas)
     fit = chosen.fit
     notes += fit.notes + chosen.notes
     est, setup = fit.estimate, fit.setup

@@ -16,6 +16,7 @@ from ..model.measurements import Measurements
 from ..model.metrics import Metrics
 from ..model.parameters import is_frame, unit
 from ..model.robot import Robot
+from ..model.terms import reported_unit
 from ..optimize.result import OptimizeResult
 from .config import CalibrationConfig
 from .diagnostics import GoodnessOfFit
@@ -158,10 +159,11 @@ class CalibrationResult:
         params = []
         for i, n in enumerate(self.names):
             nominal = initial_values.get(n, 0.0)
+            shown, scale = reported_unit(n) or (unit(n), 1.0)
             params.append({
-                "name": n, "unit": unit(n), "nominal": nominal, "error": float(self.x[i]),
-                "value": nominal + float(self.x[i]),
-                "uncertainty": None if self.uncertainty is None else _finite_or_none(self.uncertainty[i]),
+                "name": n, "unit": shown, "nominal": scale * nominal, "error": scale * float(self.x[i]),
+                "value": scale * (nominal + float(self.x[i])),
+                "uncertainty": None if self.uncertainty is None else _finite_or_none(scale * self.uncertainty[i]),
                 "significant": self.significant(i),
                 "absorbs": [{"name": d, "coefficient": c} for d, c in ident.absorbed_by(n)],
                 # frame parameters are deviations from the closed-form registration, not from a file value

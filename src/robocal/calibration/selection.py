@@ -1,17 +1,24 @@
 """Choosing the model: geometry alone, or with joint terms and a residual correction.
 
-``--model auto`` climbs a ladder and judges every rung by K-fold cross-validation on the
+``--model auto`` selects forward and judges every candidate by K-fold cross-validation on the
 calibration data (K = 5, folds by ``pose_id``, so the reflectors of one pose stay together):
 
-1. geometric; 2. + harmonics; 3. + compliance; 4. + both;
-5. + residual (a Gaussian process) on the one chosen among these, and on geometry alone.
+1. geometric;
+2. each joint term of :data:`robocal.model.terms.TERMS` added alone (harmonics, compliance,
+   backlash: the cheaper first); the best is kept if it beats geometry;
+3. each remaining term added to the one kept, and so on until no addition wins;
+4. + residual (a Gaussian process) on the parametric model chosen, and on geometry alone.
 
-Each rung is fitted on all the data; each fold then refits it on the other folds, from that
+Forward selection keeps the number of fits linear-ish in the number of terms (at most
+1 + k(k+1)/2 parametric fits for k terms) where every combination would be 2^k.
+
+Each candidate is fitted on all the data; each fold then refits it on the other folds, from that
 fit (same parameters, same noise weights), and predicts the held-out poses.  The lowest
 cross-validated position RMS wins, unless a simpler model ties with it: within :data:`TIE`,
 or not worse on the held-out poses by a paired test at :data:`SIGNIFICANCE` (on noise alone
-the best of six candidates is better than geometry by luck, and a 1 % margin is within it).
-Simpler means earlier on the ladder; a residual process is the least simple.
+the best of several candidates is better than geometry by luck, and a 1 % margin is within it).
+Simpler means fewer terms (the model kept so far, against each addition); a residual process is
+the least simple.
 """
 
 from __future__ import annotations
@@ -33,19 +40,13 @@ from .result import BudgetRow, LadderRow
 from .steps import Fit, Inputs, fit_parametric, term_spec
 from .timing import staged
 
-
-def ladder() -> list[tuple[str, ...]]:
-    """The parametric rungs: geometry, then every combination of the joint terms of
-    :data:`robocal.model.terms.TERMS`, fewer terms first and, among as many, the cheaper first
-    (each term's ``rung``); terms within a rung in registry order."""
-    from itertools import combinations
-
-    names = list(TERMS)
-    rungs = [c for k in range(len(names) + 1) for c in combinations(names, k)]
-    return sorted(rungs, key=lambda c: (len(c), sorted(TERMS[t].rung for t in c)))
+#: the joint terms in the order ``auto`` tries them (each term's ``rung``: the cheaper first)
+TRIAL_ORDER: tuple[str, ...] = tuple(sorted(TERMS, key=lambda t: TERMS[t].rung))
 
 
-LADDER: tuple[tuple[str, ...], ...] = tuple(ladder())
+def with_term(terms: tuple[str, ...], term: str) -> tuple[str, ...]:
+    """``terms`` and ``term``, in registry order (the order of their parameters)."""
+    return tuple(t for t in TERMS if t in terms or t == term)
 K_FOLDS = 5
 #: relative difference of cross-validated RMS within which the simpler model is kept
 TIE = 0.01
@@ -305,14 +306,30 @@ def fit_model(inputs: Inputs, config: CalibrationConfig, progress=None, stages=N
         return Chosen(model_name(terms), fit, residual, notes=spent_dof(fit, residual), geometric=geometric)
     groups = pose_groups(meas)
     residuals = groups.max() + 1 >= MIN_RESIDUAL_POSES
-    steps = len(LADDER) + (2 if residuals else 0)
-    ladder = []
-    for k, terms in enumerate(LADDER):
-        say(k, steps, f"model {k + 1}/{steps}: {model_name(terms)}, fit and {K_FOLDS} folds")
-        fit = fit_parametric(inputs, config, term_spec(terms, meas, config), progress)
-        cv = cross_validate(fit, config)
-        ladder.append((Candidate(terms, False, fit, cv.errors), cv))
-    parametric = choose([c for c, _ in ladder], groups)
+    ladder: list[tuple[Candidate, CrossValidation]] = []
+    # at most: geometry, each term alone, then each further term on the one kept so far
+    k = len(TRIAL_ORDER)
+    steps = 1 + k * (k + 1) // 2 + (2 if residuals else 0)
+
+    def rung(terms: tuple[str, ...]) -> Candidate:
+        done = {c.terms: c for c, _ in ladder}
+        if terms not in done:
+            say(len(ladder), steps, f"model {len(ladder) + 1}/{steps}: {model_name(terms)}, fit and {K_FOLDS} folds")
+            fit = fit_parametric(inputs, config, term_spec(terms, meas, config), progress)
+            cv = cross_validate(fit, config)
+            ladder.append((Candidate(terms, False, fit, cv.errors), cv))
+            return ladder[-1][0]
+        return done[terms]
+
+    # forward selection: each round offers every term not yet in the model, and keeps the one
+    # that predicts held-out poses better (as :func:`choose` judges), until none does
+    parametric = rung(())
+    while True:
+        trials = [rung(with_term(parametric.terms, t)) for t in TRIAL_ORDER if t not in parametric.terms]
+        kept = choose([parametric, *trials], groups) if trials else parametric
+        if kept is parametric:
+            break
+        parametric = kept
     # the residual process on the chosen parametric model, and on geometry alone: a process can
     # take structure that joint terms would have taken more coarsely
     candidates = [c for c, _ in ladder]
@@ -320,7 +337,8 @@ def fit_model(inputs: Inputs, config: CalibrationConfig, progress=None, stages=N
     for c, cv in ladder:
         if residuals and c.terms in dict.fromkeys((parametric.terms, ())):
             name = model_name(c.terms + ("residual",))
-            say(len(candidates), steps, f"model {len(candidates) + 1}/{steps}: {name}, kernel and {K_FOLDS} folds")
+            say(len(candidates), len(candidates) + 2, f"model {len(candidates) + 1}: {name}, kernel and {K_FOLDS} "
+                "folds")
             errors, kernels = cross_validate_residual(c.fit, cv, config.seed, start)
             candidates.append(Candidate(c.terms, True, c.fit, errors, kernels))
             start = kernels

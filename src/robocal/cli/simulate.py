@@ -9,6 +9,12 @@ import typer
 from .common import base_link_option, tip_link_option
 
 
+def _degrees(values):
+    import math
+
+    return None if values is None else {j: math.radians(v) for j, v in values.items()}
+
+
 def simulate_cmd(
     robot: str = typer.Argument(..., help="robot file or built-in name"),
     poses: int = typer.Option(32, "--poses", help="number of joint sets"),
@@ -29,6 +35,9 @@ def simulate_cmd(
     harmonic: list[str] | None = typer.Option(
         None, "--harmonic", help="planted transmission harmonic J:H=A,B: A cos(H q_J) + B sin(H q_J), deg "
         "(repeatable)"),
+    backlash: str | None = typer.Option(
+        None, "--backlash", help="planted backlash J=DEG[,J=DEG…]: joint J stands DEG off along its last move "
+        "(rows are written in measuring order)"),
     base_link: str | None = base_link_option(),
     tip_link: str | None = tip_link_option(),
     out: Path = typer.Option(..., "--out", help="measurement CSV to write"),
@@ -52,7 +61,7 @@ def simulate_cmd(
                    joint_noise=math.radians(joint_noise), joint_noise_uniform=math.radians(joint_noise_uniform),
                    measure=measure, seed=seed, joint_range=rng, base=opt.frame_values(base, "base"),
                    tool=opt.frame_values(tool, "tool"), compliance=opt.joint_values(compliance, "compliance"),
-                   harmonics=opt.harmonic_specs(harmonic))
+                   harmonics=opt.harmonic_specs(harmonic), backlash=_degrees(opt.joint_values(backlash, "backlash")))
     texts = {out: measurements_to_csv(sim.measurements, prismatic=r.prismatic)}
     if truth is not None:
         planted = ", ".join(f"{k}={v:+.6g}" for k, v in sim.deviations.items() if v) or "none"

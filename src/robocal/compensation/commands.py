@@ -32,6 +32,7 @@ from ..io.measurements import joints_to_file
 from ..math.se3 import homogeneous, invert
 from ..math.so3 import matrix_to_rpy, orientation_error
 from ..model.jointspace import condition_numbers
+from ..model.measurements import move_directions
 from ..model.metrics import Metrics
 from ..model.robot import Robot
 from ..model.terms import JointInputs, missing_torques
@@ -214,7 +215,15 @@ def compensate(nominal: Robot, calibrated: Robot, goals: Goals, *, truth: Robot 
     load = goals.payload
     if load is None and payload is not None:
         load = np.full(goals.n, opt.number(payload, "payload", minimum=0.0))
-    inputs = JointInputs(torques=goals.torques, payload=load)
+    # a backlash model needs each joint's direction into each goal: the goals in the order the
+    # robot moves through them, the first one's unknown
+    directions = move_directions(q_nom) if calibrated.terms is not None and \
+        calibrated.terms.get("backlash") is not None else None
+    if directions is not None:
+        notes.append("backlash: the direction of approach to each goal is taken from the goals' order (the robot "
+                      f"moves through them as listed); the first goal's ({goals.ids[0]}) is unknown and its backlash "
+                      "left out")
+    inputs = JointInputs(torques=goals.torques, payload=load, directions=directions)
     sol = solve_ik(calibrated, T_cal[:, :3, 3], T_cal[:, :3, :3] if full else None, q_nom, rot_weight=rot_weight,
                    inputs=inputs, targets=targets)
     notes += [w for w in (missing_torques(calibrated.terms, goals.torques, goals.source),

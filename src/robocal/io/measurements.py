@@ -23,21 +23,24 @@ import numpy as np
 from .. import options as opt
 from ..exceptions import InputError
 from ..math.so3 import matrix_to_rpy, project_to_so3, rpy_to_matrix
-from ..model.measurements import Measurements
+from ..model.measurements import Measurements, move_directions
 from .atomic import atomic_write, read_text
 from .table import CsvTable, numbers, read_csv, strings
 
 POSITION = ("x", "y", "z")
 ORIENTATION = ("rx", "ry", "rz")
-OPTIONAL = ("pose_id", "target", "payload", "cycle")
+OPTIONAL = ("pose_id", "target", "payload", "cycle", "time", "temperature")
 _JOINT = re.compile(r"^q(\d+)$")
 _TORQUE = re.compile(r"^tau(\d+)$")
+_DIRECTION = re.compile(r"^dir(\d+)$")
 
 #: repeated rows of one pose_id that spread further than this (mm) are an error
 REPEAT_TOLERANCE_MM = 1.0
 #: largest magnitudes a measurement file may hold, in its units: a hundred turns of a joint,
 #: ten kilometres, and torques and payloads no robot sees; beyond them a value is a typo or garbage
 MAX_JOINT_DEG, MAX_LENGTH_MM, MAX_TORQUE_NM, MAX_PAYLOAD_KG = 36_000.0, 1e7, 1e7, 1e5
+#: a campaign's time stamps (s; a century, epoch seconds of this one fit) and temperatures (°C)
+MAX_TIME_S, MAX_TEMPERATURE_C = 1e10, 1000.0
 #: rows of one pose_id (and cycle) whose joints differ by more than this (deg) are not one pose: a
 #: repeated commanded pose reads back within a few thousandths of a degree
 JOINT_TOLERANCE_DEG = 0.05
@@ -56,18 +59,41 @@ class PoseTable:
     torques: np.ndarray | None = None
     payload: np.ndarray | None = None
     cycles: list[str] | None = None
+    directions: np.ndarray | None = None
+    time: np.ndarray | None = None
+    temperature: np.ndarray | None = None
+
+
+def _per_joint_columns(table: CsvTable, n_joints: int, pattern: re.Pattern, what: str) -> list[str] | None:
+    """Columns NAME1..NAMEN (one per joint, all or none), e.g. tau1..tauN."""
+    found = sorted((int(m.group(1)), h) for h in table.header if (m := pattern.match(h)))
+    if not found:
+        return None
+    if [k for k, _ in found] != list(range(1, n_joints + 1)):
+        have = ", ".join(h for _, h in found)
+        stem = pattern.pattern[1:].split("(")[0]
+        raise InputError(f"{what} columns come as {stem}1..{stem}{n_joints}, one per joint; the file has {have}",
+                         source=table.source)
+    return [h for _, h in found]
 
 
 def _torque_columns(table: CsvTable, n_joints: int) -> list[str] | None:
     """tau1..tauN (N·m), all or none, matching the joints."""
-    taus = sorted((int(m.group(1)), h) for h in table.header if (m := _TORQUE.match(h)))
-    if not taus:
+    return _per_joint_columns(table, n_joints, _TORQUE, "torque")
+
+
+def _directions(table: CsvTable, n_joints: int) -> np.ndarray | None:
+    """dir1..dirN: the sign of each joint's move into the pose, +1, −1 or 0 (unknown)."""
+    cols = _per_joint_columns(table, n_joints, _DIRECTION, "direction")
+    if cols is None:
         return None
-    if [k for k, _ in taus] != list(range(1, n_joints + 1)):
-        have = ", ".join(h for _, h in taus)
-        raise InputError(f"torque columns come as tau1..tau{n_joints}, one per joint; the file has {have}",
-                         source=table.source)
-    return [h for _, h in taus]
+    values = numbers(table, cols)
+    bad = ~np.isin(values, (-1.0, 0.0, 1.0))
+    if bad.any():
+        r, j = np.unravel_index(int(np.argmax(bad)), values.shape)
+        raise InputError(f"{values[r, j]:g} is not a direction (expected +1, −1 or 0 for unknown)",
+                         source=table.source, where=f"row {int(table.lines[r])}, column '{cols[j]}'")
+    return values
 
 
 def _joint_columns(table: CsvTable, n_joints: int | None, required: bool, robot_label: str) -> list[str]:
@@ -145,10 +171,10 @@ def read_pose_table(text: str, *, source: str, options: ReadOptions = ReadOption
     table = read_csv(text, source=source, columns=options.columns)
     known = set(POSITION) | set(ORIENTATION) | set(OPTIONAL)
     for h in table.header:
-        if h not in known and not _JOINT.match(h) and not _TORQUE.match(h):
+        if h not in known and not any(p.match(h) for p in (_JOINT, _TORQUE, _DIRECTION)):
             raise InputError(f"unknown column '{h}' (expected q1..qn, x, y, z, optional rx, ry, rz, pose_id, "
-                             "target, cycle, tau1..taun, payload; map other names with a column mapping)",
-                             source=source)
+                             "target, cycle, tau1..taun, payload, dir1..dirn, time, temperature; map other "
+                             "names with a column mapping)", source=source)
     qcols = _joint_columns(table, options.n_joints, require_joints, options.robot_label)
     has_pos, has_rot = _pose_columns(table, bool(qcols), require_position)
     scale = 1000.0 if options.length_unit == "m" else 1.0
@@ -180,6 +206,9 @@ def read_pose_table(text: str, *, source: str, options: ReadOptions = ReadOption
         torques=numbers(table, taus, MAX_TORQUE_NM, "N·m") if taus else None,
         payload=payload,
         cycles=strings(table, "cycle", required=True) if "cycle" in table else None,
+        directions=_directions(table, len(qcols)) if qcols else None,
+        time=numbers(table, ["time"], MAX_TIME_S, "s")[:, 0] if "time" in table else None,
+        temperature=numbers(table, ["temperature"], MAX_TEMPERATURE_C, "°C")[:, 0] if "temperature" in table else None,
     )
 
 
@@ -203,8 +232,13 @@ def parse_measurements(text: str, *, source: str = "<data>", average: bool = Tru
     """Parse CSV text; see :func:`load_measurements`."""
     read = ReadOptions(**options)
     t = read_pose_table(text, source=source, options=read)
+    q = joints_from_file(t.q, read.prismatic)
+    directions, order = t.directions, "dir columns"
+    if directions is None:  # from the moves between poses, in measuring order
+        sequence = None if t.time is None else np.argsort(t.time, kind="stable")
+        directions, order = move_directions(q, sequence), "row order" if t.time is None else "time order"
     meas = Measurements(
-        q=joints_from_file(t.q, read.prismatic),
+        q=q,
         position=t.position,
         rotation=None if t.rpy is None else rpy_to_matrix(np.radians(t.rpy)),
         targets=None if t.targets is None else tuple(t.targets),
@@ -214,6 +248,10 @@ def parse_measurements(text: str, *, source: str = "<data>", average: bool = Tru
         n_raw=len(t.rows),
         torques=t.torques,
         payload=t.payload,
+        directions=directions,
+        time=t.time,
+        temperature=t.temperature,
+        order=order,
     )
     if t.cycles is not None and t.pose_ids is None:
         raise InputError("a cycle column numbers the measuring cycles of each pose: it needs a pose_id column",
@@ -310,6 +348,10 @@ def average_repeats(meas: Measurements, tolerance: float = REPEAT_TOLERANCE_MM, 
         rotation=None if meas.rotation is None else project_to_so3(mean(meas.rotation) * count[:, None, None]),
         torques=mean(meas.torques),
         payload=mean(meas.payload),
+        # repeats approached from both sides sit between the flanks: their direction is unknown
+        directions=None if meas.directions is None else np.trunc(mean(meas.directions)),
+        time=mean(meas.time),
+        temperature=mean(meas.temperature),
         targets=None if meas.targets is None else tuple(meas.targets[i] for i in first),
         pose_ids=tuple(meas.pose_ids[i] for i in first),
         rows=meas.rows[first],

@@ -17,7 +17,10 @@ class Measurements:
     pose_id per pose, or None.  rows: line number in the source file of each pose (first
     line of an averaged group; header = line 1).  n_raw: rows before averaging.
     torques: (m, n) joint torques in N·m (the robot controller's measured or commanded
-    torques), or None.  payload: (m,) payload mass in kg, or None.
+    torques), or None.  payload: (m,) payload mass in kg, or None.  directions: (m, n) the
+    sign of each joint's move into the pose (+1, −1; 0 unknown), or None.  time: (m,) when
+    each pose was measured, s, or None; temperature: (m,) °C, or None.  order: where the directions came from (``dir
+    columns``, ``time order``, ``row order``; empty without directions).
     """
 
     q: np.ndarray
@@ -30,13 +33,17 @@ class Measurements:
     n_raw: int = 0
     torques: np.ndarray | None = None
     payload: np.ndarray | None = None
+    directions: np.ndarray | None = None
+    time: np.ndarray | None = None
+    temperature: np.ndarray | None = None
+    order: str = ""
 
     @property
     def inputs(self):
         """What joint terms act on besides the joints (:class:`robocal.model.terms.JointInputs`)."""
         from .terms import JointInputs
 
-        return JointInputs(self.torques, self.payload)
+        return JointInputs(self.torques, self.payload, self.directions, self.time)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "q", np.atleast_2d(np.asarray(self.q, dtype=float)))
@@ -112,7 +119,31 @@ class Measurements:
             n_raw=len(index),
             torques=None if self.torques is None else self.torques[index],
             payload=None if self.payload is None else self.payload[index],
+            directions=None if self.directions is None else self.directions[index],
+            time=None if self.time is None else self.time[index],
+            temperature=None if self.temperature is None else self.temperature[index],
         )
 
     def position_only(self) -> Measurements:
         return replace(self, rotation=None)
+
+
+def move_directions(q: np.ndarray, order: np.ndarray | None = None, still: float = 1e-7) -> np.ndarray:
+    """The sign of each joint's move into each pose, (m, n), from the poses in measuring order
+    (``order``: the rows sorted by when they were measured; default as given).  A joint that
+    did not move keeps the direction of its last move (the gear stays on that flank); before
+    a joint's first move the direction is unknown (0).  ``still``: rad (mm) below which a joint
+    did not move."""
+    q = np.asarray(q, float)
+    order = np.arange(len(q)) if order is None else np.asarray(order)
+    qs = q[order]
+    moved = np.zeros_like(qs)  # the move into pose k: from pose k − 1
+    step = np.diff(qs, axis=0)
+    moved[1:] = np.where(np.abs(step) > still, np.sign(step), 0.0)
+    # carry each joint's last move forward: the index of the latest pose with a move, per joint
+    last = np.where(moved != 0, np.arange(len(qs))[:, None], 0)
+    np.maximum.accumulate(last, axis=0, out=last)
+    out = np.take_along_axis(moved, last, axis=0)
+    directions = np.empty_like(out)
+    directions[order] = out
+    return directions

@@ -259,6 +259,10 @@ class Term:
         """The unit of one of its parameters' values (rad unless said otherwise)."""
         return "rad"
 
+    def reported(self, parameter: str) -> tuple[str, float]:
+        """The unit a result reports the parameter in, and the factor from its own unit."""
+        return self.unit_of(parameter), 1.0
+
     def names(self, option, n: int) -> list[str]:
         raise NotImplementedError
 
@@ -423,8 +427,56 @@ class Harmonics(Term):
         return {"harmonics": h}
 
 
+class Backlash(Term):
+    """Δq_i = b_i · dir_i: the joint stands b_i off its commanded angle on the side of its last
+    move (half its dead band), dir_i = +1 or −1 from ``dir1..dirN`` columns or the measuring
+    order (0 where unknown, before a joint's first move).  Option: 1."""
+
+    name = "backlash"
+    prefixes = ("backlash",)
+    rung = 3
+    file_keys = (FileKey("backlash", "backlash", "scalar", True, "deg, taken up along the joint's last move"),)
+
+    def reported(self, parameter):
+        return "deg", 180.0 / np.pi
+
+    def names(self, option, n):
+        return [f"backlash{i + 1}" for i in range(n)]
+
+    def basis(self, option, x):
+        m, n = x.q.shape
+        d = np.zeros((m, n)) if x.inputs.directions is None else np.asarray(x.inputs.directions, float)
+        d = np.where(prismatic_mask(x.convention, x.geom), 0.0, d)  # turning joints: an angle's dead band
+        return np.einsum("mi,ik->mik", d, np.eye(n))
+
+    def values(self, terms, option, n):
+        b = terms.get("backlash")
+        return np.zeros(n) if b is None else b
+
+    def arrays_of(self, option, n, values):
+        return {"backlash": values.copy()}
+
+    def option_of(self, terms):
+        return None if terms.get("backlash") is None else 1
+
+    def option_for(self, meas, settings):
+        return 1
+
+    def plant(self, planted, n):
+        b = np.zeros(n)
+        for j, value in planted.items():
+            b[j - 1] = value
+        return {"backlash": b}
+
+
 #: the joint terms, in the order their parameters follow the geometry's
-TERMS: dict[str, Term] = {t.name: t for t in (Compliance(), Harmonics())}
+TERMS: dict[str, Term] = {t.name: t for t in (Compliance(), Harmonics(), Backlash())}
+
+
+def reported_unit(parameter: str) -> tuple[str, float] | None:
+    """The unit a result reports a joint-term parameter in and the factor to it (None for others)."""
+    t = term_of(parameter)
+    return None if t is None else t.reported(parameter)
 
 
 def term_unit(parameter: str) -> str | None:
