@@ -16,7 +16,7 @@ from .model.candidates import FRAME_CHOICES
 from .model.measurements import Measurements
 from .model.metrics import Metrics
 from .model.robot import Robot
-from .model.terms import missing_torques
+from .model.terms import drift_note, missing_torques
 
 
 @dataclass(frozen=True)
@@ -62,7 +62,8 @@ def evaluate(robot: str | Path | Robot, data: str | Path | Measurements, *, colu
         check_units(r, meas, frames)
     if payload is not None and meas.payload is None:
         meas = replace(meas, payload=np.full(meas.n_poses, opt.number(payload, "payload", minimum=0.0)))
-    notes: list[str] = [w for w in (missing_torques(r.terms, meas.torques, meas.source), r.outside_note(meas.q)) if w]
+    notes: list[str] = [w for w in (missing_torques(r.terms, meas.torques, meas.source),
+                                    drift_note(r.terms, meas.inputs, meas.source), r.outside_note(meas.q)) if w]
     mode = frames
     missing = [t for t in meas.target_names if t and t not in r.targets]
     if missing and frames == "none":

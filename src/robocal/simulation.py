@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -107,6 +107,8 @@ def simulate(
     compliance: Mapping[int, float] | None = None,
     harmonics: Mapping[int, Sequence[Sequence[float]]] | None = None,
     backlash: Mapping[int, float] | None = None,
+    drift: Mapping[int, float] | None = None,
+    pose_interval: float = 10.0,
 ) -> Simulation:
     """Simulate a measurement campaign on a robot with planted deviations.
 
@@ -125,7 +127,10 @@ def simulate(
     [(a_1, b_1), (a_2, b_2), …]} rad planted as Δq_i = Σ_h a_h cos(h q_i) + b_h sin(h q_i).
     backlash: {joint: b rad} planted as Δq_i = b_i · dir_i, dir_i the sign of joint i's move
     into the pose in the order the poses are drawn (the file's row order; the first pose's is
-    unknown, 0).  The true robot carries them as joint terms (compliance in torque form).
+    unknown, 0).  drift: {joint: r rad/h} planted as Δq_i = r_i (t − t_end)/3600 s, the poses
+    measured every ``pose_interval`` s from t = 0 (written as a ``time`` column; the joints
+    stand where they end the campaign at its last pose).  The true robot carries them as joint
+    terms (compliance in torque form).
     """
     opt.choice(measure, MEASURES, "measure", "measure")
     for name, value in (("noise", noise), ("angle_noise", angle_noise), ("joint_noise", joint_noise),
@@ -144,7 +149,7 @@ def simulate(
         truth = truth.replace(base=frame_from_values(base))
     if tool is not None:
         truth = truth.replace(tool=frame_from_values(tool))
-    terms = planted_terms(robot, compliance, harmonics, backlash)
+    terms = planted_terms(robot, compliance, harmonics, backlash, drift)
     if terms is not None:
         truth = truth.replace(terms=terms)
     q_cmd = random_joints(robot, n_poses, rng, joint_range) if q is None else np.asarray(q, float)
@@ -158,7 +163,11 @@ def simulate(
     if joint_noise_uniform > 0:
         q_act = q_act + rng.uniform(-joint_noise_uniform, joint_noise_uniform, q_cmd.shape)
     directions = move_directions(q_cmd)  # the poses are measured in the order drawn
-    T = truth.fk(q_act, inputs=JointInputs(torques=torques, directions=directions))
+    time = None
+    if drift:
+        time = np.arange(len(q_cmd)) * opt.number(pose_interval, "pose_interval", minimum=0.0, strict=True)
+        truth = truth.replace(terms=replace(truth.terms, clock=("s", float(time[-1]))))
+    T = truth.fk(q_act, inputs=JointInputs(torques=torques, directions=directions, time=time, clock="s"))
     pos = T[:, :3, 3] + (rng.normal(0.0, noise, (len(q_cmd), 3)) if noise > 0 else 0.0)
     rot = None
     if measure == "pose":
@@ -166,13 +175,14 @@ def simulate(
         if angle_noise > 0:
             rot = exp_so3(rng.normal(0.0, angle_noise, (len(q_cmd), 3))) @ rot
     return Simulation(Measurements(q=q_cmd, position=pos, rotation=rot, source="<simulated>", torques=torques,
-                                   directions=directions, order="row order"), truth, planted)
+                                   directions=directions, time=time, order="row order"), truth, planted)
 
 
 def planted_terms(robot: Robot, compliance: Mapping[int, float] | None,
                   harmonics: Mapping[int, Sequence[Sequence[float]]] | None,
-                  backlash: Mapping[int, float] | None = None) -> JointTerms | None:
-    """Joint terms from {joint: c}, {joint: [(a, b), …]} and {joint: b} (1-based joints),
+                  backlash: Mapping[int, float] | None = None,
+                  drift: Mapping[int, float] | None = None) -> JointTerms | None:
+    """Joint terms from {joint: c}, {joint: [(a, b), …]}, {joint: b} and {joint: r} (1-based joints),
     checked; each term's arrays come from its entry of :data:`robocal.model.terms.TERMS`."""
     n = robot.n_joints
 
@@ -191,6 +201,8 @@ def planted_terms(robot: Robot, compliance: Mapping[int, float] | None,
     if backlash:
         planted["backlash"] = {joint(j, "backlash"): opt.number(v, "backlash", minimum=0.0)
                                for j, v in backlash.items()}
+    if drift:
+        planted["drift"] = {joint(j, "drift"): opt.number(v, "drift") for j, v in drift.items()}
     if not planted:
         return None
     return JointTerms({k: v for name, values in planted.items() for k, v in TERMS[name].plant(values, n).items()})

@@ -75,13 +75,24 @@ def calibrate(
 
 
 def order_notes(fit, meas: Measurements) -> list[str]:
-    """What terms that depend on the measuring order took it from."""
+    """What terms that depend on the measuring order took it from, and when a drift predicts."""
     terms = fit.setup.space.terms.options
-    if "backlash" not in terms:
-        return []
-    source = {"dir columns": "the dir1..dirN columns", "time order": "the time column's order",
-              "row order": "the rows' order (no dir1..dirN or time columns)"}.get(meas.order, "no order")
-    return [f"backlash: each joint's direction of approach from {source} of {meas.source}"]
+    notes = []
+    if "backlash" in terms:
+        source = {"dir columns": "the dir1..dirN columns", "time order": "the time column's order",
+                  "row order": "the rows' order (no dir1..dirN or time columns)"}.get(meas.order, "no order")
+        notes.append(f"backlash: each joint's direction of approach from {source} of {meas.source}")
+    if "drift" in terms:
+        clock, reference = terms["drift"]
+        if clock == "s":
+            notes.append(f"drift: time from the time column of {meas.source} (rates in deg/h); the model predicts "
+                         f"the robot as it was at t = {reference:g} s (the last pose), and data with a time column "
+                         "at their own time")
+        else:
+            notes.append(f"drift: {meas.source} has no time column, so its row numbers stand for time (rates in "
+                         f"deg per 1000 rows); the model predicts the robot as it was at row {reference:g} (the "
+                         "last pose), and other files there")
+    return notes
 
 
 def _calibrate(robot, data, validate, cfg: CalibrationConfig, columns, progress, stages) -> CalibrationResult:

@@ -159,7 +159,7 @@ class CalibrationResult:
         params = []
         for i, n in enumerate(self.names):
             nominal = initial_values.get(n, 0.0)
-            shown, scale = reported_unit(n) or (unit(n), 1.0)
+            shown, scale = reported_unit(n, self.robot.terms) or (unit(n), 1.0)
             params.append({
                 "name": n, "unit": shown, "nominal": scale * nominal, "error": scale * float(self.x[i]),
                 "value": scale * (nominal + float(self.x[i])),

@@ -38,6 +38,10 @@ def simulate_cmd(
     backlash: str | None = typer.Option(
         None, "--backlash", help="planted backlash J=DEG[,J=DEG…]: joint J stands DEG off along its last move "
         "(rows are written in measuring order)"),
+    drift: str | None = typer.Option(
+        None, "--drift", help="planted drift J=DEG_PER_H[,…]: joint J's zero moves linearly in time (a time column "
+        "is written)"),
+    interval: float = typer.Option(10.0, "--interval", help="seconds between poses, for --drift"),
     base_link: str | None = base_link_option(),
     tip_link: str | None = tip_link_option(),
     out: Path = typer.Option(..., "--out", help="measurement CSV to write"),
@@ -61,7 +65,8 @@ def simulate_cmd(
                    joint_noise=math.radians(joint_noise), joint_noise_uniform=math.radians(joint_noise_uniform),
                    measure=measure, seed=seed, joint_range=rng, base=opt.frame_values(base, "base"),
                    tool=opt.frame_values(tool, "tool"), compliance=opt.joint_values(compliance, "compliance"),
-                   harmonics=opt.harmonic_specs(harmonic), backlash=_degrees(opt.joint_values(backlash, "backlash")))
+                   harmonics=opt.harmonic_specs(harmonic), backlash=_degrees(opt.joint_values(backlash, "backlash")),
+                   drift=_degrees(opt.joint_values(drift, "drift")), pose_interval=interval)
     texts = {out: measurements_to_csv(sim.measurements, prismatic=r.prismatic)}
     if truth is not None:
         planted = ", ".join(f"{k}={v:+.6g}" for k, v in sim.deviations.items() if v) or "none"

@@ -35,7 +35,7 @@ from ..model.jointspace import condition_numbers
 from ..model.measurements import move_directions
 from ..model.metrics import Metrics
 from ..model.robot import Robot
-from ..model.terms import JointInputs, missing_torques
+from ..model.terms import JointInputs, drift_note, missing_torques
 from .ik import ROT_WEIGHT, SINGULAR_CONDITION, STATUSES, solve_ik
 
 
@@ -215,19 +215,20 @@ def compensate(nominal: Robot, calibrated: Robot, goals: Goals, *, truth: Robot 
     load = goals.payload
     if load is None and payload is not None:
         load = np.full(goals.n, opt.number(payload, "payload", minimum=0.0))
-    # a backlash model needs each joint's direction into each goal: the goals in the order the
-    # robot moves through them, the first one's unknown
-    directions = move_directions(q_nom) if calibrated.terms is not None and \
-        calibrated.terms.get("backlash") is not None else None
-    if directions is not None:
+    # a backlash model needs each joint's direction into each goal: the file's dir columns, else
+    # the goals in the order the robot moves through them (the first one's unknown)
+    directions = goals.directions
+    if directions is None and calibrated.terms is not None and calibrated.terms.get("backlash") is not None:
+        directions = move_directions(q_nom)
         notes.append("backlash: the direction of approach to each goal is taken from the goals' order (the robot "
-                      f"moves through them as listed); the first goal's ({goals.ids[0]}) is unknown and its backlash "
-                      "left out")
-    inputs = JointInputs(torques=goals.torques, payload=load, directions=directions)
+                     f"moves through them as listed); the first goal's ({goals.ids[0]}) is unknown and its backlash "
+                     "left out")
+    inputs = JointInputs(torques=goals.torques, payload=load, directions=directions, time=goals.time,
+                         clock="s" if goals.time is not None else "")
     sol = solve_ik(calibrated, T_cal[:, :3, 3], T_cal[:, :3, :3] if full else None, q_nom, rot_weight=rot_weight,
                    inputs=inputs, targets=targets)
     notes += [w for w in (missing_torques(calibrated.terms, goals.torques, goals.source),
-                          calibrated.outside_note(sol.q)) if w]
+                          drift_note(calibrated.terms, inputs, goals.source), calibrated.outside_note(sol.q)) if w]
     # a jump at a goal where the controller's own model is singular is the singularity's doing
     nominal_cond = condition_numbers(nominal, q_nom, full, rot_weight)
     sol.status = ["singular" if s == "branch" and c > SINGULAR_CONDITION else s

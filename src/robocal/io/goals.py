@@ -33,6 +33,8 @@ class Goals:
     torques: np.ndarray | None = None
     payload: np.ndarray | None = None
     targets: list[str] | None = None
+    directions: np.ndarray | None = None
+    time: np.ndarray | None = None
 
     @property
     def n(self) -> int:
@@ -53,6 +55,8 @@ def parse_goals(text: str, *, source: str = "<goals>", **options) -> Goals:
         torques=t.torques,
         payload=t.payload,
         targets=t.targets,
+        directions=t.directions,
+        time=t.time,
     )
 
 

@@ -23,7 +23,7 @@ import numpy as np
 from .. import options as opt
 from ..exceptions import InputError
 from ..math.so3 import matrix_to_rpy, project_to_so3, rpy_to_matrix
-from ..model.measurements import Measurements, move_directions
+from ..model.measurements import Measurements
 from .atomic import atomic_write, read_text
 from .table import CsvTable, numbers, read_csv, strings
 
@@ -233,10 +233,8 @@ def parse_measurements(text: str, *, source: str = "<data>", average: bool = Tru
     read = ReadOptions(**options)
     t = read_pose_table(text, source=source, options=read)
     q = joints_from_file(t.q, read.prismatic)
-    directions, order = t.directions, "dir columns"
-    if directions is None:  # from the moves between poses, in measuring order
-        sequence = None if t.time is None else np.argsort(t.time, kind="stable")
-        directions, order = move_directions(q, sequence), "row order" if t.time is None else "time order"
+    # without dir columns, Measurements works them out from the time column's order or the rows'
+    directions, order = t.directions, "dir columns" if t.directions is not None else ""
     meas = Measurements(
         q=q,
         position=t.position,
@@ -386,18 +384,20 @@ def measurements_to_csv(meas: Measurements, *, extra: Mapping[str, Sequence] | N
                         prismatic=None) -> str:
     """CSV text of measurements (deg and mm, shortest round-trip decimals); prismatic: per joint,
     True where it slides (its values stay in mm)."""
+    n = meas.n_joints
+    # numeric column groups after the joints: (names, values (m, k)); absent ones are left out
+    groups = [(list(POSITION), meas.position),
+              (list(ORIENTATION), None if meas.rotation is None else np.degrees(matrix_to_rpy(meas.rotation))),
+              ([f"tau{i + 1}" for i in range(n)], meas.torques),
+              (["payload"], None if meas.payload is None else meas.payload[:, None]),
+              (["time"], None if meas.time is None else meas.time[:, None]),
+              (["temperature"], None if meas.temperature is None else meas.temperature[:, None])]
+    groups = [(names, np.asarray(v, float)) for names, v in groups if v is not None]
     header = (["pose_id"] if meas.pose_ids is not None else []) + (["target"] if meas.targets is not None else [])
-    header += [f"q{i + 1}" for i in range(meas.n_joints)] + list(POSITION)
-    if meas.rotation is not None:
-        header += list(ORIENTATION)
-    if meas.torques is not None:
-        header += [f"tau{i + 1}" for i in range(meas.n_joints)]
-    if meas.payload is not None:
-        header.append("payload")
+    header += [f"q{i + 1}" for i in range(n)] + [h for names, _ in groups for h in names]
     extra = dict(extra or {})
     header += list(extra)
     qdeg = joints_to_file(meas.q, prismatic)
-    rpy = None if meas.rotation is None else np.degrees(matrix_to_rpy(meas.rotation))
     out = io.StringIO()
     w = csv.writer(out, lineterminator="\n")
     w.writerow(header)
@@ -405,13 +405,8 @@ def measurements_to_csv(meas: Measurements, *, extra: Mapping[str, Sequence] | N
         row = [] if meas.pose_ids is None else [meas.pose_ids[j]]
         if meas.targets is not None:
             row.append(meas.targets[j])
-        row += [repr(float(v)) for v in qdeg[j]] + [repr(float(v)) for v in meas.position[j]]
-        if rpy is not None:
-            row += [repr(float(v)) for v in rpy[j]]
-        if meas.torques is not None:
-            row += [repr(float(v)) for v in meas.torques[j]]
-        if meas.payload is not None:
-            row.append(repr(float(meas.payload[j])))
+        row += [repr(float(v)) for v in qdeg[j]]
+        row += [repr(float(v)) for _, values in groups for v in values[j]]
         row += [extra[k][j] for k in extra]
         w.writerow(row)
     return out.getvalue()

@@ -34,8 +34,8 @@ from ..model.terms import TERMS, FileKey, JointTerms
 from .atomic import atomic_write, read_text
 from .builtins import builtin_names, builtin_text
 
-TOP_KEYS = {"name", "convention", "joint", "base", "tool", "targets", "source", "gravity", "residual", "region",
-            "fallback"}
+TOP_KEYS = {"name", "convention", "joint", "base", "tool", "targets", "source", "gravity", "drift", "residual",
+            "region", "fallback"}
 GEOMETRY_KEYS = {"a", "alpha", "d", "theta", "beta", "limits", "type", "name"}
 TERM_KEYS = {key.key for t in TERMS.values() for key in t.file_keys}
 JOINT_KEYS = GEOMETRY_KEYS | TERM_KEYS
@@ -43,6 +43,7 @@ JOINT_KEYS = GEOMETRY_KEYS | TERM_KEYS
 URDF_JOINT_KEYS = {"xyz", "rpy", "axis", "type", "offset", "limits", "name"} | TERM_KEYS
 JOINT_TYPES = ("revolute", "prismatic")
 GRAVITY_KEYS = {"direction", "payload_com"}
+DRIFT_KEYS = {"clock", "reference"}
 FRAME_KEYS = {"xyz", "rpy"}
 _RADIAN_LOOKALIKES = (math.pi / 2, math.pi, math.pi / 4)
 
@@ -266,7 +267,30 @@ def _terms(joints: list[dict], data: dict, n: int, source: str) -> JointTerms | 
         if not np.linalg.norm(direction) > 0:
             raise InputError("the gravity direction must not be zero", source=source, where="[gravity] direction")
         com = np.array(_vector(table.get("payload_com", [0.0, 0.0, 0.0]), 3, source, "[gravity] payload_com"))
-    return JointTerms(arrays, direction / np.linalg.norm(direction), com)
+    return JointTerms(arrays, direction / np.linalg.norm(direction), com, _clock(data.get("drift"), arrays, source))
+
+
+def _clock(table, arrays: dict, source: str) -> tuple[str, float] | None:
+    """The drift's [drift] table: clock ``s`` or ``row`` and the reference time on it."""
+    if table is None:
+        if "drift" in arrays:
+            raise InputError("joints have a drift key but the file has no [drift] table (clock and reference)",
+                             source=source, where="[drift]")
+        return None
+    if not isinstance(table, dict):
+        raise InputError("expected a [drift] table with clock and reference", source=source, where="key 'drift'")
+    unknown = set(table) - DRIFT_KEYS
+    if unknown:
+        raise InputError(f"unknown key '{sorted(unknown)[0]}' (allowed: {', '.join(sorted(DRIFT_KEYS))})",
+                         source=source, where="[drift]")
+    clock = table.get("clock", "s")
+    if clock not in ("s", "row"):
+        raise InputError(f"clock {clock!r} is not s (a time column, seconds) or row (row numbers of the "
+                         "calibration file)", source=source, where="[drift] clock")
+    reference = table.get("reference", 0.0)
+    if isinstance(reference, bool) or not isinstance(reference, int | float) or not np.isfinite(reference):
+        raise InputError(f"reference {reference!r} is not a number", source=source, where="[drift] reference")
+    return clock, float(reference)
 
 
 def _sibling(value, key: str, kind: str, source: str, directory: Path | None, purpose: str = "") -> Path:
@@ -439,6 +463,17 @@ def _gravity_lines(terms: JointTerms | None) -> list[str]:
             f"payload_com = {_list(terms.payload_com)}  # mm, flange frame", ""]
 
 
+def _drift_lines(terms: JointTerms | None) -> list[str]:
+    if terms is None or terms.clock is None or terms.get("drift") is None:
+        return []
+    kind = terms.clock[0].split(":", 1)[0]
+    said = ("seconds of the data's time column" if kind == "s" else
+            "row numbers of the calibration file: other files are predicted at the reference")
+    return ["[drift]", f'clock = "{kind}"  # {said}',
+            f"reference = {_num(terms.clock[1])}  # the model predicts the robot as it was then (the last "
+            "calibration pose)", ""]
+
+
 def _geometry_lines(robot: Robot, i: int) -> list[str]:
     """A joint's geometry keys: a, alpha, d, theta (beta) for the DH family; xyz, rpy, axis
     (offset) for urdf, with an identified origin rotation folded into rpy."""
@@ -504,6 +539,7 @@ def robot_to_toml(robot: Robot, comment: str | None = None, residual_file: str |
         lines += _term_lines(robot.terms, i)
         lines.append("")
     lines += _gravity_lines(robot.terms)
+    lines += _drift_lines(robot.terms)
     lines += _frame_text("[base]", robot.base) + [""]
     lines += _frame_text("[tool]", robot.tool) + [""]
     for name, T in robot.targets.items():

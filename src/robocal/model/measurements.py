@@ -19,8 +19,9 @@ class Measurements:
     torques: (m, n) joint torques in N·m (the robot controller's measured or commanded
     torques), or None.  payload: (m,) payload mass in kg, or None.  directions: (m, n) the
     sign of each joint's move into the pose (+1, −1; 0 unknown), or None.  time: (m,) when
-    each pose was measured, s, or None; temperature: (m,) °C, or None.  order: where the directions came from (``dir
-    columns``, ``time order``, ``row order``; empty without directions).
+    each pose was measured, s, or None; temperature: (m,) °C, or None.  order: where the
+    directions came from (``dir columns``, ``time order``, ``row order``); without them they
+    are worked out from the time column's order, else from the rows' order.
     """
 
     q: np.ndarray
@@ -43,7 +44,11 @@ class Measurements:
         """What joint terms act on besides the joints (:class:`robocal.model.terms.JointInputs`)."""
         from .terms import JointInputs
 
-        return JointInputs(self.torques, self.payload, self.directions, self.time)
+        if self.time is not None:
+            return JointInputs(self.torques, self.payload, self.directions, self.time, "s")
+        # without a time column the measuring order stands for time: this file's row numbers
+        return JointInputs(self.torques, self.payload, self.directions, np.asarray(self.rows, float),
+                           f"row:{self.source}")
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "q", np.atleast_2d(np.asarray(self.q, dtype=float)))
@@ -52,6 +57,12 @@ class Measurements:
             object.__setattr__(self, "rows", np.arange(2, 2 + len(self.q)))
         if not self.n_raw:
             object.__setattr__(self, "n_raw", len(self.q))
+        if self.directions is None:
+            # the rows as given are the measuring order; fixed here, so that a subset (a fold of
+            # cross-validation) keeps each pose's true predecessor
+            sequence = None if self.time is None else np.argsort(self.time, kind="stable")
+            object.__setattr__(self, "directions", move_directions(self.q, sequence))
+            object.__setattr__(self, "order", "row order" if self.time is None else "time order")
 
     @property
     def n_poses(self) -> int:

@@ -16,6 +16,13 @@
 - ``harmonics`` — transmission errors periodic in the joint's own angle,
   Δq_i = Σ_{h=1..H} a_ih cos(h q_i) + b_ih sin(h q_i): ``harmonic{i}_cos{h}``,
   ``harmonic{i}_sin{h}`` (rad).
+- ``backlash`` — Δq_i = b_i dir_i, the joint stands half its dead band off on the side of its
+  last move: ``backlash{i}`` (rad, reported in deg).
+- ``drift`` — joint zeros that move linearly with time, Δq_i = r_i (t − t₀)/S: ``drift{i}``
+  (rad per S, reported in deg/h on a clock of seconds, S = 3600 s, or deg per 1000 poses
+  on the row index, S = 1000 rows, where the data have no time column).  t₀ (the reference)
+  is the last calibration pose: the model predicts the robot as it was then, and at the
+  data's own time where a file gives one on the same clock.
 
 Every term is linear in its parameters: Δq = B(q, τ) · p with a basis B (m, n, T) that
 depends on the commanded joints (a first-order choice: deflections of a few hundredths of a
@@ -146,6 +153,8 @@ class JointTerms:
     arrays: Mapping[str, np.ndarray] = field(default_factory=dict)
     gravity_direction: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, -1.0]))
     payload_com: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    #: the drift term's time base: (clock, reference), see :class:`Drift`
+    clock: tuple[str, float] | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "arrays", {k: np.asarray(v, float) for k, v in self.arrays.items() if v is not None})
@@ -178,25 +187,28 @@ class JointTerms:
             size = len(t.names(option, n))
             arrays.update(t.arrays_of(option, n, values[k:k + size]))
             k += size
-        return replace(self, arrays=arrays)
+        clock = spec.options.get("drift", self.clock)
+        return replace(self, arrays=arrays, clock=tuple(clock) if clock else None)
 
 
 @dataclass(frozen=True, eq=False)
 class JointInputs:
     """Per pose, what joint terms act on besides the commanded joints: torques (m, n) N·m,
     payload (m,) kg, directions (m, n) of each joint's move into the pose (+1, −1; 0 unknown)
-    and time (m,) s; None where the data do not give one."""
+    and time (m,) on ``clock``: ``s`` (a time column, seconds) or ``row:SOURCE`` (the line
+    numbers of one file, which mean nothing in another); None where the data do not give one."""
 
     torques: np.ndarray | None = None
     payload: np.ndarray | None = None
     directions: np.ndarray | None = None
     time: np.ndarray | None = None
+    clock: str = ""
 
     def subset(self, rows) -> JointInputs:
         def pick(a):
             return None if a is None else np.asarray(a)[rows]
 
-        return JointInputs(pick(self.torques), pick(self.payload), pick(self.directions), pick(self.time))
+        return JointInputs(pick(self.torques), pick(self.payload), pick(self.directions), pick(self.time), self.clock)
 
 
 NO_INPUTS = JointInputs()
@@ -259,8 +271,9 @@ class Term:
         """The unit of one of its parameters' values (rad unless said otherwise)."""
         return "rad"
 
-    def reported(self, parameter: str) -> tuple[str, float]:
-        """The unit a result reports the parameter in, and the factor from its own unit."""
+    def reported(self, parameter: str, terms: JointTerms | None = None) -> tuple[str, float]:
+        """The unit a result reports the parameter in, and the factor from its own unit
+        (``terms``: the model's, for a unit that depends on them)."""
         return self.unit_of(parameter), 1.0
 
     def names(self, option, n: int) -> list[str]:
@@ -437,7 +450,7 @@ class Backlash(Term):
     rung = 3
     file_keys = (FileKey("backlash", "backlash", "scalar", True, "deg, taken up along the joint's last move"),)
 
-    def reported(self, parameter):
+    def reported(self, parameter, terms=None):
         return "deg", 180.0 / np.pi
 
     def names(self, option, n):
@@ -469,14 +482,76 @@ class Backlash(Term):
         return {"backlash": b}
 
 
+#: the drift's time scale S per clock: rates per hour of seconds, per 1000 rows of a file
+DRIFT_SCALE = {"s": 3600.0, "row": 1000.0}
+
+
+def clock_kind(clock: str) -> str:
+    """``s`` or ``row`` of a clock (``row:SOURCE`` is a file's own row clock)."""
+    return clock.split(":", 1)[0]
+
+
+class Drift(Term):
+    """Joint zeros that move linearly with time: Δq_i = r_i (t − t₀)/S.  Option: (clock, t₀),
+    the clock ``s`` (a time column) or ``row:SOURCE`` (the line numbers of that file; a model
+    read back from a robot file has ``row``, which matches no file) and the reference t₀ on it.
+    Data on another clock are predicted at t₀ (Δq = 0)."""
+
+    name = "drift"
+    prefixes = ("drift",)
+    rung = 4
+    file_keys = (FileKey("drift", "drift", "scalar", True, "deg per hour (clock s) or per 1000 rows (clock row)"),)
+
+    def reported(self, parameter, terms=None):
+        kind = clock_kind(terms.clock[0]) if terms is not None and terms.clock else "s"
+        return ("deg/h" if kind == "s" else "deg/1000 rows"), 180.0 / np.pi
+
+    def names(self, option, n):
+        return [f"drift{i + 1}" for i in range(n)]
+
+    def basis(self, option, x):
+        m, n = x.q.shape
+        clock, reference = option
+        same = x.inputs.time is not None and x.inputs.clock == clock
+        elapsed = (np.asarray(x.inputs.time, float) - reference) / DRIFT_SCALE[clock_kind(clock)] if same \
+            else np.zeros(m)
+        d = np.where(prismatic_mask(x.convention, x.geom), 0.0, 1.0)
+        return np.einsum("m,i,ik->mik", elapsed, d, np.eye(n))
+
+    def values(self, terms, option, n):
+        r = terms.get("drift")
+        return np.zeros(n) if r is None else r
+
+    def arrays_of(self, option, n, values):
+        return {"drift": values.copy()}
+
+    def option_of(self, terms):
+        if terms.get("drift") is None:
+            return None
+        return terms.clock or ("s", 0.0)
+
+    def option_for(self, meas, settings):
+        """The data's clock, and their last pose as the reference: the robot as calibration left it."""
+        inputs = meas.inputs
+        if inputs.time is None:
+            return None
+        return (inputs.clock, float(np.max(inputs.time)))
+
+    def plant(self, planted, n):
+        r = np.zeros(n)
+        for j, value in planted.items():
+            r[j - 1] = value
+        return {"drift": r}
+
+
 #: the joint terms, in the order their parameters follow the geometry's
-TERMS: dict[str, Term] = {t.name: t for t in (Compliance(), Harmonics(), Backlash())}
+TERMS: dict[str, Term] = {t.name: t for t in (Compliance(), Harmonics(), Backlash(), Drift())}
 
 
-def reported_unit(parameter: str) -> tuple[str, float] | None:
+def reported_unit(parameter: str, terms: JointTerms | None = None) -> tuple[str, float] | None:
     """The unit a result reports a joint-term parameter in and the factor to it (None for others)."""
     t = term_of(parameter)
-    return None if t is None else t.reported(parameter)
+    return None if t is None else t.reported(parameter, terms)
 
 
 def term_unit(parameter: str) -> str | None:
@@ -517,3 +592,22 @@ def missing_torques(terms: JointTerms | None, torques, source: str) -> str | Non
         return None
     return (f"the model's joint compliance acts on joint torques, but {source} has no tau1..tauN columns: "
             "its compliance is left out (zero torque)")
+
+
+def drift_note(terms: JointTerms | None, inputs: JointInputs, source: str) -> str | None:
+    """When a model's drift predicts: at the data's own times on its clock (said when they
+    reach past the reference, where a linear drift is extrapolated), else at its reference."""
+    if terms is None or terms.get("drift") is None or not np.any(terms.get("drift")):
+        return None
+    clock, reference = terms.clock or ("s", 0.0)
+    kind = clock_kind(clock)
+    if inputs.time is None or inputs.clock != clock:
+        where = f"t = {reference:g} s" if kind == "s" else f"row {reference:g} of its calibration file"
+        why = "no time column" if kind == "s" else "no rows of the calibration file"
+        return (f"drift: {source} has {why}; the model predicts the robot as it was at {where} (its last "
+                "calibration pose)")
+    beyond = float(np.max(inputs.time)) - reference
+    if kind == "s" and beyond > 0:
+        return (f"drift: predicted at each pose's time; {source} reaches {beyond / 3600:.3g} h past the last "
+                f"calibration pose (t = {reference:g} s): the drift there is extrapolated")
+    return None

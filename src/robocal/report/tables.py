@@ -14,6 +14,7 @@ from ..calibration.result import SIGNIFICANCE_SIGMAS, CalibrationResult, nominal
 from ..math.se3 import transform_to_xyz_rpy
 from ..math.so3 import orientation_error
 from ..model.parameters import is_angle, is_frame
+from ..model.terms import reported_unit
 
 PARAMETER_COLUMNS = ("parameter", "unit", "nominal", "identified", "deviation", "± σ", "note")
 FRAME_COLUMNS = ("frame", "identified xyz (mm)", "identified rpy (deg)", "change from registration", "note")
@@ -33,10 +34,12 @@ def _uncertainty(u: float | None, angle: bool | None) -> str:
     return f"{math.degrees(u) if angle else u:.2g}"
 
 
-def _kind(name: str) -> tuple[bool | None, str]:
+def _kind(name: str, terms=None) -> tuple[bool | None, str]:
     """How a parameter is shown: (angle flag for :func:`_number`, unit)."""
-    if name.startswith("compliance"):
-        return None, "rad/(N·m)"
+    shown = reported_unit(name, terms)
+    if shown is not None and shown[0] != "rad":
+        # a joint term's own unit: degrees of an angle (per its clock), else as identified
+        return (True if shown[0].startswith("deg") else None), shown[0]
     return (True, "deg") if is_angle(name) else (False, "mm")
 
 
@@ -57,7 +60,7 @@ def parameter_rows(result: CalibrationResult) -> list[tuple[str, ...]]:
     for i, name in enumerate(result.names):
         if is_frame(name):
             continue
-        angle, unit = _kind(name)
+        angle, unit = _kind(name, result.robot.terms)
         x = float(result.x[i])
         u = None if result.uncertainty is None else float(result.uncertainty[i])
         notes = [n for n in (_absorbs(result, name),) if n]
