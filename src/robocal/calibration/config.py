@@ -12,6 +12,7 @@ from ..io.measurements import ReadOptions
 from ..model.candidates import FRAME_CHOICES
 from ..model.terms import TERMS
 from ..optimize.lm import LOSSES
+from .instrument import Instrument
 from .noise import NoiseModel
 from .registry import METHODS as _REGISTRY
 from .registry import Method
@@ -122,9 +123,12 @@ class CalibrationConfig:
     joint_unit / length_unit: ``deg``/``rad`` and ``mm``/``m`` of the data files, overriding
     robocal's unit checks (default: degrees and millimetres, checked).
     model: ``geometric``, ``auto`` (chosen by cross-validation) or terms joined by ``+``
-    (``compliance``, ``harmonics``, ``residual``; geometry is always included).  harmonics:
+    (``compliance``, ``harmonics``, ``backlash``, ``drift``, ``residual``; geometry is always
+    included).  harmonics:
     their count H per joint.  payload: a payload mass (kg) for every pose, where the data have
-    no ``payload`` column.
+    no ``payload`` column.  instrument: an MPE-style statement ``"A+B/m"`` (mm, mm per metre
+    of distance from the instrument; ``k=K`` for U = K σ, default 2) that sets each point's
+    position σ (see :mod:`robocal.calibration.instrument`); files may give σ per point instead.
     """
 
     method: str = "lm"
@@ -150,6 +154,7 @@ class CalibrationConfig:
     model: str = "geometric"
     harmonics: int = 2
     payload: float | None = None
+    instrument: str | None = None
 
     def __post_init__(self) -> None:
         set_ = object.__setattr__
@@ -161,6 +166,10 @@ class CalibrationConfig:
         if self.objective is not None:
             opt.choice(self.objective, OBJECTIVES, "objective", "objective")
         noise = NoiseModel.checked(self.noise, self.angle_noise, self.k)
+        if self.instrument is not None:
+            Instrument.parse(self.instrument)
+            if noise.position is not None:
+                raise InputError("give the instrument's statement or the position noise, not both", option="instrument")
         set_(self, "noise", noise.position)
         set_(self, "angle_noise", noise.orientation)
         set_(self, "k", noise.k)

@@ -82,10 +82,22 @@ class NoiseEstimate:
     source: str
     refits: int = 0
 
+    @property
+    def meaning(self) -> str:
+        """What the σ is: a stated σ is the instrument's noise; one estimated from the fit is the
+        residual scatter, the instrument's noise plus everything the model leaves out."""
+        if self.source == "stated":
+            return "the measuring noise, as stated"
+        return "residual scatter: the instrument's noise plus what the model leaves out"
+
+    @property
+    def label(self) -> str:
+        return "noise σ" if self.source == "stated" else "residual scatter σ"
+
     def to_dict(self) -> dict:
         return {"position_mm": self.position,
                 "orientation_deg": None if self.orientation is None else math.degrees(self.orientation),
-                "source": self.source, "refits": self.refits}
+                "source": self.source, "refits": self.refits, "meaning": self.meaning}
 
 
 def leverage_split(problem: Problem, x: np.ndarray) -> tuple[float, float]:
@@ -104,7 +116,7 @@ def leverage_split(problem: Problem, x: np.ndarray) -> tuple[float, float]:
 
 def block_sigmas(problem: Problem, x: np.ndarray, model: NoiseModel) -> tuple[float, float]:
     """σp, σr that these residuals show, keeping whatever the model states."""
-    dp, dr = problem.errors(x)
+    dp, dr = problem.scaled_errors(x)
     rss_p = float(np.sum(dp * dp))
     n_p = dp.size
     used_p, used_r = leverage_split(problem, x)
@@ -171,7 +183,7 @@ def settle(problem: Problem, x: np.ndarray, model: NoiseModel, iterations: int =
 def confirmed(problem: Problem, x: np.ndarray, target: Settled, model: NoiseModel) -> bool:
     """Whether the residuals at x (the refit under ``target``'s weights) show those weights
     again, with the degrees of freedom of the linearised fit (no Jacobian needed)."""
-    dp, dr = problem.errors(x)
+    dp, dr = problem.scaled_errors(x)
     if dr is None:
         return True
     again = _block_values(float(np.sum(dp * dp)), dp.size, target.used[0], float(np.sum(dr * dr)), dr.size,

@@ -22,6 +22,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from functools import cached_property
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -30,6 +31,9 @@ from ..math.so3 import apply_right_jacobian_inv, orientation_error
 from ..model.kinematics import joint_kinds
 from ..model.measurements import Measurements
 from ..model.parameters import ParameterSpace, is_angle
+
+if TYPE_CHECKING:
+    from .instrument import InstrumentWeights
 
 #: default orientation weight k of the pose objective, mm²/rad², when no noise is stated: 1 rad
 #: counts as 100 mm, so 0.01° weighs like 0.017 mm, about the ratio of a laser tracker's
@@ -43,7 +47,9 @@ class Setup:
 
     sigma_position (mm) and sigma_orientation (rad): the standard deviation per axis that
     whitens each residual block; use_orientation: fit orientations when the data have them;
-    backend: ``auto``, ``numba`` or ``numpy`` for swarm objectives.
+    backend: ``auto``, ``numba`` or ``numpy`` for swarm objectives.  instrument: per-point
+    weight factors from the instrument's σ of each measured value (see
+    :mod:`robocal.calibration.instrument`), None to weigh every point of a block alike.
     """
 
     space: ParameterSpace
@@ -52,6 +58,7 @@ class Setup:
     sigma_orientation: float = 1.0 / DEFAULT_K**0.5
     use_orientation: bool = True
     backend: str = "auto"
+    instrument: InstrumentWeights | None = None
 
     @property
     def full_pose(self) -> bool:
@@ -95,6 +102,12 @@ class Problem:
         self.k = setup.k
         self._wp, self._wr = 1.0 / setup.sigma_position, 1.0 / setup.sigma_orientation
         self.uses_orientation = setup.full_pose
+        # per-point factors σ_eff,i/σ̄_eff of each residual (m, 3), or None: every point alike
+        self._fp, self._fr = setup.instrument.factors(self.meas) if setup.instrument is not None else (None, None)
+        if self._fp is not None:
+            self._wp = self._wp / self._fp.ravel()
+        if self._fr is not None and self.uses_orientation:
+            self._wr = self._wr / self._fr.ravel()
         self.target_idx = self.space.target_index(self.meas.targets)
         self.joints = self.space.joint_data(self.meas.q, self.meas.inputs)
         self._Rm = self.meas.rotation if self.uses_orientation else None
@@ -131,6 +144,16 @@ class Problem:
         R, p = self.space.pose(self.full(X), self.meas.q, self.target_idx, self.joints)
         return self.meas.position - p, orientation_error(self._Rm, R)
 
+    def scaled_errors(self, X: np.ndarray):
+        """:meth:`errors` divided by each point's weight factor (the instrument's, relative):
+        still mm and rad, and the same as :meth:`errors` where every point is weighed alike."""
+        dp, dr = self.errors(X)
+        if self._fp is not None:
+            dp = dp / self._fp
+        if dr is not None and self._fr is not None:
+            dr = dr / self._fr
+        return dp, dr
+
     def objective(self, X: np.ndarray, kind: str = "sum_squares", *, backend: str | None = None) -> np.ndarray:
         """Objective of each candidate in X (P, k_active) → (P,); mm² or mm.
 
@@ -140,9 +163,10 @@ class Problem:
             raise ValueError(f"unknown objective {kind!r}")
         X = np.asarray(X, dtype=float)
         compiled = (self._backend if backend is None else resolve(backend)) == "numba"
-        if X.ndim == 2 and compiled and self.joints is None and self._kernels_apply:  # the kernels move no joints
+        if X.ndim == 2 and compiled and self.joints is None and self._kernels_apply and self._fp is None \
+                and self._fr is None:  # the kernels move no joints and weigh every point alike
             return self._compiled_objective(X, kind)
-        dp, dr = self.errors(X)
+        dp, dr = self.scaled_errors(X)
         if kind == "sum_norms":
             return np.sqrt(np.sum(dp * dp, axis=-1)).sum(-1)
         f = np.sum(dp * dp, axis=(-1, -2))

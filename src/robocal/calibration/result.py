@@ -21,6 +21,7 @@ from ..optimize.result import OptimizeResult
 from .config import CalibrationConfig
 from .diagnostics import GoodnessOfFit
 from .identifiability import Identifiability
+from .instrument import InstrumentFit
 from .noise import NoiseEstimate
 
 #: version of the result JSON; 2 added ``schema_version``, the structured ``dropped`` reasons
@@ -30,8 +31,10 @@ from .noise import NoiseEstimate
 #: parameters (``compliance1``, ``gravity2_3x``, ``harmonic1_cos1``, …, with their units); 4
 #: (migration: ``time_s`` was the whole call and is now the optimizers' wall time, the whole call
 #: is ``timings.total_s``) added ``timings`` {load_s, compile_s, optimize_s, statistics_s,
-#: model_s, evaluate_s, total_s}, ``region`` and ``fallback``
-SCHEMA_VERSION = 4
+#: model_s, evaluate_s, total_s}, ``region`` and ``fallback``; 5 added ``instrument`` (the
+#: misfit against the instrument's own σ per point), ``noise.meaning`` and the joint terms
+#: ``backlash1..N`` (deg) and ``drift1..N`` (deg/h or deg/1000 rows)
+SCHEMA_VERSION = 5
 #: a deviation smaller than this many standard uncertainties is "not significant"
 SIGNIFICANCE_SIGMAS = 2.0
 
@@ -105,6 +108,7 @@ class CalibrationResult:
     model_selection: list[LadderRow] = field(default_factory=list)
     error_budget: list[BudgetRow] = field(default_factory=list)
     geometric: Robot | None = field(default=None, repr=False)
+    instrument: InstrumentFit | None = None
 
     @property
     def method(self) -> str:
@@ -179,6 +183,7 @@ class CalibrationResult:
             "k_mm2_per_rad2": self.k,
             "noise": None if self.noise is None else self.noise.to_dict(),
             "goodness_of_fit": None if self.goodness_of_fit is None else self.goodness_of_fit.to_dict(),
+            "instrument": None if self.instrument is None else self.instrument.to_dict(),
             "loss": cfg.loss,
             "model": self.model,
             "model_selection": [r.to_dict() for r in self.model_selection],

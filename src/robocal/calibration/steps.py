@@ -40,8 +40,18 @@ from . import checks
 from .config import CalibrationConfig, resolve_params
 from .diagnostics import GoodnessOfFit, goodness_of_fit, implausible_deviations, joint_patterns, misfit_message
 from .identifiability import NO_EFFECT, SECOND_ORDER, STILL, Identifiability, Reason, analyse
+from .instrument import MAX_ROUNDS, Instrument, InstrumentFit, beyond_instrument, instrument_fit, with_instrument
 from .methods import Estimate, fit_lm, optimize
-from .noise import LINEAR_CHI2, MAX_REWEIGHTS, NoiseEstimate, block_sigmas, confirmed, settle, settled
+from .noise import (
+    LINEAR_CHI2,
+    MAX_REWEIGHTS,
+    NoiseEstimate,
+    block_sigmas,
+    confirmed,
+    leverage_split,
+    settle,
+    settled,
+)
 from .problem import Setup
 from .registration import choose_frames, fit_frames
 from .statistics import (
@@ -107,6 +117,7 @@ def load_inputs(robot, data, validate, config: CalibrationConfig, columns=None) 
     if not (meas.full_pose and config.use_orientation):
         meas = meas.position_only()
         val = None if val is None else val.position_only()
+    meas = _instrument_sigmas(meas, config, notes)
     if config.payload is not None:  # a stated payload where the files have no column
         meas = meas if meas.payload is not None else replace(meas, payload=np.full(meas.n_poses, config.payload))
         if val is not None and val.payload is None:
@@ -124,6 +135,50 @@ def load_inputs(robot, data, validate, config: CalibrationConfig, columns=None) 
     if config.length_unit is None:  # a stated unit overrides the spread check
         checks.check_units(nominal, meas, frames)
     return Inputs(nominal, meas, val, frames, tuple(notes + checks.degeneracy_warnings(nominal, meas)))
+
+
+def _instrument_sigmas(meas: Measurements, config: CalibrationConfig, notes: list[str]) -> Measurements:
+    """The instrument's σ per point the fit weighs by: the file's columns, or the statement of
+    ``instrument``; a stated noise σ of a block replaces its columns (and says so)."""
+    if config.instrument is not None:
+        statement = Instrument.parse(config.instrument)
+        if meas.sigma_position is not None:
+            notes.append(f"the sx, sy, sz columns of {meas.source} are replaced by {statement.sentence()}")
+        return replace(with_instrument(meas, statement), sigma_source=statement.sentence(),
+                       sigma_orientation=meas.sigma_orientation)
+    for block, stated, columns in (("sigma_position", config.noise, "sx, sy, sz"),
+                                   ("sigma_orientation", config.angle_noise if config.k is None else 0.0,
+                                    "srx, sry, srz")):
+        if stated is not None and getattr(meas, block) is not None:
+            notes.append(f"the noise stated replaces the {columns} columns of {meas.source}")
+            meas = replace(meas, **{block: None})
+    return meas
+
+
+def weigh_instrument(est: Estimate, config: CalibrationConfig,
+                     noise: NoiseEstimate) -> tuple[Estimate, NoiseEstimate, InstrumentFit | None]:
+    """Step 8b, where the data give the instrument's σ per point: weigh each point by
+    σ_eff² = σ_i² + τ², τ the scatter beyond the instrument, and refit until τ settles (see
+    :mod:`robocal.calibration.instrument`); then the misfit against the instrument alone."""
+    meas = est.problem.meas
+    if meas.sigma_position is None and meas.sigma_orientation is None:
+        return est, noise, None
+    if config.least_squares and est.optimization.status == "converged":
+        for _ in range(MAX_ROUNDS):
+            problem = est.problem
+            weights = beyond_instrument(problem, est.x, leverage_split(problem, est.x))
+            if weights.settled(problem.setup.instrument, meas):
+                break
+            problem = replace(problem.setup, instrument=weights).problem(problem.names)
+            lm = fit_lm(problem, est.x, config)
+            est = Estimate(problem, est.optimization.then(lm, method=est.optimization.method, message=(
+                f"{est.optimization.message}; weighed by the instrument's σ: {lm.message}"),
+                history=est.optimization.history), lm.x, est.reexpression_gap_mm)
+            est, noise = reweigh(est, config)
+            if lm.status != "converged":
+                break
+    return est, noise, instrument_fit(est.problem, est.x, meas.sigma_source or "σ per point",
+                                      leverage_split(est.problem, est.x))
 
 
 def complete_model(robot: Robot, config: CalibrationConfig) -> Robot:
@@ -445,6 +500,7 @@ class Fit:
     uncertainty: np.ndarray | None
     covariance: np.ndarray | None
     notes: list[str]
+    instrument: InstrumentFit | None = None
 
     @property
     def robot(self) -> Robot:
@@ -480,8 +536,9 @@ def fit_parametric(inputs: Inputs, config: CalibrationConfig, spec: TermSpec,
         refined, ident = refine_at_estimate(est, ident, candidates, config)
         if refined is not est:  # parameters were added: their weights are settled again
             est, noise = reweigh(refined, config)
+        est, noise, instrument = weigh_instrument(est, config, noise)
         judged = judge(est, config, noise)
     return Fit(setup, candidates, ident, est, screening, noise, judged.goodness, judged.uncertainty,
-               judged.covariance, notes + judged.notes)
+               judged.covariance, notes + judged.notes, instrument)
 
 

@@ -19,7 +19,7 @@ def timing_line(timings: dict) -> str:
 #: the config's fields an option of the same name sets (angle_noise in degrees here, rad there)
 CONFIG_FIELDS = ("method", "frames", "params", "seed", "objective", "noise", "angle_noise", "k", "loss", "f_scale",
                  "particles", "iterations", "box", "halton", "backend", "model", "harmonics", "payload", "joint_unit",
-                 "length_unit")
+                 "length_unit", "instrument")
 #: the command's own options: its inputs and outputs, how to read them, and what it prints
 CLI_ONLY = ("robot", "data", "validate", "out", "export", "report", "column", "base_link", "tip_link", "quiet",
             "position_only")
@@ -85,6 +85,9 @@ def calibrate_cmd(
     ),
     k: float | None = typer.Option(None, "--k", help="fixed orientation weight (σp/σr)², mm²/rad² (instead of "
                                    "--angle-noise)"),
+    instrument: str | None = typer.Option(
+        None, "--instrument", help="the instrument's MPE statement A+B/m: mm plus mm per metre of distance from it, "
+        "taken as 2σ per axis (k=K for another coverage); sets each point's σ (files may give sx..srz instead)"),
     position_only: bool = typer.Option(False, "--position-only", help="ignore rx, ry, rz columns"),
     loss: str = typer.Option("linear", "--loss", help="LM loss: linear | huber | soft_l1 | cauchy | arctan"),
     f_scale: float = typer.Option(1.0, "--f-scale", help="robust loss scale, mm"),
@@ -94,7 +97,7 @@ def calibrate_cmd(
     halton: str = typer.Option("scrambled", "--halton", help="IPSO start: scrambled | plain"),
     backend: str = typer.Option("auto", "--backend", help="swarm objectives: auto | numba | numpy"),
     model: str = typer.Option("geometric", "--model", help="geometric | auto | TERM[+TERM…] with TERM compliance, "
-                              "harmonics, residual (auto: chosen by 5-fold cross-validation)"),
+                              "harmonics, backlash, drift, residual (auto: chosen by 5-fold cross-validation)"),
     harmonics: int = typer.Option(2, "--harmonics", help="harmonics per joint of the harmonics term"),
     payload: float | None = typer.Option(None, "--payload", help="payload mass, kg, for data without a payload "
                                          "column (centre of mass: the robot file's [gravity] payload_com)"),

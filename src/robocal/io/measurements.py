@@ -30,6 +30,9 @@ from .table import CsvTable, numbers, read_csv, strings
 POSITION = ("x", "y", "z")
 ORIENTATION = ("rx", "ry", "rz")
 OPTIONAL = ("pose_id", "target", "payload", "cycle", "time", "temperature")
+#: the instrument's standard deviation of each measured value: mm, and deg about the measuring frame's axes
+POSITION_SIGMA = ("sx", "sy", "sz")
+ORIENTATION_SIGMA = ("srx", "sry", "srz")
 _JOINT = re.compile(r"^q(\d+)$")
 _TORQUE = re.compile(r"^tau(\d+)$")
 _DIRECTION = re.compile(r"^dir(\d+)$")
@@ -62,6 +65,8 @@ class PoseTable:
     directions: np.ndarray | None = None
     time: np.ndarray | None = None
     temperature: np.ndarray | None = None
+    sigma_position: np.ndarray | None = None
+    sigma_orientation: np.ndarray | None = None
 
 
 def _per_joint_columns(table: CsvTable, n_joints: int, pattern: re.Pattern, what: str) -> list[str] | None:
@@ -169,14 +174,18 @@ def read_pose_table(text: str, *, source: str, options: ReadOptions = ReadOption
     options state.
     """
     table = read_csv(text, source=source, columns=options.columns)
-    known = set(POSITION) | set(ORIENTATION) | set(OPTIONAL)
+    known = set(POSITION) | set(ORIENTATION) | set(OPTIONAL) | set(POSITION_SIGMA) | set(ORIENTATION_SIGMA)
     for h in table.header:
         if h not in known and not any(p.match(h) for p in (_JOINT, _TORQUE, _DIRECTION)):
             raise InputError(f"unknown column '{h}' (expected q1..qn, x, y, z, optional rx, ry, rz, pose_id, "
-                             "target, cycle, tau1..taun, payload, dir1..dirn, time, temperature; map other "
-                             "names with a column mapping)", source=source)
+                             "target, cycle, tau1..taun, payload, dir1..dirn, time, temperature, sx, sy, sz, srx, sry, "
+                             "srz; map other names with a column mapping)", source=source)
     qcols = _joint_columns(table, options.n_joints, require_joints, options.robot_label)
     has_pos, has_rot = _pose_columns(table, bool(qcols), require_position)
+    for names, present, what in ((POSITION_SIGMA, has_pos, "x, y, z"), (ORIENTATION_SIGMA, has_rot, "rx, ry, rz")):
+        if not present and any(h in table for h in names):
+            raise InputError(f"σ columns {', '.join(names)} without the {what} columns they are the σ of",
+                             source=source)
     scale = 1000.0 if options.length_unit == "m" else 1.0
     q = numbers(table, qcols) if qcols else None
     if q is not None:
@@ -209,7 +218,27 @@ def read_pose_table(text: str, *, source: str, options: ReadOptions = ReadOption
         directions=_directions(table, len(qcols)) if qcols else None,
         time=numbers(table, ["time"], MAX_TIME_S, "s")[:, 0] if "time" in table else None,
         temperature=numbers(table, ["temperature"], MAX_TEMPERATURE_C, "°C")[:, 0] if "temperature" in table else None,
+        sigma_position=_sigmas(table, POSITION_SIGMA, scale, "m" if scale != 1 else "mm") if has_pos else None,
+        sigma_orientation=_sigmas(table, ORIENTATION_SIGMA, 1.0, "deg") if has_rot else None,
     )
+
+
+def _sigmas(table: CsvTable, names: tuple[str, ...], scale: float, unit: str) -> np.ndarray | None:
+    """The instrument's σ columns of one block (all three or none), each > 0; in mm or deg."""
+    present = [h for h in names if h in table]
+    if not present:
+        return None
+    if len(present) != len(names):
+        missing = next(h for h in names if h not in table)
+        raise InputError(f"σ columns come as {', '.join(names)}, all three; '{missing}' is missing",
+                         source=table.source)
+    values = numbers(table, list(names), MAX_LENGTH_MM / scale, unit)
+    bad = ~(values > 0)
+    if bad.any():
+        r, j = np.unravel_index(int(np.argmax(bad)), values.shape)
+        raise InputError(f"a standard deviation must be > 0, got {values[r, j]:g}", source=table.source,
+                         where=f"row {int(table.lines[r])}, column '{names[j]}'")
+    return scale * values
 
 
 def _check_joint_magnitudes(table: CsvTable, q: np.ndarray, columns: list[str], options: ReadOptions,
@@ -250,6 +279,10 @@ def parse_measurements(text: str, *, source: str = "<data>", average: bool = Tru
         time=t.time,
         temperature=t.temperature,
         order=order,
+        sigma_position=t.sigma_position,
+        sigma_orientation=None if t.sigma_orientation is None else np.radians(t.sigma_orientation),
+        sigma_source=f"the sx..{'srz' if t.sigma_orientation is not None else 'sz'} columns of {source}"
+        if t.sigma_position is not None or t.sigma_orientation is not None else "",
     )
     if t.cycles is not None and t.pose_ids is None:
         raise InputError("a cycle column numbers the measuring cycles of each pose: it needs a pose_id column",
@@ -350,6 +383,10 @@ def average_repeats(meas: Measurements, tolerance: float = REPEAT_TOLERANCE_MM, 
         directions=None if meas.directions is None else np.trunc(mean(meas.directions)),
         time=mean(meas.time),
         temperature=mean(meas.temperature),
+        # the mean of n independent readings: σ/√n
+        sigma_position=None if meas.sigma_position is None else np.sqrt(mean(meas.sigma_position**2) / count[:, None]),
+        sigma_orientation=None if meas.sigma_orientation is None else np.sqrt(
+            mean(meas.sigma_orientation**2) / count[:, None]),
         targets=None if meas.targets is None else tuple(meas.targets[i] for i in first),
         pose_ids=tuple(meas.pose_ids[i] for i in first),
         rows=meas.rows[first],
@@ -391,7 +428,10 @@ def measurements_to_csv(meas: Measurements, *, extra: Mapping[str, Sequence] | N
               ([f"tau{i + 1}" for i in range(n)], meas.torques),
               (["payload"], None if meas.payload is None else meas.payload[:, None]),
               (["time"], None if meas.time is None else meas.time[:, None]),
-              (["temperature"], None if meas.temperature is None else meas.temperature[:, None])]
+              (["temperature"], None if meas.temperature is None else meas.temperature[:, None]),
+              (list(POSITION_SIGMA), meas.sigma_position),
+              (list(ORIENTATION_SIGMA), None if meas.sigma_orientation is None or meas.rotation is None
+               else np.degrees(meas.sigma_orientation))]
     groups = [(names, np.asarray(v, float)) for names, v in groups if v is not None]
     header = (["pose_id"] if meas.pose_ids is not None else []) + (["target"] if meas.targets is not None else [])
     header += [f"q{i + 1}" for i in range(n)] + [h for names, _ in groups for h in names]

@@ -22,6 +22,9 @@ class Measurements:
     each pose was measured, s, or None; temperature: (m,) °C, or None.  order: where the
     directions came from (``dir columns``, ``time order``, ``row order``); without them they
     are worked out from the time column's order, else from the rows' order.
+    sigma_position (m, 3) mm and sigma_orientation (m, 3) rad: the instrument's own standard
+    deviation of each measured value (orientation: rotation-vector components about the
+    measuring frame's axes), or None; sigma_source says where they came from.
     """
 
     q: np.ndarray
@@ -38,6 +41,9 @@ class Measurements:
     time: np.ndarray | None = None
     temperature: np.ndarray | None = None
     order: str = ""
+    sigma_position: np.ndarray | None = None
+    sigma_orientation: np.ndarray | None = None
+    sigma_source: str = ""
 
     @property
     def inputs(self):
@@ -133,10 +139,12 @@ class Measurements:
             directions=None if self.directions is None else self.directions[index],
             time=None if self.time is None else self.time[index],
             temperature=None if self.temperature is None else self.temperature[index],
+            sigma_position=None if self.sigma_position is None else self.sigma_position[index],
+            sigma_orientation=None if self.sigma_orientation is None else self.sigma_orientation[index],
         )
 
     def position_only(self) -> Measurements:
-        return replace(self, rotation=None)
+        return replace(self, rotation=None, sigma_orientation=None)
 
 
 def move_directions(q: np.ndarray, order: np.ndarray | None = None, still: float = 1e-7) -> np.ndarray:

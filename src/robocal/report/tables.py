@@ -109,12 +109,15 @@ def noise_line(result) -> str:
     import math
 
     n, g = result.noise, result.goodness_of_fit
-    text = f"noise σ {n.position:.3g} mm" + ("" if n.orientation is None else f", {math.degrees(n.orientation):.3g}°")
-    text += f" ({n.source})"
+    text = f"{n.label} {n.position:.3g} mm" + ("" if n.orientation is None else f", {math.degrees(n.orientation):.3g}°")
+    text += " (stated)" if n.source == "stated" else " (estimated from the fit: the instrument's noise plus what the " \
+        "model leaves out)"
     if g is not None and g.dof > 0:
         text += f"; χ² {g.chi2:.4g} on {g.dof} degrees of freedom (reduced {g.reduced_chi2:.3g}, p {g.p_value:.3g})"
     if result.robot.residual is not None:
         text += " — of the parametric fit; its residual correction is judged by cross-validation"
+    if result.instrument is not None:
+        text += f"\n{result.instrument.sentence()}"
     return text
 
 
