@@ -27,6 +27,15 @@ class Evaluation:
     frames: str
     notes: list[str]
     per_target: dict[str, Metrics]
+    #: per pose, the predicted position's standard uncertainty (mm, rms radius) and its label
+    sigma: np.ndarray | None = None
+    poses: tuple[str, ...] = ()
+
+    def uncertainty_summary(self) -> dict | None:
+        if self.sigma is None:
+            return None
+        return {"median_mm": float(np.median(self.sigma)), "p95_mm": float(np.percentile(self.sigma, 95)),
+                "max_mm": float(np.max(self.sigma))}
 
     def to_dict(self) -> dict:
         out = self.metrics.to_dict()
@@ -34,12 +43,15 @@ class Evaluation:
             out["frames"] = self.frames
         if len(self.per_target) > 1:
             out["per_target"] = {t: m.to_dict() for t, m in self.per_target.items()}
+        if self.sigma is not None:
+            out["uncertainty"] = {**self.uncertainty_summary(), "per_pose": [
+                {"pose": p, "sigma_mm": float(s)} for p, s in zip(self.poses, self.sigma)]}
         return out
 
 
 def evaluate(robot: str | Path | Robot, data: str | Path | Measurements, *, columns: Mapping[str, str] | None = None,
              frames: str = "none", joint_unit: str | None = None, length_unit: str | None = None,
-             payload: float | None = None) -> Evaluation:
+             payload: float | None = None, uncertainty: bool = False) -> Evaluation:
     """Error metrics of ``robot`` (file, built-in name or Robot) on ``data`` (file or Measurements).
 
     frames: ``none`` evaluates the model as it is (a calibrated model carries its frames);
@@ -55,6 +67,9 @@ def evaluate(robot: str | Path | Robot, data: str | Path | Measurements, *, colu
 
     opt.choice(frames, FRAME_CHOICES, "frames", "frames mode")
     r = load_robot(robot)
+    if uncertainty and r.uncertainty is None:
+        raise InputError("the model carries no parameter covariance ([uncertainty]): export it from a calibration "
+                         "with calibrate --export", source=r.source or r.name, option="uncertainty")
     meas = data if isinstance(data, Measurements) else load_measurements(
         data, n_joints=r.n_joints, columns=columns, joint_unit=joint_unit, length_unit=length_unit,
         robot_label=r.source, prismatic=tuple(map(bool, r.prismatic)) if r.prismatic.any() else None)
@@ -89,4 +104,13 @@ def evaluate(robot: str | Path | Robot, data: str | Path | Measurements, *, colu
         r = fit_frames(r, meas, mode)
     per_target = {t or "(default)": Metrics.of(r, meas.subset([i for i, x in enumerate(meas.targets) if x == t]))
                   for t in meas.target_names} if meas.targets is not None else {}
-    return Evaluation(Metrics.of(r, meas), mode, notes, per_target)
+    sigma = None
+    if uncertainty:
+        from .model.uncertainty import point_sigma
+
+        known = meas.targets if meas.targets is not None and all(t in r.target_names for t in meas.targets) else None
+        sigma = point_sigma(r, r.uncertainty, meas.q, known, meas.inputs)
+        if r.residual is not None:
+            notes.append("uncertainty: of the parametric model; its residual correction's own is not counted")
+    return Evaluation(Metrics.of(r, meas), mode, notes, per_target, sigma,
+                      tuple(meas.label(i) for i in range(meas.n_poses)) if uncertainty else ())

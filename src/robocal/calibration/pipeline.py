@@ -29,6 +29,7 @@ from pathlib import Path
 
 from ..backend import blas_threads
 from ..exceptions import RobocalWarning
+from ..model.covariance import ParameterCovariance
 from ..model.measurements import Measurements
 from ..model.region import Region
 from ..model.robot import Robot
@@ -95,6 +96,20 @@ def order_notes(fit, meas: Measurements) -> list[str]:
     return notes
 
 
+def _tcp_map(robot: Robot, meas: Measurements, seed: int | None):
+    """The predicted TCP's σ over the region the model was calibrated on and at its poses (None
+    without a covariance)."""
+    from ..model.uncertainty import point_sigma, uncertainty_map
+
+    if robot.uncertainty is None or robot.region is None:
+        return None
+    parametric = robot.replace(residual=None, fallback=None)
+    known = meas.targets if meas.targets is not None and all(t in robot.target_names for t in meas.targets) else None
+    at_poses = point_sigma(parametric, robot.uncertainty, meas.q, known, meas.inputs)
+    return uncertainty_map(parametric, robot.uncertainty, robot.region.lo, robot.region.hi, seed=seed or 0,
+                           at_poses=at_poses)
+
+
 def _calibrate(robot, data, validate, cfg: CalibrationConfig, columns, progress, stages) -> CalibrationResult:
     with stage("load"):
         inputs = load_inputs(robot, data, validate, cfg, columns)
@@ -107,7 +122,9 @@ def _calibrate(robot, data, validate, cfg: CalibrationConfig, columns, progress,
     est, setup = fit.estimate, fit.setup
     initial = setup.space.robot
     region = Region.of(inputs.meas.q, inputs.nominal.prismatic)
-    calibrated = fit.robot.replace(name=f"{inputs.nominal.name} (calibrated)", residual=chosen.residual, region=region)
+    calibrated = fit.robot.replace(name=f"{inputs.nominal.name} (calibrated)", residual=chosen.residual, region=region,
+                                   uncertainty=None if fit.covariance is None else
+                                   ParameterCovariance(tuple(est.problem.names), fit.covariance))
     if not calibrated.geometric:  # outside its region it becomes its geometric fit
         geometric = (chosen.geometric or fit).robot
         calibrated = calibrated.with_fallback(geometric.replace(
@@ -126,5 +143,5 @@ def _calibrate(robot, data, validate, cfg: CalibrationConfig, columns, progress,
         noise=fit.noise, goodness_of_fit=fit.goodness, covariance=fit.covariance, frames=inputs.frames,
         model=chosen.name, model_selection=chosen.table, error_budget=budget,
         geometric=None if chosen.geometric is None or chosen.geometric is fit else chosen.geometric.robot,
-        instrument=fit.instrument,
+        instrument=fit.instrument, tcp_uncertainty=_tcp_map(calibrated, est.problem.meas, cfg.seed),
     )

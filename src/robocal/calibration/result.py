@@ -17,6 +17,7 @@ from ..model.metrics import Metrics
 from ..model.parameters import is_frame, unit
 from ..model.robot import Robot
 from ..model.terms import reported_unit
+from ..model.uncertainty import UncertaintyMap
 from ..optimize.result import OptimizeResult
 from .config import CalibrationConfig
 from .diagnostics import GoodnessOfFit
@@ -33,7 +34,8 @@ from .noise import NoiseEstimate
 #: is ``timings.total_s``) added ``timings`` {load_s, compile_s, optimize_s, statistics_s,
 #: model_s, evaluate_s, total_s}, ``region`` and ``fallback``; 5 added ``instrument`` (the
 #: misfit against the instrument's own σ per point), ``noise.meaning`` and the joint terms
-#: ``backlash1..N`` (deg) and ``drift1..N`` (deg/h or deg/1000 rows)
+#: ``backlash1..N`` (deg) and ``drift1..N`` (deg/h or deg/1000 rows), ``tcp_uncertainty`` (the
+#: predicted position's σ over the calibrated region: points, median_mm, p95_mm, max_mm)
 SCHEMA_VERSION = 5
 #: a deviation smaller than this many standard uncertainties is "not significant"
 SIGNIFICANCE_SIGMAS = 2.0
@@ -109,6 +111,7 @@ class CalibrationResult:
     error_budget: list[BudgetRow] = field(default_factory=list)
     geometric: Robot | None = field(default=None, repr=False)
     instrument: InstrumentFit | None = None
+    tcp_uncertainty: UncertaintyMap | None = field(default=None, repr=False)
 
     @property
     def method(self) -> str:
@@ -184,6 +187,7 @@ class CalibrationResult:
             "noise": None if self.noise is None else self.noise.to_dict(),
             "goodness_of_fit": None if self.goodness_of_fit is None else self.goodness_of_fit.to_dict(),
             "instrument": None if self.instrument is None else self.instrument.to_dict(),
+            "tcp_uncertainty": None if self.tcp_uncertainty is None else self.tcp_uncertainty.summary(),
             "loss": cfg.loss,
             "model": self.model,
             "model_selection": [r.to_dict() for r in self.model_selection],

@@ -21,6 +21,8 @@ def evaluate_cmd(
     length_unit: str | None = typer.Option(None, "--length-unit", help="mm | m (default: mm)"),
     payload: float | None = typer.Option(None, "--payload", help="payload mass, kg, for data without a payload "
                                          "column"),
+    uncertainty: bool = typer.Option(False, "--uncertainty", help="also each pose's predicted position uncertainty "
+                                     "(mm, from the parameter covariance a calibrated model carries)"),
 ) -> None:
     """Error metrics (MODEL §6) of a robot model on measured data."""
     import json
@@ -30,7 +32,7 @@ def evaluate_cmd(
     from .common import console, load, metrics_table, print_warnings
 
     ev = evaluate(load(robot, base_link, tip_link), data, columns=opt.column_map(column), frames=frames,
-                  joint_unit=joint_unit, length_unit=length_unit, payload=payload)
+                  joint_unit=joint_unit, length_unit=length_unit, payload=payload, uncertainty=uncertainty)
     print_warnings(ev.notes)
     if as_json:
         print(json.dumps(ev.to_dict(), indent=2))
@@ -38,6 +40,29 @@ def evaluate_cmd(
     title = f"{robot} on {data} ({ev.metrics.n} poses{'' if ev.frames == 'none' else ', frames ' + ev.frames})"
     columns = {"error": ev.metrics, **(ev.per_target if len(ev.per_target) > 1 else {})}
     console().print(metrics_table(title, columns))
+    if ev.sigma is not None:
+        _print_uncertainty(ev)
+
+
+#: poses listed one by one; beyond, the largest ones (--json gives them all)
+LISTED = 30
+
+
+def _print_uncertainty(ev) -> None:
+    import numpy as np
+
+    from .common import console, table
+
+    s = ev.uncertainty_summary()
+    order = np.argsort(-ev.sigma)
+    shown = order if len(order) <= LISTED else order[:10]
+    title = ("predicted position uncertainty (mm, 1σ)" if len(order) <= LISTED
+             else f"the 10 largest of {len(order)} (mm, 1σ)")
+    console().print(table(title, ("pose", "σ (mm)"), [(ev.poses[i], f"{ev.sigma[i]:.4f}") for i in sorted(shown)],
+                          text_columns=(0,)))
+    console().print(f"predicted position uncertainty (1σ, rms radius, from the model's parameter covariance): "
+                    f"median {s['median_mm']:.4f} mm, 95 % of poses below {s['p95_mm']:.4f} mm, largest "
+                    f"{s['max_mm']:.4f} mm" + ("" if len(order) <= LISTED else "; --json lists every pose"))
 
 
 def register(app: typer.Typer) -> None:

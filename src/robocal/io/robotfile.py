@@ -26,6 +26,7 @@ from ..exceptions import InputError, RobocalWarning
 from ..math.se3 import frame_from_values
 from ..math.so3 import matrix_to_rpy
 from ..model import urdf
+from ..model.covariance import ParameterCovariance
 from ..model.kinematics import CONVENTIONS, prismatic_mask
 from ..model.region import Region
 from ..model.residual import ResidualModel
@@ -35,7 +36,7 @@ from .atomic import atomic_write, read_text
 from .builtins import builtin_names, builtin_text
 
 TOP_KEYS = {"name", "convention", "joint", "base", "tool", "targets", "source", "gravity", "drift", "residual",
-            "region", "fallback"}
+            "region", "fallback", "uncertainty"}
 GEOMETRY_KEYS = {"a", "alpha", "d", "theta", "beta", "limits", "type", "name"}
 TERM_KEYS = {key.key for t in TERMS.values() for key in t.file_keys}
 JOINT_KEYS = GEOMETRY_KEYS | TERM_KEYS
@@ -387,10 +388,32 @@ def parse_robot(text: str, *, source: str = "<robot>", default_name: str = "robo
         if nested:
             raise InputError("a fallback robot has no fallback of its own", source=source, where="key 'fallback'")
         fallback = _fallback(data["fallback"], source, len(joints), directory)
+    uncertainty = None if "uncertainty" not in data else _covariance(data["uncertainty"], source)
     robot = Robot(conv, geom, limits, joint_names=tuple(nm or f"joint{i + 1}" for i, nm in enumerate(names))
                   if any(names) else None, base=base, tool=tool, targets=targets, name=name or default_name,
-                  source=source, terms=terms, residual=residual, region=region)
+                  source=source, terms=terms, residual=residual, region=region, uncertainty=uncertainty)
     return robot if fallback is None else robot.with_fallback(fallback)
+
+
+def _covariance(table, source: str) -> ParameterCovariance:
+    """[uncertainty]: the identified parameters' names and their covariance (mm, rad, term units)."""
+    where = "[uncertainty]"
+    if not isinstance(table, dict) or set(table) != {"parameters", "covariance"}:
+        raise InputError("expected an [uncertainty] table with parameters and covariance", source=source, where=where)
+    names = table["parameters"]
+    if not isinstance(names, list) or not all(isinstance(n, str) and n for n in names) or len(set(names)) != len(names):
+        raise InputError("parameters must be a list of distinct names", source=source, where=f"{where} parameters")
+    try:
+        C = np.array(table["covariance"], dtype=float)
+    except (TypeError, ValueError):
+        C = np.zeros(0)
+    k = len(names)
+    if C.shape != (k, k) or not np.all(np.isfinite(C)):
+        raise InputError(f"covariance must be a {k}×{k} matrix of numbers (one row per parameter)", source=source,
+                         where=f"{where} covariance")
+    if np.any(np.diag(C) < 0) or not np.allclose(C, C.T, rtol=1e-6, atol=1e-30):
+        raise InputError("covariance must be symmetric with variances ≥ 0", source=source, where=f"{where} covariance")
+    return ParameterCovariance(tuple(names), C)
 
 
 def _deg(x_rad: float) -> str:
@@ -545,7 +568,17 @@ def robot_to_toml(robot: Robot, comment: str | None = None, residual_file: str |
     for name, T in robot.targets.items():
         lines += _frame_text(f"[targets.{_quote(name)}]", T) + [""]
     lines += _region_lines(robot)
+    lines += _uncertainty_lines(robot)
     return "\n".join(lines)
+
+
+def _uncertainty_lines(robot: Robot) -> list[str]:
+    u = robot.uncertainty
+    if u is None:
+        return []
+    rows = ",\n  ".join(_list(r, lambda v: repr(float(v))) for r in u.matrix)
+    return ["[uncertainty]  # covariance of the identified parameters (mm, rad; joint terms in their own units)",
+            f"parameters = [{', '.join(_quote(n) for n in u.names)}]", f"covariance = [\n  {rows},\n]", ""]
 
 
 def save_robot(robot: Robot, path: str | Path, comment: str | None = None) -> list[Path]:

@@ -8,6 +8,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..math.se3 import homogeneous
+from .covariance import ParameterCovariance
 from .dh import ALPHA, BETA, THETA, A, D
 from .kinematics import chain_pose, check_convention, geometry_width, prismatic_mask
 from .kinematics import reach as chain_reach
@@ -34,6 +35,8 @@ class Robot:
     relative to the robot's (base: inv(B)·B_fallback; tools: T_fallback·inv(T), per reflector), so
     that when the robot is measured from elsewhere or given another tool its fallback moves with
     it: attach one with :meth:`with_fallback`, read it whole with :attr:`fallback_robot`.
+    uncertainty: the covariance of the parameters its calibration identified
+    (:mod:`robocal.model.uncertainty`), for the uncertainty of its predictions.
     """
 
     convention: str
@@ -50,6 +53,7 @@ class Robot:
     urdf: object | None = field(default=None, repr=False)
     region: Region | None = None
     fallback: Robot | None = field(default=None, repr=False)
+    uncertainty: ParameterCovariance | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
         check_convention(self.convention)

@@ -100,9 +100,9 @@ def error_distribution(errors: dict[str, np.ndarray], title: str):
     return fig
 
 
-def workspace_errors(points: np.ndarray, errors: np.ndarray, title: str):
-    """Where in the workspace the error is: the measured points (mm) projected on XY, XZ and YZ,
-    coloured by |δp| (mm)."""
+def workspace_errors(points: np.ndarray, errors: np.ndarray, title: str, label: str = "|δp| (mm)"):
+    """Where in the workspace the error is: the points (mm) projected on XY, XZ and YZ, coloured
+    by a value per point (|δp| mm, or another ``label``)."""
     from matplotlib.figure import Figure
     from matplotlib.ticker import MaxNLocator
 
@@ -117,7 +117,7 @@ def workspace_errors(points: np.ndarray, errors: np.ndarray, title: str):
         ax.xaxis.set_major_locator(MaxNLocator(5))
         ax.yaxis.set_major_locator(MaxNLocator(5))
         ax.grid(True, alpha=0.3)
-    fig.colorbar(sc, ax=list(axes), label="|δp| (mm)", shrink=0.9)
+    fig.colorbar(sc, ax=list(axes), label=label, shrink=0.9)
     fig.suptitle(title)
     return fig
 

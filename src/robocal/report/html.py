@@ -72,6 +72,27 @@ def _norms(robot, meas) -> np.ndarray:
     return np.linalg.norm(dp, axis=1)
 
 
+def _uncertainty_map(result: CalibrationResult) -> list[str]:
+    m = result.tcp_uncertainty
+    if m is None:
+        return []
+    s = m.summary()
+    return [f"<h2>How well the model knows the TCP</h2><p>The predicted position's standard uncertainty (1σ, rms "
+            f"radius) from the parameter covariance, at {s['points']} joint sets drawn over the joint ranges the "
+            f"model was calibrated on, in any combination: median {s['median_mm']:.4f} mm, 95 % below "
+            f"{s['p95_mm']:.4f} mm, largest {s['max_mm']:.4f} mm"
+            + (f"; at the calibration poses themselves median {s['at_calibration_poses']['median_mm']:.4f} mm, "
+               f"largest {s['at_calibration_poses']['max_mm']:.4f} mm" if "at_calibration_poses" in s else "")
+            + ". Combinations of joint angles the poses never took lie among them: there the model "
+            "extrapolates, and the map shows it. It is the calibration's own uncertainty (how well these poses "
+            "determine the parameters), not the robot's error; where it is large, more poses there would pin the "
+            "model down. "
+            + ("A residual correction's own uncertainty is not counted. " if result.robot.residual is not None
+               else "") + "<code>robocal evaluate --uncertainty</code> gives it per pose.</p>",
+            _img(figures.workspace_errors(m.position, m.sigma, "predicted TCP position uncertainty",
+                                          "σ of the predicted position (mm)"))]
+
+
 def _error_figures(result: CalibrationResult) -> list[str]:
     meas, val = result.measurements, result.validation
     if meas is None:
@@ -90,6 +111,7 @@ def _error_figures(result: CalibrationResult) -> list[str]:
     parts.append(f"<h2>Where the error is</h2><p>Measured points of the {label} poses in the measuring frame, "
                  "coloured by the calibrated model's position error.</p>")
     parts.append(_img(figures.workspace_errors(where.position, after, f"{label} poses after calibration")))
+    parts += _uncertainty_map(result)
     geometric = result.geometric or (result.robot if result.robot.geometric else None)
     others = {}
     what = "the geometric calibration"

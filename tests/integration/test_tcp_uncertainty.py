@@ -1,0 +1,70 @@
+"""The predicted TCP position's uncertainty (MODEL §8) against the spread of the predictions
+over many noise draws of a truth planted by the independent simulator (tests/independent.py)."""
+
+from __future__ import annotations
+
+import json
+import warnings
+
+import independent as ind
+import numpy as np
+import pytest
+
+from robocal.calibration import calibrate
+from robocal.io.robotfile import load_robot, save_robot
+from robocal.model.measurements import Measurements
+from robocal.model.uncertainty import point_sigma
+
+DEVIATIONS = {"a2": 0.3, "d4": -0.2, "theta3": 0.002, "alpha2": -0.001, "a3": 0.15}
+NOISE = 0.05
+
+
+def _fit(seed: int, n: int = 50):
+    c = ind.campaign("kr5-arc", DEVIATIONS, n, np.random.default_rng(seed), noise=NOISE, measure="position")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return calibrate("kr5-arc", Measurements(q=c["q"], position=c["position"]), "lm", frames="none",
+                         noise=NOISE)
+
+
+@pytest.mark.slow
+def test_predicted_uncertainty_matches_the_spread_of_predictions_over_draws():
+    rng = np.random.default_rng(0)
+    lim = np.radians(ind.LIMITS_DEG["kr5-arc"])
+    q_test = rng.uniform(lim[:, 0], lim[:, 1], (12, 6))
+    g = ind.geometry("kr5-arc", DEVIATIONS)
+    truth = np.array([ind.pose(g, q)[:3, 3] for q in q_test])
+    errors, sigmas = [], []
+    for draw in range(60):
+        r = _fit(500 + draw)
+        errors.append(r.robot.positions(q_test) - truth)
+        sigmas.append(point_sigma(r.robot, r.robot.uncertainty, q_test))
+    errors, sigmas = np.array(errors), np.array(sigmas)
+    spread = np.sqrt(np.mean(np.sum(errors**2, axis=2), axis=0))  # rms radius per test pose over the draws
+    predicted = np.sqrt(np.mean(sigmas**2, axis=0))
+    ratio = spread / predicted
+    # 60 draws: the rms of a 3-D error is known to about ±10 %
+    assert np.all((ratio > 0.7) & (ratio < 1.35)), ratio
+    assert 0.85 < np.median(ratio) < 1.15, ratio
+    # and the poses differ: the map is not one number
+    assert predicted.max() > 1.3 * predicted.min()
+
+
+def test_the_covariance_travels_with_the_robot_file_and_evaluate_gives_it_per_pose(tmp_path, run_cli):
+    result = _fit(1, 60)
+    save_robot(result.robot, tmp_path / "cal.toml")
+    robot = load_robot(tmp_path / "cal.toml")
+    assert robot.uncertainty.names == tuple(result.names)
+    assert np.allclose(robot.uncertainty.matrix, result.covariance, rtol=1e-12, atol=0)
+    summary = result.to_dict()["tcp_uncertainty"]
+    assert summary["points"] == 2000 and summary["at_calibration_poses"]["median_mm"] > 0
+    from robocal.io.measurements import save_measurements
+
+    save_measurements(result.measurements.subset(np.arange(8)), tmp_path / "d.csv")
+    code, out, err = run_cli("evaluate", tmp_path / "cal.toml", tmp_path / "d.csv", "--uncertainty", "--json")
+    assert code == 0, err
+    per_pose = json.loads(out)["uncertainty"]["per_pose"]
+    expected = point_sigma(result.robot, result.robot.uncertainty, result.measurements.q[:8])
+    assert [p["sigma_mm"] for p in per_pose] == pytest.approx(expected, rel=1e-6)
+    code, out, err = run_cli("evaluate", "kr5-arc", tmp_path / "d.csv", "--uncertainty")
+    assert code == 2 and "no parameter covariance" in err
