@@ -247,13 +247,16 @@ def w6_auto(repeats: int = 1, data: Path = UR10_DATA, poses: int = 1400) -> list
     for _ in range(repeats):
         geometric.append(median_time(lambda: run("geometric"), 1))
         t = time.perf_counter()
-        chosen = run("auto").model
+        result = run("auto")
         auto.append(time.perf_counter() - t)
+        chosen = result.model
+        tried = [r.model for r in result.model_selection]
     t_auto, t_geo = statistics.median(auto), statistics.median(geometric)
     ratio = statistics.median(a / g for a, g in zip(auto, geometric))
     return [
         Row(f"W6 --model auto, UR10 {meas.n_poses} full poses", t_auto, "s", "≤ 60 s", t_auto <= 60.0,
-            note=f"chose {chosen}; 4 parametric models × 5 folds, 2 residual processes"),
+            note=f"chose {chosen}; {sum('residual' not in m for m in tried)} parametric models × 5 folds, "
+                 f"{sum('residual' in m for m in tried)} residual processes"),
         Row("W6 geometric LM, same poses", t_geo, "s", "—", None),
         Row("W6 time ratio auto / geometric LM", ratio, "×", "—", None, note="median of paired runs"),
     ]

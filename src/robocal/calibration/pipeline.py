@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import warnings
 from collections.abc import Callable, Mapping
+from dataclasses import replace
 from pathlib import Path
 
 from ..backend import blas_threads
@@ -96,18 +97,13 @@ def order_notes(fit, meas: Measurements) -> list[str]:
     return notes
 
 
-def _tcp_map(robot: Robot, meas: Measurements, seed: int | None):
-    """The predicted TCP's σ over the region the model was calibrated on and at its poses (None
-    without a covariance)."""
-    from ..model.uncertainty import point_sigma, uncertainty_map
-
-    if robot.uncertainty is None or robot.region is None:
-        return None
-    parametric = robot.replace(residual=None, fallback=None)
-    known = meas.targets if meas.targets is not None and all(t in robot.target_names for t in meas.targets) else None
-    at_poses = point_sigma(parametric, robot.uncertainty, meas.q, known, meas.inputs)
-    return uncertainty_map(parametric, robot.uncertainty, robot.region.lo, robot.region.hi, seed=seed or 0,
-                           at_poses=at_poses)
+def _validated(table, chosen: str, metrics) -> list:
+    """The ladder, with the chosen model's validation RMS as the calibrated model gives it (with
+    its region and fallback), the figure the error budget and the metrics show."""
+    if "validation_after" not in metrics:
+        return table
+    rms = metrics["validation_after"].position["rms"]
+    return [replace(r, validation_rms_mm=rms) if r.model == chosen else r for r in table]
 
 
 def _calibrate(robot, data, validate, cfg: CalibrationConfig, columns, progress, stages) -> CalibrationResult:
@@ -141,7 +137,7 @@ def _calibrate(robot, data, validate, cfg: CalibrationConfig, columns, progress,
         warnings=notes, measurements=est.problem.meas,
         validation=inputs.validation, outliers=fit.screening.outliers, reexpression_gap_mm=est.reexpression_gap_mm,
         noise=fit.noise, goodness_of_fit=fit.goodness, covariance=fit.covariance, frames=inputs.frames,
-        model=chosen.name, model_selection=chosen.table, error_budget=budget,
+        model=chosen.name, model_selection=_validated(chosen.table, chosen.name, metrics), error_budget=budget,
         geometric=None if chosen.geometric is None or chosen.geometric is fit else chosen.geometric.robot,
-        instrument=fit.instrument, tcp_uncertainty=_tcp_map(calibrated, est.problem.meas, cfg.seed),
+        instrument=fit.instrument,
     )

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import math
 from dataclasses import dataclass, field
+from functools import cached_property
 from pathlib import Path
 
 import numpy as np
@@ -17,7 +18,7 @@ from ..model.metrics import Metrics
 from ..model.parameters import is_frame, unit
 from ..model.robot import Robot
 from ..model.terms import reported_unit
-from ..model.uncertainty import UncertaintyMap
+from ..model.uncertainty import UncertaintyMap, tcp_map
 from ..optimize.result import OptimizeResult
 from .config import CalibrationConfig
 from .diagnostics import GoodnessOfFit
@@ -44,15 +45,19 @@ SIGNIFICANCE_SIGMAS = 2.0
 @dataclass(frozen=True)
 class LadderRow:
     """One rung of ``--model auto``: its cross-validated position RMS (mm), its parameter count,
-    and for a residual process the points it is conditioned on."""
+    for a residual process the points it is conditioned on, and with validation data its
+    position RMS there (mm; a residual process's only for the one chosen, the one fitted)."""
 
     model: str
     cv_rms_mm: float
     n_params: int
     residual_points: int | None = None
+    validation_rms_mm: float | None = None
 
     def to_dict(self) -> dict:
         out = {"model": self.model, "cv_rms_mm": self.cv_rms_mm, "n_params": self.n_params}
+        if self.validation_rms_mm is not None:
+            out["validation_rms_mm"] = self.validation_rms_mm
         return out if self.residual_points is None else {**out, "residual_points": self.residual_points}
 
 
@@ -111,7 +116,14 @@ class CalibrationResult:
     error_budget: list[BudgetRow] = field(default_factory=list)
     geometric: Robot | None = field(default=None, repr=False)
     instrument: InstrumentFit | None = None
-    tcp_uncertainty: UncertaintyMap | None = field(default=None, repr=False)
+
+    @cached_property
+    def tcp_uncertainty(self) -> UncertaintyMap | None:
+        """The predicted TCP's σ over the calibrated region and at the calibration poses
+        (:func:`robocal.model.uncertainty.tcp_map`), worked out when first asked for."""
+        if self.measurements is None:
+            return None
+        return tcp_map(self.robot, self.measurements, self.config.seed)
 
     @property
     def method(self) -> str:

@@ -97,6 +97,11 @@ class Chosen:
             rms = Metrics.of(robot, validation).position["rms"]
             rows.append(BudgetRow(label, rms, None if last is None else last - rms))
             last = rms
+        sigma = validation.sigma_position if validation.sigma_position is not None else \
+            self.fit.setup.meas.sigma_position
+        if sigma is not None:  # the floor: what the instrument's own noise alone would show
+            rows.append(BudgetRow("the instrument's own noise (floor)", float(np.sqrt(np.mean(np.sum(sigma**2, 1)))),
+                                  None))
         return rows
 
 
@@ -343,9 +348,17 @@ def fit_model(inputs: Inputs, config: CalibrationConfig, progress=None, stages=N
             candidates.append(Candidate(c.terms, True, c.fit, errors, kernels))
             start = kernels
     chosen = choose(candidates, groups)
-    rows = [LadderRow(c.name, c.cv_rms, c.fit.n_params, int(min(len(c.errors), MAX_POINTS)) if c.residual else None)
-            for c in candidates]
     residual = residual_on_all(chosen.fit, config.seed, chosen.kernels) if chosen.residual else None
+
+    def on_validation(c: Candidate) -> float | None:
+        """What each candidate does on the validation poses, beside what cross-validation said."""
+        if inputs.validation is None or (c.residual and c is not chosen):
+            return None
+        robot = c.fit.robot.replace(residual=residual if c.residual else None)
+        return float(Metrics.of(robot, inputs.validation).position["rms"])
+
+    rows = [LadderRow(c.name, c.cv_rms, c.fit.n_params, int(min(len(c.errors), MAX_POINTS)) if c.residual else None,
+                      on_validation(c)) for c in candidates]
     notes = [f"model auto: {chosen.name} (cross-validated position RMS {chosen.cv_rms:.4g} mm; geometric "
              f"{candidates[0].cv_rms:.4g} mm; a richer model is kept only if it predicts held-out poses "
              f"better, paired test p < {SIGNIFICANCE:g})"]

@@ -31,6 +31,7 @@ def _print_summary(result, robot_name: str, data: Path) -> None:
         PARAMETER_COLUMNS,
         budget_rows,
         frame_rows,
+        ladder_columns,
         ladder_rows,
         noise_line,
         parameter_rows,
@@ -53,8 +54,9 @@ def _print_summary(result, robot_name: str, data: Path) -> None:
     out.print(table("frames", FRAME_COLUMNS, frame_rows(result), "left"))
     if result.model_selection:
         rows = ladder_rows(result)
+        columns = ladder_columns(result)
         out.print(table("model selection: 5-fold cross-validated position RMS (mm) on the calibration poses",
-                        ("model", "cv RMS", "parameters", ""), rows, text_columns=(0, 3)))
+                        columns, rows, text_columns=(0, len(columns) - 1)))
     if result.error_budget:
         rows = budget_rows(result)
         out.print(table("error budget on the validation poses: position RMS (mm)", ("model", "RMS", "removed"),

@@ -76,3 +76,15 @@ def uncertainty_map(robot, covariance: ParameterCovariance, q_low: np.ndarray, q
     q = rng.uniform(np.asarray(q_low, float), np.asarray(q_high, float), (n, len(q_low)))
     p = robot.positions(q)
     return UncertaintyMap(p, point_sigma(robot, covariance, q), at_poses)
+
+
+def tcp_map(robot, meas, seed: int | None = 0) -> UncertaintyMap | None:
+    """The predicted TCP's σ over the region ``robot`` was calibrated on and at its calibration
+    poses ``meas`` (None without a covariance or a region); its parametric part only."""
+    if robot.uncertainty is None or robot.region is None:
+        return None
+    parametric = robot.replace(residual=None, fallback=None)
+    known = meas.targets if meas.targets is not None and all(t in robot.target_names for t in meas.targets) else None
+    at_poses = point_sigma(parametric, robot.uncertainty, meas.q, known, meas.inputs)
+    return uncertainty_map(parametric, robot.uncertainty, robot.region.lo, robot.region.hi, seed=seed or 0,
+                           at_poses=at_poses)

@@ -18,6 +18,7 @@ from .tables import (
     PARAMETER_COLUMNS,
     budget_rows,
     frame_rows,
+    ladder_columns,
     ladder_rows,
     noise_line,
     parameter_rows,
@@ -146,7 +147,9 @@ def _model_tables(result: CalibrationResult) -> list[str]:
         parts += [f"<h2>Model selection</h2><p>Model {html.escape(result.model)}, chosen by 5-fold cross-validation "
                   "on the calibration poses (folds by pose): each model refitted without a fold predicts it. A "
                   "richer model is kept only if it predicts the held-out poses better than a simpler one.</p>",
-                  _table(("model", "cross-validated position RMS (mm)", "parameters", ""), rows)]
+                  _table(tuple({"cv RMS": "cross-validated position RMS (mm)",
+                                "validation RMS": "validation position RMS (mm)"}.get(c, c)
+                               for c in ladder_columns(result)), rows)]
     if result.error_budget:
         rows = budget_rows(result)
         parts += ["<h2>Error budget</h2><p>Position RMS on the validation poses as each part of the model is "

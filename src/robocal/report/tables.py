@@ -122,9 +122,19 @@ def noise_line(result) -> str:
 
 
 def ladder_rows(result: CalibrationResult) -> list[tuple[str, ...]]:
-    """The rungs of ``--model auto`` as table rows: model, cv RMS (mm), parameters, chosen."""
-    return [(r.model, f"{r.cv_rms_mm:.4f}", str(r.n_params), "chosen" if r.model == result.model else "")
-            for r in result.model_selection]
+    """The rungs of ``--model auto`` as table rows: model, cv RMS (mm), parameters, chosen; with
+    validation data, the validation RMS (mm) before the last column."""
+    with_validation = any(r.validation_rms_mm is not None for r in result.model_selection)
+    rows = []
+    for r in result.model_selection:
+        val = () if not with_validation else ("" if r.validation_rms_mm is None else f"{r.validation_rms_mm:.4f}",)
+        rows.append((r.model, f"{r.cv_rms_mm:.4f}", str(r.n_params), *val, "chosen" if r.model == result.model else ""))
+    return rows
+
+
+def ladder_columns(result: CalibrationResult) -> tuple[str, ...]:
+    with_validation = any(r.validation_rms_mm is not None for r in result.model_selection)
+    return ("model", "cv RMS", "parameters", *(("validation RMS",) if with_validation else ()), "")
 
 
 def budget_rows(result: CalibrationResult) -> list[tuple[str, ...]]:
