@@ -313,3 +313,24 @@ def study_boxes(rows: list[dict], study, column: str, ylabel: str):
     ax.set_title(f"{study.name}: {ylabel} over {study.seeds} seeds")
     fig.tight_layout()
     return fig
+
+
+def iso9283_bars(results: list, title: str):
+    """AP_p and RP_l (mm) per pose, one bar per campaign side by side (ISO 9283 pose characteristics)."""
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(10, 3.8), layout="constrained")
+    axes = fig.subplots(1, 2)
+    labels = [p.pose for p in results[0].poses]
+    x = np.arange(len(labels))
+    width = 0.8 / len(results)
+    for ax, key, ylabel in ((axes[0], "AP_p", "pose accuracy AP (mm)"), (axes[1], "RP_l", "repeatability RP (mm)")):
+        for k, r in enumerate(results):
+            values = [getattr(p, key) for p in r.poses]
+            ax.bar(x + (k - (len(results) - 1) / 2) * width, values, width, label=r.name)
+        ax.set_xticks(x, labels)
+        ax.set_ylabel(ylabel)
+        ax.grid(True, axis="y", alpha=0.3)
+    axes[0].legend(fontsize=8)
+    fig.suptitle(title)
+    return fig
