@@ -52,7 +52,7 @@ def _layers() -> dict[str, int]:
             current, cell = int(m.group(1)), m.group(2)
         else:
             cell = m.group(1)
-        for name in re.findall(r"`([a-z_]+)(?:\.py)?`", cell):
+        for name in re.findall(r"`([a-z_][a-z_0-9]*)(?:\.py)?`", cell):
             layers[name] = current
     return layers
 
