@@ -257,6 +257,8 @@ class CalibrationResult:
         if self.model != "geometric":
             comment += f"\nModel {self.model}: every robocal command uses its joint terms and residual model."
         path = Path(path)
+        if path.suffix.lower() in (".yaml", ".yml"):
+            return self._export_ur(path, comment)
         if path.suffix.lower() != ".urdf":
             return save_robot(self.robot, path, comment)
         from ..io.urdf import urdf_text
@@ -268,6 +270,26 @@ class CalibrationResult:
         atomic_write(path, urdf_text(self.robot, comment + "\nLengths in m, angles in rad; measuring_frame carries "
                                                            "the identified base frame, target the tool.",
                                      whole_model=None if whole is None else whole.name))
+        return [path, *written]
+
+
+    def _export_ur(self, path: Path, comment: str) -> list[Path]:
+        """A UR kinematics YAML for a ROS driver (:mod:`robocal.io.ur`), and the whole model
+        (frames, tool, terms) in ``NAME.robocal.toml`` beside it; what the YAML cannot hold is said."""
+        import warnings
+
+        from ..exceptions import RobocalWarning
+        from ..io.robotfile import save_robot
+        from ..io.ur import ur_kinematics_yaml
+
+        text, notes = ur_kinematics_yaml(self.robot)
+        whole = path.with_name(f"{path.stem}.robocal.toml")
+        written = save_robot(self.robot, whole, comment)
+        head = "".join(f"# {line}\n" for line in (comment + "\nLengths in m, angles in rad. The measuring frame and "
+                                                   f"the tool are in {whole.name}.").splitlines())
+        atomic_write(path, head + text)
+        for note in notes:
+            warnings.warn(f"{path}: {note}", RobocalWarning, stacklevel=2)
         return [path, *written]
 
 

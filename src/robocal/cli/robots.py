@@ -2,14 +2,26 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import typer
 
 
 def robots_cmd(
     urdf: str | None = typer.Option(None, "--urdf", metavar="ROBOT",
                                     help="print this robot (built-in name or file) as URDF instead"),
+    from_ur: Path | None = typer.Option(None, "--from-ur", help="read a UR controller's calibration: its kinematics "
+                                        "YAML (as the UR ROS drivers extract it) or its DH deltas (calibration.conf, "
+                                        "with --nominal)"),
+    nominal: str | None = typer.Option(None, "--nominal", help="the nominal standard-DH model DH deltas apply to "
+                                       "(e.g. ur10)"),
+    out: Path | None = typer.Option(None, "--out", help="robot file to write (default: print it)"),
 ) -> None:
-    """List the built-in robots and the published source of each table, or print one as URDF."""
+    """List the built-in robots and the published source of each table, print one as URDF, or
+    read a UR controller's calibration as a robot file."""
+    if from_ur is not None:
+        _from_ur(from_ur, nominal, out)
+        return
     if urdf is not None:
         from ..io.robotfile import load_robot
         from ..io.urdf import urdf_text
@@ -24,6 +36,28 @@ def robots_cmd(
 
     rows = [(r["name"], r["robot"], r["convention"], str(r["joints"]), r["source"]) for r in builtin_summaries()]
     console().print(table("built-in robots", ("name", "robot", "convention", "joints", "source"), rows, "left"))
+
+
+def _from_ur(path: Path, nominal: str | None, out: Path | None) -> None:
+    from ..exceptions import InputError
+    from ..io.atomic import atomic_write, read_text
+    from ..io.robotfile import load_robot, robot_to_toml
+    from ..io.ur import parse_ur_deltas, parse_ur_kinematics
+    from .common import check_outputs
+
+    check_outputs((path,) + ((nominal,) if nominal else ()), out=out)
+    text = read_text(path, "UR calibration file")
+    if path.suffix.lower() in (".yaml", ".yml"):
+        robot = parse_ur_kinematics(text, source=str(path))
+    elif nominal is None:
+        raise InputError("DH deltas are added to a nominal model: name it with --nominal (e.g. ur10)", source=path)
+    else:
+        robot = parse_ur_deltas(text, load_robot(nominal), source=str(path))
+    toml = robot_to_toml(robot, comment=f"{robot.name}, read by robocal from {path}")
+    if out is None:
+        print(toml, end="")
+    else:
+        atomic_write(out, toml)
 
 
 def register(app: typer.Typer) -> None:

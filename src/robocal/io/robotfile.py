@@ -50,8 +50,9 @@ _RADIAN_LOOKALIKES = (math.pi / 2, math.pi, math.pi / 4)
 
 
 def load_robot(spec: str | Path | Robot, *, base_link: str | None = None, tip_link: str | None = None) -> Robot:
-    """A robot from a file path (robot TOML, or URDF: its chain from ``base_link`` to
-    ``tip_link``, see :mod:`robocal.io.urdf`) or a built-in name (see :func:`builtin_names`)."""
+    """A robot from a file path (robot TOML; URDF: its chain from ``base_link`` to
+    ``tip_link``, see :mod:`robocal.io.urdf`; a UR kinematics YAML, see :mod:`robocal.io.ur`)
+    or a built-in name (see :func:`builtin_names`)."""
     if isinstance(spec, Robot):
         return spec
     path = Path(spec)
@@ -68,6 +69,10 @@ def load_robot(spec: str | Path | Robot, *, base_link: str | None = None, tip_li
     for option, value in (("base_link", base_link), ("tip_link", tip_link)):
         if value is not None:
             raise InputError(f"applies to URDF robots only, not {spec}", option=option)
+    if path.suffix.lower() in (".yaml", ".yml"):  # a UR controller's kinematics, as the ROS drivers extract it
+        from .ur import parse_ur_kinematics
+
+        return parse_ur_kinematics(read_text(path, "UR kinematics file"), source=str(path))
     if path.suffix.lower() == ".toml" or path.is_file():  # a folder named like a built-in robot is not a file
         if not path.is_file():
             raise InputError("no such robot file", source=path)
