@@ -11,17 +11,22 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-# Nominal tables (a mm, alpha deg, theta deg, d mm) of Wen et al. Table 1 and of the KR5 arc's public DH
-# table, copied here on purpose.
+# Nominal tables (a mm, alpha deg, theta deg, d mm) of Wen et al. Table 1, of the KR5 arc's, IRB 120's
+# and UR10's public DH tables, copied here on purpose.
 TABLES = {
     "er10l-c10": [(170, -90, 0, 0), (780, 0, -90, 0), (140, -90, 0, 0), (0, 90, 0, 1060), (0, -90, 0, 0),
                   (0, 0, 0, 125)],
     "kr5-arc": [(180, -90, 0, 400), (600, 0, -90, 0), (120, 90, 0, 0), (0, -90, 0, -620), (0, 90, 0, 0),
                 (0, 180, 0, -115)],
+    "irb120": [(0, -90, 0, 290), (270, 0, -90, 0), (70, -90, 0, 0), (0, 90, 0, 302), (0, -90, 0, 0), (0, 0, 180, 72)],
+    "ur10": [(0, 90, 0, 127.3), (-612, 0, 0, 0), (-572.3, 0, 0, 0), (0, 90, 0, 163.941), (0, -90, 0, 115.7),
+             (0, 0, 0, 92.2)],
 }
 LIMITS_DEG = {
     "er10l-c10": [(-180, 180)] * 6,
     "kr5-arc": [(-155, 155), (-180, 65), (-15, 158), (-350, 350), (-130, 130), (-350, 350)],
+    "irb120": [(-165, 165), (-110, 110), (-110, 70), (-160, 160), (-120, 120), (-400, 400)],
+    "ur10": [(-360, 360)] * 6,
 }
 
 
@@ -131,3 +136,38 @@ def measurements(name: str, deviations: dict[str, float], n: int, seed: int, **k
 
     c = campaign(name, deviations, n, np.random.default_rng(seed), **kw)
     return Measurements(q=c["q"], position=c["position"], rotation=c["rotation"])
+
+
+def robot_toml(name: str, deviations: dict[str, float], tool=None) -> str:
+    """A robot file (standard DH, mm and deg) of a table with deviations (mm, rad), written here:
+    how a test hands a planted truth to robocal as a calibrated model.  tool: (x, y, z) mm."""
+    g = geometry(name, deviations)
+    lines = [f'name = "{name} (planted)"', 'convention = "dh"']
+    for i in range(len(g["a"])):
+        lines += ["[[joint]]", f"a = {float(g['a'][i])!r}", f"alpha = {float(np.degrees(g['alpha'][i]))!r}",
+                  f"theta = {float(np.degrees(g['theta'][i]))!r}", f"d = {float(g['d'][i])!r}",
+                  f"limits = [{LIMITS_DEG[name][i][0]}, {LIMITS_DEG[name][i][1]}]"]
+    if tool is not None:
+        lines += ["[tool]", f"xyz = [{tool[0]!r}, {tool[1]!r}, {tool[2]!r}]", "rpy = [0.0, 0.0, 0.0]"]
+    return "\n".join(lines) + "\n"
+
+
+def inverse(g: dict[str, np.ndarray], T_goal: np.ndarray, q0: np.ndarray, tool=np.eye(4), iterations: int = 100):
+    """Joints reaching T_goal from q0 by Gauss–Newton on finite differences of :func:`pose` (rad)."""
+    from scipy.spatial.transform import Rotation as Rot
+
+    q = np.array(q0, float)
+
+    def error(qq):
+        T = pose(g, qq, tool=tool)
+        return np.concatenate([T_goal[:3, 3] - T[:3, 3],
+                               100.0 * Rot.from_matrix(T_goal[:3, :3] @ T[:3, :3].T).as_rotvec()])
+
+    for _ in range(iterations):
+        e = error(q)
+        if np.linalg.norm(e) < 1e-10:
+            break
+        J = np.column_stack([(error(q + h) - e) / 1e-7 for h in np.eye(len(q)) * 1e-7])
+        q = q - np.linalg.lstsq(J, e, rcond=None)[0]
+    return q
+
