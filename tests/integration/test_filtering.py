@@ -120,6 +120,23 @@ def test_an_unreachable_target_is_flagged_and_left_as_it_was(tmp_path, accurate_
     assert "9.000000, 0.000000, 0.500000" in (tmp_path / "f.script").read_text()
 
 
+def test_numbers_outside_the_corrected_targets_are_untouched(accurate_files):
+    from robocal.filtering.program import fields_in
+
+    for program, robot in CASES:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            result = filter_program(accurate_files[robot], PROGRAMS / program, robot)
+        for text, new, first, last in ((result.program.text, result.text, 0, result.program.split),
+                                       (result.program.dat, result.dat, result.program.split, None)):
+            if text is None:
+                continue
+            spans = {f.start for c in result.corrections[first:last] if c.corrected for f in c.target.fields.values()}
+            before, after = fields_in(text), fields_in(new)
+            assert len(before) == len(after)
+            assert all(a.text == b.text for a, b in zip(before, after) if a.start not in spans), program
+
+
 def test_bad_programs_are_input_errors_naming_the_file(tmp_path, accurate_files, run_cli):
     src = tmp_path / "empty.mod"
     src.write_text("MODULE M\nENDMODULE\n")
@@ -128,3 +145,13 @@ def test_bad_programs_are_input_errors_naming_the_file(tmp_path, accurate_files,
     code, _, err = run_cli("filter", accurate_files["irb120"], tmp_path / "x.txt", "--nominal", "irb120",
                            "--out", tmp_path / "o.txt")
     assert code == 2 and "give --format" in err
+    bad = tmp_path / "bad.mod"
+    bad.write_text("MODULE M\n  CONST robtarget p1:=[[1,2,3],[1,0,0,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\n"
+                   "  CONST robtarget p2:=[[1,2,x],[1,0,0,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\nENDMODULE\n")
+    code, _, err = run_cli("filter", accurate_files["irb120"], bad, "--nominal", "irb120", "--out", tmp_path / "o.mod")
+    assert code == 2 and "bad.mod: line 3: robtarget p2" in err
+    src = tmp_path / "bad.src"
+    src.write_text("DEF bad()\nDECL E6POS P1={X 1.0,Y 2.0,Z ,A 0,B 0,C 0}\nPTP P1\nEND\n")
+    code, _, err = run_cli("filter", accurate_files["kr5-arc"], src, "--nominal", "kr5-arc",
+                           "--out", tmp_path / "o.src")
+    assert code == 2 and "line 2" in err and "no number for Z" in err

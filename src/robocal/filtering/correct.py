@@ -169,6 +169,9 @@ def filter_targets(program: Program, nominal: Robot, accurate: Robot, tool: np.n
             out[i] = c(program.targets[i], base)
     corrections = [out[i] for i in range(len(program.targets))]
     _round_trip(nominal, accurate, tcp, corrections, base)
+    if tool is None:  # compensation speaks of a --tool; here the TCP came from the program or the robot file
+        whose = "the program's tool" if program.tool is not None else "the nominal model's tool"
+        notes = [n.replace("the --tool given", whose) for n in notes]
     return corrections, notes
 
 

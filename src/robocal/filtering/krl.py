@@ -63,10 +63,15 @@ def parse_krl(text: str, source: str, targets: list[Target], notes: list[str]) -
             items = _items(m.group(1), body_offset)
             is_pose = all(k in items for k in POSE_KEYS)
             is_joints = all(k in items for k in JOINT_KEYS)
-            if not (is_pose or is_joints):
-                continue
             decl, motion, assign = _DECL.search(before), _MOTION.search(before), _ASSIGN.search(before)
             line = line_of(text, start + m.start())
+            if not (is_pose or is_joints):
+                if decl and decl.group(1).upper() != "FRAME":
+                    keys = JOINT_KEYS if "AXIS" in decl.group(1).upper() else POSE_KEYS
+                    missing = [k for k in keys if k not in items]
+                    raise InputError(f"{decl.group(1)} {decl.group(2)}: no number for {', '.join(missing)}",
+                                     source=source, where=f"line {line}")
+                continue
             if assign and not decl:
                 target = assign.group(1).upper()
                 if target.startswith(("$TOOL", "TOOL_DATA")) and is_pose:

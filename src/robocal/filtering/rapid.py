@@ -92,6 +92,12 @@ def load_rapid(text: str, source: str) -> Program:
         name = decl.group(2) if decl and decl.group(1).lower() == "jointtarget" else f"line {line}"
         targets.append(Target(name, line, "joints", items, q=np.radians([items[f"q{i + 1}"].value for i in range(6)])))
     targets.sort(key=lambda t: min(x.start for x in t.fields.values()))
+    read = {t.name for t in targets}
+    for m in re.finditer(r"\b(robtarget|jointtarget)\s+(\w+)\s*:=", code, re.I):
+        if m.group(2) not in read:
+            raise InputError(f"{m.group(1)} {m.group(2)}: its value is not [[x,y,z],[q1,q2,q3,q4],[cf1,cf4,cf6,cfx],"
+                             "[eax…]] (robtarget) or [[j1,…,j6],[eax…]] (jointtarget) of numbers", source=source,
+                             where=f"line {line_of(text, m.start())}")
     if not targets:
         raise InputError("no targets found (robtarget or jointtarget data)", source=source)
     tools = {m.group(1): _frame(m.group(2), m.group(3)) for m in _TOOL.finditer(code)}
