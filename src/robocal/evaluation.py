@@ -51,7 +51,8 @@ class Evaluation:
 
 def evaluate(robot: str | Path | Robot, data: str | Path | Measurements, *, columns: Mapping[str, str] | None = None,
              frames: str = "none", joint_unit: str | None = None, length_unit: str | None = None,
-             payload: float | None = None, uncertainty: bool = False) -> Evaluation:
+             payload: float | None = None, uncertainty: bool = False, delimiter: str = ",", decimal: str = ".",
+             euler: str = "xyz") -> Evaluation:
     """Error metrics of ``robot`` (file, built-in name or Robot) on ``data`` (file or Measurements).
 
     frames: ``none`` evaluates the model as it is (a calibrated model carries its frames);
@@ -72,6 +73,7 @@ def evaluate(robot: str | Path | Robot, data: str | Path | Measurements, *, colu
                          "with calibrate --export", source=r.source or r.name, option="uncertainty")
     meas = data if isinstance(data, Measurements) else load_measurements(
         data, n_joints=r.n_joints, columns=columns, joint_unit=joint_unit, length_unit=length_unit,
+        delimiter=delimiter, decimal=decimal, euler=euler,
         robot_label=r.source, prismatic=tuple(map(bool, r.prismatic)) if r.prismatic.any() else None)
     if length_unit is None:
         check_units(r, meas, frames)

@@ -100,7 +100,7 @@ class CalibrationConfig:
     by its own typed settings, which the calibration reads: :attr:`noise_model` (noise,
     angle_noise, k), :attr:`swarm_settings` (particles, iterations, box, halton, swarm,
     backend), :attr:`model_settings` (model, harmonics, payload) and :attr:`read_settings`
-    (joint_unit, length_unit); method, frames, params, seed, objective, loss and f_scale,
+    (joint_unit, length_unit, delimiter, decimal, euler); method, frames, params, seed, objective, loss and f_scale,
     max_evaluations and use_orientation are its own.
 
     noise / angle_noise: the measuring device's standard deviation per axis, position (mm)
@@ -155,6 +155,9 @@ class CalibrationConfig:
     harmonics: int = 2
     payload: float | None = None
     instrument: str | None = None
+    delimiter: str = ","
+    decimal: str = "."
+    euler: str = "xyz"
 
     def __post_init__(self) -> None:
         set_ = object.__setattr__
@@ -182,7 +185,7 @@ class CalibrationConfig:
         for name in ("particles", "iterations", "box"):
             set_(self, name, getattr(swarm, name))
         set_(self, "swarm", swarm.overrides)
-        ReadOptions(joint_unit=self.joint_unit, length_unit=self.length_unit)  # checks both
+        _ = self.read_settings  # checks the file-reading options
         model = ModelSettings(self.model, self.harmonics, self.payload)
         set_(self, "model", model.name)
         set_(self, "harmonics", model.harmonics)
@@ -195,7 +198,8 @@ class CalibrationConfig:
         """How to read data files for ``robot``: the keywords of the measurement loaders."""
         slide = tuple(bool(p) for p in robot.prismatic)
         return asdict(ReadOptions(n_joints=robot.n_joints, columns=columns, joint_unit=self.joint_unit,
-                                  length_unit=self.length_unit, robot_label=robot.source,
+                                  length_unit=self.length_unit, robot_label=robot.source, delimiter=self.delimiter,
+                                  decimal=self.decimal, euler=self.euler,
                                   prismatic=slide if any(slide) else None))
 
     @classmethod
@@ -230,7 +234,8 @@ class CalibrationConfig:
     def read_settings(self) -> ReadOptions:
         """How data files are read: their joint and length units (the robot's part comes with
         :meth:`read_options`)."""
-        return ReadOptions(joint_unit=self.joint_unit, length_unit=self.length_unit)
+        return ReadOptions(joint_unit=self.joint_unit, length_unit=self.length_unit, delimiter=self.delimiter,
+                           decimal=self.decimal, euler=self.euler)
 
     @property
     def spec(self) -> Method:

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import typer
 
-from .common import base_link_option, tip_link_option
+from .common import base_link_option, decimal_option, delimiter_option, euler_option, tip_link_option
 
 
 def timing_line(timings: dict) -> str:
@@ -19,7 +19,7 @@ def timing_line(timings: dict) -> str:
 #: the config's fields an option of the same name sets (angle_noise in degrees here, rad there)
 CONFIG_FIELDS = ("method", "frames", "params", "seed", "objective", "noise", "angle_noise", "k", "loss", "f_scale",
                  "particles", "iterations", "box", "halton", "backend", "model", "harmonics", "payload", "joint_unit",
-                 "length_unit", "instrument")
+                 "length_unit", "instrument", "delimiter", "decimal", "euler")
 #: the command's own options: its inputs and outputs, how to read them, and what it prints
 CLI_ONLY = ("robot", "data", "validate", "out", "export", "report", "column", "base_link", "tip_link", "quiet",
             "position_only")
@@ -109,6 +109,9 @@ def calibrate_cmd(
     column: list[str] | None = typer.Option(None, "--column", help="map file columns: FILE=ROBOCAL[,FILE=ROBOCAL…]"),
     joint_unit: str | None = typer.Option(None, "--joint-unit", help="deg | rad (default: deg, checked)"),
     length_unit: str | None = typer.Option(None, "--length-unit", help="mm | m (default: mm, checked)"),
+    delimiter: str = delimiter_option(),
+    decimal: str = decimal_option(),
+    euler: str = euler_option(),
     base_link: str | None = base_link_option(),
     tip_link: str | None = tip_link_option(),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="no table, no progress bar"),

@@ -104,6 +104,25 @@ def say_on_stderr(quiet: bool):
     return lambda message: err.print(f"[dim]{message}[/dim]")
 
 
+def delimiter_option():
+    import typer
+
+    return typer.Option(",", "--delimiter", help="cell separator of data files: , | ; | tab | space")
+
+
+def decimal_option():
+    import typer
+
+    return typer.Option(".", "--decimal", help="decimal mark of data files: . | , (with --delimiter ';')")
+
+
+def euler_option():
+    import typer
+
+    return typer.Option("xyz", "--euler", help="sequence of the rx, ry, rz angles, scipy's notation: upper case "
+                        "intrinsic (XYZ), lower case extrinsic (xyz, robocal's own: R = Rz Ry Rx)")
+
+
 def base_link_option():
     import typer
 

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import typer
 
-from .common import base_link_option, tip_link_option
+from .common import base_link_option, decimal_option, delimiter_option, euler_option, tip_link_option
 
 
 def evaluate_cmd(
@@ -19,6 +19,9 @@ def evaluate_cmd(
     column: list[str] | None = typer.Option(None, "--column", help="map file columns: FILE=ROBOCAL[,FILE=ROBOCAL…]"),
     joint_unit: str | None = typer.Option(None, "--joint-unit", help="deg | rad (default: deg, checked)"),
     length_unit: str | None = typer.Option(None, "--length-unit", help="mm | m (default: mm)"),
+    delimiter: str = delimiter_option(),
+    decimal: str = decimal_option(),
+    euler: str = euler_option(),
     payload: float | None = typer.Option(None, "--payload", help="payload mass, kg, for data without a payload "
                                          "column"),
     uncertainty: bool = typer.Option(False, "--uncertainty", help="also each pose's predicted position uncertainty "
@@ -32,7 +35,8 @@ def evaluate_cmd(
     from .common import console, load, metrics_table, print_warnings
 
     ev = evaluate(load(robot, base_link, tip_link), data, columns=opt.column_map(column), frames=frames,
-                  joint_unit=joint_unit, length_unit=length_unit, payload=payload, uncertainty=uncertainty)
+                  joint_unit=joint_unit, length_unit=length_unit, payload=payload, uncertainty=uncertainty,
+                  delimiter=delimiter, decimal=decimal, euler=euler)
     print_warnings(ev.notes)
     if as_json:
         print(json.dumps(ev.to_dict(), indent=2))

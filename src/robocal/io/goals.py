@@ -16,9 +16,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..math.so3 import rpy_to_matrix
 from .atomic import read_text
-from .measurements import ReadOptions, joints_from_file, read_pose_table
+from .measurements import ReadOptions, euler_rotation, joints_from_file, read_pose_table
 
 
 @dataclass
@@ -49,7 +48,7 @@ def parse_goals(text: str, *, source: str = "<goals>", **options) -> Goals:
     return Goals(
         q=None if t.q is None else joints_from_file(t.q, read.prismatic),
         position=t.position,
-        rotation=None if t.rpy is None else rpy_to_matrix(np.radians(t.rpy)),
+        rotation=None if t.rpy is None else euler_rotation(t.rpy, read.euler),
         ids=list(ids),
         source=source,
         torques=t.torques,

@@ -25,7 +25,7 @@ from ..exceptions import InputError
 from ..math.so3 import matrix_to_rpy, project_to_so3, rpy_to_matrix
 from ..model.measurements import Measurements
 from .atomic import atomic_write, read_text
-from .table import CsvTable, numbers, read_csv, strings
+from .table import DECIMALS, DELIMITERS, CsvTable, numbers, read_csv, strings
 
 POSITION = ("x", "y", "z")
 ORIENTATION = ("rx", "ry", "rz")
@@ -149,7 +149,12 @@ class ReadOptions:
     joint_unit / length_unit: ``deg``/``rad`` and ``mm``/``m`` as the file has them; None
     means robocal's degrees and millimetres, with a check that rejects joints that all look
     like radians.  prismatic: per joint, True where it slides: its column holds a length (mm,
-    or the length unit), not an angle.
+    or the length unit), not an angle.  delimiter (``,``, ``;``, ``tab``, ``space``) and
+    decimal (``.``, ``,``): how the file writes its cells.  euler: the sequence of the
+    orientation angles rx, ry, rz in scipy's notation (upper case intrinsic, ``XYZ``: about x,
+    then the new y, then the new z; lower case extrinsic); default robocal's own, ``xyz``
+    (R = Rz(rz) Ry(ry) Rx(rx)).  With a column mapping, columns robocal does not use are
+    ignored (and listed in a note); without one an unknown column is an error (it catches typos).
     """
 
     n_joints: int | None = None
@@ -158,12 +163,51 @@ class ReadOptions:
     length_unit: str | None = None
     robot_label: str = ""
     prismatic: tuple[bool, ...] | None = None
+    delimiter: str = ","
+    decimal: str = "."
+    euler: str = "xyz"
 
     def __post_init__(self) -> None:
         if self.joint_unit is not None:
             opt.choice(self.joint_unit, JOINT_UNITS, "joint_unit", "joint unit")
         if self.length_unit is not None:
             opt.choice(self.length_unit, LENGTH_UNITS, "length_unit", "length unit")
+        opt.choice(self.delimiter, tuple(DELIMITERS), "delimiter", "cell separator")
+        opt.choice(self.decimal, DECIMALS, "decimal", "decimal mark")
+        if not (isinstance(self.euler, str) and re.fullmatch(r"[XYZ]{3}|[xyz]{3}", self.euler)
+                and all(self.euler[i] != self.euler[i + 1] for i in range(2))):
+            raise InputError(f"expected three axes, upper case intrinsic (XYZ, ZYX, ZYZ, …) or lower case extrinsic "
+                             f"(xyz, …), no axis twice in a row; got {self.euler!r}", option="euler")
+
+
+def euler_rotation(angles_deg: np.ndarray, sequence: str = "xyz") -> np.ndarray:
+    """Rotations (m, 3, 3) of the angles rx, ry, rz (deg) in an Euler sequence (scipy's notation)."""
+    if sequence == "xyz":  # robocal's own rpy, exactly as everywhere else
+        return rpy_to_matrix(np.radians(angles_deg))
+    from scipy.spatial.transform import Rotation
+
+    return Rotation.from_euler(sequence, angles_deg, degrees=True).as_matrix()
+
+
+def euler_sigma(angles_deg: np.ndarray, sigma_deg: np.ndarray, sequence: str, step: float = 1e-4) -> np.ndarray:
+    """σ (m, 3) deg of an orientation as a rotation vector about the measuring frame's axes, from
+    the σ of its Euler angles: δω = E δφ, E's columns the rotation vectors of a small change
+    of each angle, Σ_ω = E diag(σ²) Eᵀ, taken per axis."""
+    from scipy.spatial.transform import Rotation
+
+    R0 = Rotation.from_euler(sequence, angles_deg, degrees=True)
+    E = np.stack([(Rotation.from_euler(sequence, angles_deg + step * np.eye(3)[k], degrees=True) * R0.inv()).as_rotvec()
+                  / np.radians(step) for k in range(3)], axis=-1)
+    return np.sqrt(np.einsum("mik,mk,mik->mi", E, np.asarray(sigma_deg, float) ** 2, E))
+
+
+def _without(table: CsvTable, drop: list[str]) -> CsvTable:
+    """The table without the columns ``drop`` (kept in ``ignored``, for the note that lists them)."""
+    from dataclasses import replace as _replace
+
+    keep = [i for i, h in enumerate(table.header) if h not in drop]
+    return _replace(table, header=tuple(table.header[i] for i in keep),
+                    rows=tuple(tuple(r[i] for i in keep) for r in table.rows), ignored=tuple(drop))
 
 
 def read_pose_table(text: str, *, source: str, options: ReadOptions = ReadOptions(), require_joints: bool = True,
@@ -173,8 +217,18 @@ def read_pose_table(text: str, *, source: str, options: ReadOptions = ReadOption
     Joints come back in degrees (prismatic ones in mm) and lengths in mm, whatever units the
     options state.
     """
-    table = read_csv(text, source=source, columns=options.columns)
+    table = read_csv(text, source=source, columns=options.columns, delimiter=options.delimiter,
+                     decimal=options.decimal)
     known = set(POSITION) | set(ORIENTATION) | set(OPTIONAL) | set(POSITION_SIGMA) | set(ORIENTATION_SIGMA)
+    unused = [h for h in table.header if h not in known and not any(p.match(h) for p in (_JOINT, _TORQUE, _DIRECTION))]
+    if unused and options.columns:  # a mapped export: what it does not map is not robocal's
+        import warnings
+
+        from ..exceptions import RobocalWarning
+
+        table = _without(table, unused)
+        warnings.warn(f"{source}: {len(unused)} column(s) not used by robocal were ignored: {', '.join(unused)}",
+                      RobocalWarning, stacklevel=2)
     for h in table.header:
         if h not in known and not any(p.match(h) for p in (_JOINT, _TORQUE, _DIRECTION)):
             raise InputError(f"unknown column '{h}' (expected q1..qn, x, y, z, optional rx, ry, rz, pose_id, "
@@ -267,7 +321,7 @@ def parse_measurements(text: str, *, source: str = "<data>", average: bool = Tru
     meas = Measurements(
         q=q,
         position=t.position,
-        rotation=None if t.rpy is None else rpy_to_matrix(np.radians(t.rpy)),
+        rotation=None if t.rpy is None else euler_rotation(t.rpy, read.euler),
         targets=None if t.targets is None else tuple(t.targets),
         pose_ids=None if t.pose_ids is None else tuple(t.pose_ids),
         rows=t.rows,
@@ -280,7 +334,9 @@ def parse_measurements(text: str, *, source: str = "<data>", average: bool = Tru
         temperature=t.temperature,
         order=order,
         sigma_position=t.sigma_position,
-        sigma_orientation=None if t.sigma_orientation is None else np.radians(t.sigma_orientation),
+        sigma_orientation=None if t.sigma_orientation is None else np.radians(
+            t.sigma_orientation if read.euler == "xyz" or t.rpy is None else
+            euler_sigma(t.rpy, t.sigma_orientation, read.euler)),
         sigma_source=f"the sx..{'srz' if t.sigma_orientation is not None else 'sz'} columns of {source}"
         if t.sigma_position is not None or t.sigma_orientation is not None else "",
     )

@@ -29,6 +29,8 @@ class CsvTable:
     lines: np.ndarray
     header_line: int
     source: str
+    #: columns of the file left out (not robocal's, in a mapped export)
+    ignored: tuple[str, ...] = ()
 
     @property
     def index(self) -> dict[str, int]:
@@ -51,14 +53,25 @@ def _looks_numeric(text: str) -> bool:
         return False
 
 
-def read_csv(text: str, *, source: str, columns: Mapping[str, str] | None = None) -> CsvTable:
+#: cell separators a file may use, by the name an option gives them
+DELIMITERS = {",": ",", ";": ";", "tab": "\t", "\t": "\t", "space": " "}
+DECIMALS = (".", ",")
+
+
+def read_csv(text: str, *, source: str, columns: Mapping[str, str] | None = None, delimiter: str = ",",
+             decimal: str = ".") -> CsvTable:
     """Parse CSV text with a header row; blank lines are skipped, a byte-order mark ignored.
 
-    columns maps file column names to robocal's (``{"A1": "q1"}``).
+    columns maps file column names to robocal's (``{"A1": "q1"}``).  delimiter: ``,`` (the
+    default), ``;``, ``tab`` or ``space``; decimal: ``.`` or ``,`` (a decimal comma needs another
+    delimiter), as spreadsheets and tracker software export.
     """
     if not text.strip():
         raise InputError("file is empty", source=source)
-    reader = csv.reader(io.StringIO(text.lstrip("\ufeff")))
+    sep = DELIMITERS[delimiter]
+    if decimal == "," and sep == ",":
+        raise InputError("decimal commas need another cell separator (--delimiter ';')", option="decimal")
+    reader = csv.reader(io.StringIO(text.lstrip("\ufeff")), delimiter=sep, skipinitialspace=sep == " ")
     try:
         rows = [(reader.line_num, r) for r in reader]
     except csv.Error as exc:
@@ -68,9 +81,10 @@ def read_csv(text: str, *, source: str, columns: Mapping[str, str] | None = None
         raise InputError("file has no header row (only empty cells)", source=source)
     header_line, raw = rows[0]
     header = [h.strip() for h in raw]
-    if len(header) == 1 and (";" in header[0] or "\t" in header[0]):
-        sep = ";" if ";" in header[0] else "tab"
-        raise InputError(f"header is separated by {sep}; robocal reads comma-separated files",
+    if len(header) == 1 and any(c in header[0] for c in (";", "\t", ",")):
+        found = ";" if ";" in header[0] else ("tab" if "\t" in header[0] else ",")
+        raise InputError(f"header is separated by {found!r}, not {delimiter!r}: read it with --delimiter "
+                         f"{found!r}" + (" (and --decimal ',' for decimal commas)" if found == ";" else ""),
                          source=source, where=f"row {header_line}")
     if all(_looks_numeric(h) for h in header) or (len(header) == 1 and len(header[0].split()) > 1):
         raise InputError("no header row, or not comma-separated: the first row must name the columns "
@@ -89,6 +103,8 @@ def read_csv(text: str, *, source: str, columns: Mapping[str, str] | None = None
             raise InputError(f"column '{h}' appears twice", source=source, where=f"row {header_line}")
         seen.add(h)
     data = rows[1:]
+    if decimal == ",":  # 1,5 → 1.5; a cell's other text is not a number anyway
+        data = [(ln, [c.replace(",", ".") for c in cells]) for ln, cells in data]
     if not data:
         raise InputError("file has a header but no data rows", source=source)
     for ln, cells in data:
