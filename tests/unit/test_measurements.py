@@ -63,7 +63,7 @@ BAD_CSV = [
     ("q1,q2,x,y,z\n10,20,1,2,3\n10,20,1,nan,3\n", "row 3, column 'y': value is not finite"),
     ("q1,q2,x,y,z\n10,20,1,inf,3\n", "value is not finite"),
     ("q1,q2,x,y,z\n10,20,1,5,2,3\n", "row 2: has 6 cells"),
-    ("q1;q2;x;y;z\n10;20;1;2;3\n", "separated by ;"),
+    ("q1;q2;x;y;z\n10;20;1;2;3\n", "separated by ';'"),
     ("q1,q2,x,y,z,rx,ry\n10,20,1,2,3,4,5\n", "'rz' is missing"),
     ("q1,q2,x,y,z\n0.1,0.2,1,2,3\n0.3,0.1,1,2,3\n-1,2,1,2,3\n", "look like radians"),
     ("pose_id,q1,q2,x,y,z\np1,10,20,1,2,3\np1,10,20,9,2,3\n", "disagree by"),
