@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -30,6 +30,8 @@ class Evaluation:
     #: per pose, the predicted position's standard uncertainty (mm, rms radius) and its label
     sigma: np.ndarray | None = None
     poses: tuple[str, ...] = ()
+    #: per pose: its errors and flags (:func:`robocal.model.metrics.per_pose`), with σ when asked
+    pose_rows: list = field(default_factory=list)
 
     def uncertainty_summary(self) -> dict | None:
         if self.sigma is None:
@@ -114,5 +116,11 @@ def evaluate(robot: str | Path | Robot, data: str | Path | Measurements, *, colu
         sigma = point_sigma(r, r.uncertainty, meas.q, known, meas.inputs)
         if r.residual is not None:
             notes.append("uncertainty: of the parametric model; its residual correction's own is not counted")
+    from .model.metrics import per_pose
+
+    rows = per_pose(r, meas, "evaluated")
+    if sigma is not None:
+        for row, s in zip(rows, sigma):
+            row["sigma_mm"] = float(s)
     return Evaluation(Metrics.of(r, meas), mode, notes, per_target, sigma,
-                      tuple(meas.label(i) for i in range(meas.n_poses)) if uncertainty else ())
+                      tuple(meas.label(i) for i in range(meas.n_poses)) if uncertainty else (), rows)

@@ -129,6 +129,7 @@ class CalibrationConfig:
     no ``payload`` column.  instrument: an MPE-style statement ``"A+B/m"`` (mm, mm per metre
     of distance from the instrument; ``k=K`` for U = K σ, default 2) that sets each point's
     position σ (see :mod:`robocal.calibration.instrument`); files may give σ per point instead.
+    exclude: pose ids (or ``row N`` for files without them) to leave out of the calibration.
     """
 
     method: str = "lm"
@@ -158,6 +159,7 @@ class CalibrationConfig:
     delimiter: str = ","
     decimal: str = "."
     euler: str = "xyz"
+    exclude: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         set_ = object.__setattr__
@@ -186,6 +188,7 @@ class CalibrationConfig:
             set_(self, name, getattr(swarm, name))
         set_(self, "swarm", swarm.overrides)
         _ = self.read_settings  # checks the file-reading options
+        set_(self, "exclude", _exclude(self.exclude))
         model = ModelSettings(self.model, self.harmonics, self.payload)
         set_(self, "model", model.name)
         set_(self, "harmonics", model.harmonics)
@@ -260,6 +263,16 @@ class CalibrationConfig:
     def is_swarm(self) -> bool:
         """A swarm alone gives the estimate."""
         return self.spec.swarm_only
+
+
+def _exclude(value) -> tuple[str, ...]:
+    """Pose ids (or ``row N``) to leave out: a comma list or a sequence of strings."""
+    if value is None:
+        return ()
+    items = value.split(",") if isinstance(value, str) else list(value)
+    if not all(isinstance(v, str) for v in items):
+        raise InputError(f"expected pose ids, got {value!r}", option="exclude")
+    return tuple(v.strip() for v in items if v.strip())
 
 
 def _model(value) -> str:

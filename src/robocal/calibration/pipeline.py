@@ -139,5 +139,5 @@ def _calibrate(robot, data, validate, cfg: CalibrationConfig, columns, progress,
         noise=fit.noise, goodness_of_fit=fit.goodness, covariance=fit.covariance, frames=inputs.frames,
         model=chosen.name, model_selection=_validated(chosen.table, chosen.name, metrics), error_budget=budget,
         geometric=None if chosen.geometric is None or chosen.geometric is fit else chosen.geometric.robot,
-        instrument=fit.instrument,
+        instrument=fit.instrument, all_rows=inputs.meas, excluded=cfg.exclude,
     )

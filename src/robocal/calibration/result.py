@@ -116,6 +116,22 @@ class CalibrationResult:
     error_budget: list[BudgetRow] = field(default_factory=list)
     geometric: Robot | None = field(default=None, repr=False)
     instrument: InstrumentFit | None = None
+    #: every calibration pose the data gave (outliers included), and the poses left out as asked
+    all_rows: Measurements | None = field(default=None, repr=False)
+    excluded: tuple[str, ...] = ()
+
+    def per_pose(self) -> list[dict]:
+        """Every calibration pose (outliers flagged) and validation pose, with the calibrated
+        model's errors (:func:`robocal.model.metrics.per_pose`)."""
+        from ..model.metrics import per_pose
+
+        rows = []
+        meas = self.all_rows if self.all_rows is not None else self.measurements
+        if meas is not None:
+            rows += per_pose(self.robot, meas, "calibration", frozenset(o["row"] for o in self.outliers))
+        if self.validation is not None:
+            rows += per_pose(self.robot, self.validation, "validation")
+        return rows
 
     @cached_property
     def tcp_uncertainty(self) -> UncertaintyMap | None:
@@ -199,6 +215,7 @@ class CalibrationResult:
             "noise": None if self.noise is None else self.noise.to_dict(),
             "goodness_of_fit": None if self.goodness_of_fit is None else self.goodness_of_fit.to_dict(),
             "instrument": None if self.instrument is None else self.instrument.to_dict(),
+            "excluded": list(self.excluded),
             "tcp_uncertainty": None if self.tcp_uncertainty is None else self.tcp_uncertainty.summary(),
             "loss": cfg.loss,
             "model": self.model,

@@ -118,6 +118,7 @@ def load_inputs(robot, data, validate, config: CalibrationConfig, columns=None) 
         meas = meas.position_only()
         val = None if val is None else val.position_only()
     meas = _instrument_sigmas(meas, config, notes)
+    meas = _excluded(meas, config.exclude, notes)
     if config.payload is not None:  # a stated payload where the files have no column
         meas = meas if meas.payload is not None else replace(meas, payload=np.full(meas.n_poses, config.payload))
         if val is not None and val.payload is None:
@@ -135,6 +136,23 @@ def load_inputs(robot, data, validate, config: CalibrationConfig, columns=None) 
     if config.length_unit is None:  # a stated unit overrides the spread check
         checks.check_units(nominal, meas, frames)
     return Inputs(nominal, meas, val, frames, tuple(notes + checks.degeneracy_warnings(nominal, meas)))
+
+
+def _excluded(meas: Measurements, exclude: tuple[str, ...], notes: list[str]) -> Measurements:
+    """The measurements without the poses ``exclude`` names (pose ids, or ``row N``); a name the
+    data do not have is an error (a typo would otherwise leave a bad pose in)."""
+    if not exclude:
+        return meas
+    ids = [meas.pose_ids[i] if meas.pose_ids is not None else f"row {int(meas.rows[i])}" for i in range(meas.n_poses)]
+    unknown = [e for e in exclude if e not in set(ids)]
+    if unknown:
+        what = "pose_id" if meas.pose_ids is not None else "row (written 'row N')"
+        raise InputError(f"excluded pose {unknown[0]!r} is not in the data (no such {what})", source=meas.source,
+                         option="exclude")
+    keep = [i for i, x in enumerate(ids) if x not in set(exclude)]
+    notes.append(f"{meas.n_poses - len(keep)} pose(s) left out as asked (--exclude): {', '.join(exclude[:10])}"
+                 + (" …" if len(exclude) > 10 else ""))
+    return meas.subset(keep)
 
 
 def _instrument_sigmas(meas: Measurements, config: CalibrationConfig, notes: list[str]) -> Measurements:

@@ -19,10 +19,10 @@ def timing_line(timings: dict) -> str:
 #: the config's fields an option of the same name sets (angle_noise in degrees here, rad there)
 CONFIG_FIELDS = ("method", "frames", "params", "seed", "objective", "noise", "angle_noise", "k", "loss", "f_scale",
                  "particles", "iterations", "box", "halton", "backend", "model", "harmonics", "payload", "joint_unit",
-                 "length_unit", "instrument", "delimiter", "decimal", "euler")
+                 "length_unit", "instrument", "delimiter", "decimal", "euler", "exclude")
 #: the command's own options: its inputs and outputs, how to read them, and what it prints
 CLI_ONLY = ("robot", "data", "validate", "out", "export", "report", "column", "base_link", "tip_link", "quiet",
-            "position_only")
+            "position_only", "poses_out", "exclude_file")
 
 
 def _print_summary(result, robot_name: str, data: Path) -> None:
@@ -106,6 +106,12 @@ def calibrate_cmd(
     out: Path | None = typer.Option(None, "--out", help="result JSON to write"),
     export: Path | None = typer.Option(None, "--export", help="calibrated robot TOML to write"),
     report: Path | None = typer.Option(None, "--report", help="self-contained HTML report to write"),
+    poses_out: Path | None = typer.Option(None, "--poses-out", help="per-pose errors CSV to write (calibration and "
+                                          "validation poses, outliers and poses outside the region flagged)"),
+    exclude: str | None = typer.Option(None, "--exclude", help="pose ids to leave out, ID[,ID…] (row N for files "
+                                       "without pose_id)"),
+    exclude_file: Path | None = typer.Option(None, "--exclude-file", help="a file of pose ids to leave out, one a "
+                                             "line"),
     column: list[str] | None = typer.Option(None, "--column", help="map file columns: FILE=ROBOCAL[,FILE=ROBOCAL…]"),
     joint_unit: str | None = typer.Option(None, "--joint-unit", help="deg | rad (default: deg, checked)"),
     length_unit: str | None = typer.Option(None, "--length-unit", help="mm | m (default: mm, checked)"),
@@ -130,7 +136,12 @@ def calibrate_cmd(
     from ..io.robotfile import load_robot
     from .common import check_outputs, console, print_warnings, progress_bar, stage_status
 
-    check_outputs((robot, data, validate), out=out, export=export, report=report)
+    check_outputs((robot, data, validate), out=out, export=export, report=report, poses_out=poses_out)
+    if exclude_file is not None:
+        from ..io.atomic import read_text
+
+        listed = [line.split("#", 1)[0].strip() for line in read_text(exclude_file, "exclude file").splitlines()]
+        given["exclude"] = ",".join([*(exclude.split(",") if exclude else []), *filter(None, listed)])
     cfg = CalibrationConfig(**{**given, "use_orientation": not position_only,
                                "angle_noise": None if angle_noise is None else math.radians(angle_noise)})
     nominal = load_robot(robot, base_link=base_link, tip_link=tip_link)
@@ -148,6 +159,12 @@ def calibrate_cmd(
             from ..report.html import write_report
 
             write_report(result, report)
+        if poses_out is not None:
+            from ..io.atomic import atomic_write
+            from ..io.table import rows_to_csv
+            from ..model.metrics import POSE_COLUMNS
+
+            atomic_write(poses_out, rows_to_csv(result.per_pose(), POSE_COLUMNS))
     print_warnings(result.warnings)
     if not quiet:
         _print_summary(result, nominal.name, data)

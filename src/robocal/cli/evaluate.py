@@ -24,6 +24,7 @@ def evaluate_cmd(
     euler: str = euler_option(),
     payload: float | None = typer.Option(None, "--payload", help="payload mass, kg, for data without a payload "
                                          "column"),
+    poses_out: Path | None = typer.Option(None, "--poses-out", help="per-pose errors CSV to write"),
     uncertainty: bool = typer.Option(False, "--uncertainty", help="also each pose's predicted position uncertainty "
                                      "(mm, from the parameter covariance a calibrated model carries)"),
 ) -> None:
@@ -32,12 +33,20 @@ def evaluate_cmd(
 
     from .. import options as opt
     from ..evaluation import evaluate
-    from .common import console, load, metrics_table, print_warnings
+    from .common import check_outputs, console, load, metrics_table, print_warnings
 
+    check_outputs((robot, data), poses_out=poses_out)
     ev = evaluate(load(robot, base_link, tip_link), data, columns=opt.column_map(column), frames=frames,
                   joint_unit=joint_unit, length_unit=length_unit, payload=payload, uncertainty=uncertainty,
                   delimiter=delimiter, decimal=decimal, euler=euler)
     print_warnings(ev.notes)
+    if poses_out is not None:
+        from ..io.atomic import atomic_write
+        from ..io.table import rows_to_csv
+        from ..model.metrics import POSE_COLUMNS
+
+        columns = POSE_COLUMNS + (("sigma_mm",) if ev.sigma is not None else ())
+        atomic_write(poses_out, rows_to_csv(ev.pose_rows, columns))
     if as_json:
         print(json.dumps(ev.to_dict(), indent=2))
         return

@@ -156,3 +156,15 @@ def strings(table: CsvTable, name: str, *, required: bool = False) -> list[str]:
             raise InputError(f"empty {name}", source=table.source, where=f"row {ln}, column '{name}'")
         out.append(value)
     return out
+
+
+def rows_to_csv(rows: list[dict], columns: Sequence[str]) -> str:
+    """CSV text of dict rows (floats in shortest round-trip form, booleans as 0/1)."""
+    out = io.StringIO()
+    w = csv.writer(out, lineterminator="\n")
+    w.writerow(columns)
+    for r in rows:
+        w.writerow([repr(v) if isinstance(v, float) else (int(v) if isinstance(v, bool) else v)
+                    for v in (r[c] for c in columns)])
+    return out.getvalue()
+

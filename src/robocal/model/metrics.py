@@ -72,3 +72,34 @@ class Metrics:
         if self.orientation is not None:
             out["orientation"] = {k: dict(v) for k, v in self.orientation.items()}
         return out
+
+
+#: the columns of a per-pose table (mm and deg)
+POSE_COLUMNS = ("set", "pose_id", "row", "reflector", "dx_mm", "dy_mm", "dz_mm", "error_mm", "rx_deg", "ry_deg",
+                "rz_deg", "angle_deg", "outlier", "outside_region_deg")
+
+
+def per_pose(robot: Robot, meas: Measurements, label: str = "", outlier_rows=frozenset()) -> list[dict]:
+    """One row per pose: its id and file row, reflector, position error δp (mm, measuring
+    frame) and its norm, orientation error about x, y, z and its angle (deg; empty for
+    position data), whether it was left out as an outlier (``outlier_rows``: file rows), and how
+    far (deg, mm for a sliding joint) it lies outside the region the model was calibrated on."""
+    dp, dr = pose_errors(robot, meas)
+    outside = robot.region.outside(meas.q).max(axis=1) if robot.region is not None else np.zeros(meas.n_poses)
+    slide = robot.prismatic
+    rows = []
+    for i in range(meas.n_poses):
+        far = outside[i]
+        if robot.region is not None and far > 0:
+            d = robot.region.outside(meas.q[i:i + 1])[0]
+            far = float(np.max(np.where(slide, d, np.degrees(d))))
+        rows.append({
+            "set": label, "pose_id": "" if meas.pose_ids is None else meas.pose_ids[i], "row": int(meas.rows[i]),
+            "reflector": "" if meas.targets is None else meas.targets[i],
+            "dx_mm": float(dp[i, 0]), "dy_mm": float(dp[i, 1]), "dz_mm": float(dp[i, 2]),
+            "error_mm": float(np.linalg.norm(dp[i])),
+            **({"rx_deg": "", "ry_deg": "", "rz_deg": "", "angle_deg": ""} if dr is None else {
+                "rx_deg": float(np.degrees(dr[i, 0])), "ry_deg": float(np.degrees(dr[i, 1])),
+                "rz_deg": float(np.degrees(dr[i, 2])), "angle_deg": float(np.degrees(np.linalg.norm(dr[i])))}),
+            "outlier": int(meas.rows[i]) in outlier_rows, "outside_region_deg": float(far)})
+    return rows
