@@ -156,9 +156,12 @@ def calibrate_cmd(
             result.save(out)
         written = [] if export is None else result.export(export)
         if report is not None:
+            import shlex
+            import sys
+
             from ..report.html import write_report
 
-            write_report(result, report)
+            write_report(result, report, "robocal " + shlex.join(sys.argv[1:]))
         if poses_out is not None:
             from ..io.atomic import atomic_write
             from ..io.table import rows_to_csv

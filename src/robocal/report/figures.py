@@ -108,7 +108,9 @@ def workspace_errors(points: np.ndarray, errors: np.ndarray, title: str, label: 
 
     fig = Figure(figsize=(14, 4.4), layout="constrained")
     axes = fig.subplots(1, 3)
-    vmax = float(np.percentile(errors, 99)) or 1.0
+    vmax = float(np.max(errors)) or 1.0  # the whole range: no value shown as a smaller one
+    order = np.argsort(errors)  # the largest drawn last, on top
+    points, errors = np.asarray(points)[order], np.asarray(errors)[order]
     for ax, (i, j) in zip(axes, ((0, 1), (0, 2), (1, 2))):
         sc = ax.scatter(points[:, i], points[:, j], c=errors, s=10, cmap="viridis", vmin=0.0, vmax=vmax)
         ax.set_xlabel(f"{'xyz'[i]} (mm)")
@@ -280,7 +282,7 @@ def study_boxes(rows: list[dict], study, column: str, ylabel: str):
     from matplotlib.figure import Figure
 
     cells = list(itertools.product(study.poses, study.noise))
-    fig = Figure(figsize=(max(5.0, 1.0 + 0.6 * len(cells) * len(study.methods)), 4.2))
+    fig = Figure(figsize=(max(8.0, 1.5 + 0.9 * len(cells) * len(study.methods)), 5.2), dpi=110)
     ax = fig.subplots()
     colours = ["tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple"]
     labels, ticks = [], []
@@ -292,7 +294,8 @@ def study_boxes(rows: list[dict], study, column: str, ylabel: str):
             if not values:
                 continue
             x = c * (len(study.methods) + 1) + k
-            box = ax.boxplot(values, positions=[x], widths=0.7, patch_artist=True, showfliers=True)
+            box = ax.boxplot(values, positions=[x], widths=0.7, patch_artist=True, showfliers=True,
+                             medianprops={"color": "black", "linewidth": 2.2})
             for patch in box["boxes"]:
                 patch.set_facecolor(colours[k % len(colours)])
                 patch.set_alpha(0.6)

@@ -29,6 +29,9 @@ body{font-family:system-ui,sans-serif;margin:2em auto;max-width:1000px;color:#22
 table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #ccc;padding:3px 8px;text-align:right}
 th{background:#f0f0f0}td:first-child,th:first-child{text-align:left}img{max-width:100%}
 td.l,th.l{text-align:left}.warn{background:#fff4e0;border-left:4px solid #e90;padding:.4em .8em}code{background:#f4f4f4}
+.info{background:#eef3f8;border-left:4px solid #7a9cc6;padding:.4em .8em}
+.next{background:#eef8ee;border-left:4px solid #4a4;padding:.4em .8em}
+.head{font-size:90%;color:#444}
 """
 
 
@@ -73,6 +76,12 @@ def _norms(robot, meas) -> np.ndarray:
     return np.linalg.norm(dp, axis=1)
 
 
+def _in_base(robot, points: np.ndarray) -> np.ndarray:
+    """Points (m, 3) mm of the measuring frame in the robot's base frame."""
+    B = np.linalg.inv(robot.base)
+    return points @ B[:3, :3].T + B[:3, 3]
+
+
 def _uncertainty_map(result: CalibrationResult) -> list[str]:
     m = result.tcp_uncertainty
     if m is None:
@@ -90,7 +99,8 @@ def _uncertainty_map(result: CalibrationResult) -> list[str]:
             "model down. "
             + ("A residual correction's own uncertainty is not counted. " if result.robot.residual is not None
                else "") + "<code>robocal evaluate --uncertainty</code> gives it per pose.</p>",
-            _img(figures.workspace_errors(m.position, m.sigma, "predicted TCP position uncertainty",
+            _img(figures.workspace_errors(_in_base(result.robot, m.position), m.sigma,
+                                          "predicted TCP position uncertainty (base frame)",
                                           "σ of the predicted position (mm)"))]
 
 
@@ -105,13 +115,15 @@ def _error_figures(result: CalibrationResult) -> list[str]:
     if val is not None:
         series["before (validation poses)"] = _norms(result.initial, val)
         series["after (validation poses)"] = _norms(result.robot, val)
-    parts.append(_img(figures.error_distribution(series, f"{result.nominal.name}: {result.method}")))
+    parts.append(_img(figures.error_distribution(series, f"{result.nominal.name}: model {result.model}")))
     where = val if val is not None else meas
     label = "validation" if val is not None else "calibration"
     after = _norms(result.robot, where)
-    parts.append(f"<h2>Where the error is</h2><p>Measured points of the {label} poses in the measuring frame, "
-                 "coloured by the calibrated model's position error.</p>")
-    parts.append(_img(figures.workspace_errors(where.position, after, f"{label} poses after calibration")))
+    in_base = _in_base(result.robot, where.position)
+    parts.append(f"<h2>Where the error is</h2><p>Measured points of the {label} poses in the robot's base frame, "
+                 "coloured by the calibrated model's position error (the colour scale runs to the largest; the "
+                 "largest errors are drawn on top).</p>")
+    parts.append(_img(figures.workspace_errors(in_base, after, f"{label} poses after calibration (base frame)")))
     parts += _uncertainty_map(result)
     geometric = result.geometric or (result.robot if result.robot.geometric else None)
     others = {}
@@ -201,13 +213,99 @@ def _parameter_tables(result: CalibrationResult, d: dict) -> list[str]:
     return parts
 
 
-def calibration_html(result: CalibrationResult) -> str:
-    """The report of one calibration as a self-contained HTML page."""
+#: what a calibration says that informs rather than warns (drawn plainly, not amber)
+INFORMATIONAL = ("frames auto:", "backlash:", "drift:", "model auto:", "the noise stated replaces")
+
+
+def _run_header(result: CalibrationResult, command: str | None) -> str:
+    """Who made the report, when, from what: version, date, command, input files with SHA-256,
+    robot, poses and the campaign's temperature range."""
+    import datetime
+    import hashlib
+
+    from .. import __version__
+
+    def digest(path) -> str:
+        p = Path(str(path))
+        return hashlib.sha256(p.read_bytes()).hexdigest() if p.is_file() else "(not a file)"
+
+    files = [("data", result.data)] + ([("validation", result.validation.source)] if result.validation else [])
+    rows = [("robocal", __version__), ("date", datetime.datetime.now().astimezone().isoformat(timespec="seconds")),
+            ("command", command or "Python API (robocal.calibrate)"),
+            ("robot", f"{result.nominal.name} ({result.nominal.source or 'given as a Robot'})"),
+            *((f"{k} file", f"{v} — SHA-256 {digest(v)}") for k, v in files),
+            ("poses", result.measurements.describe() if result.measurements else str(result.n_poses))]
+    meas = result.all_rows or result.measurements
+    if meas is not None and meas.temperature is not None:
+        rows.append(("temperature", f"{np.min(meas.temperature):.2f} to {np.max(meas.temperature):.2f} °C"))
+    body = "".join(f"<tr><td>{html.escape(k)}</td><td class='l'>{html.escape(str(v))}</td></tr>" for k, v in rows)
+    return f"<table class='head'>{body}</table>"
+
+
+def _said(result: CalibrationResult) -> list[str]:
+    return [f"<p class='{'info' if w.startswith(INFORMATIONAL) else 'warn'}'>{html.escape(w)}</p>"
+            for w in result.warnings]
+
+
+def _worst(result: CalibrationResult, count: int = 10) -> list[str]:
+    """The poses with the largest errors (validation poses when there are, else calibration ones)."""
+    rows = result.per_pose()
+    if not rows:
+        return []
+    which = "validation" if any(r["set"] == "validation" for r in rows) else "calibration"
+    rows = sorted((r for r in rows if r["set"] == which), key=lambda r: -r["error_mm"])[:count]
+    head = ("pose", "row", "error (mm)", "δx", "δy", "δz", "flags")
+    body = []
+    for r in rows:
+        flags = ", ".join(f for f, on in (("outlier", r["outlier"]),
+                                          (f"{r['outside_region_deg']:.1f}° outside the region",
+                                           r["outside_region_deg"] > 0)) if on)
+        body.append((r["pose_id"] or "—", str(r["row"]), f"{r['error_mm']:.4f}", f"{r['dx_mm']:.4f}",
+                     f"{r['dy_mm']:.4f}", f"{r['dz_mm']:.4f}", flags))
+    return [f"<h2>The worst {which} poses</h2><p>By position error of the calibrated model; "
+            "<code>--poses-out</code> writes every pose.</p>", _table(head, body)]
+
+
+def next_steps(result: CalibrationResult) -> list[str]:
+    """One or two concrete suggestions from the diagnostics."""
+    out = []
+    meas = result.measurements
+    g, inst = result.goodness_of_fit, result.instrument
+    if result.model == "geometric" and ((g is not None and g.misfit()) or (inst is not None and inst.reduced_chi2
+                                                                            and inst.reduced_chi2 > 4)):
+        beyond = "" if inst is None else f" ({inst.reduced_chi2:.3g}× the instrument's noise in χ²)"
+        out.append(f"The geometric model leaves systematic error{beyond}: calibrate with <code>--model auto</code> "
+                   "to try joint terms (compliance, harmonics, backlash, drift) and a residual process.")
+    if result.outliers:
+        ids = ", ".join(str(o.get("pose_id") or f"row {o['row']}") for o in result.outliers[:5])
+        out.append(f"{len(result.outliers)} pose(s) were left out as outliers ({html.escape(ids)}): re-check or "
+                   "re-measure them; <code>--exclude</code> leaves a pose out on purpose.")
+    if result.validation is not None and result.robot.region is not None:
+        far = result.robot.region.outside(result.validation.q)
+        if np.any(far > 0):
+            j = int(np.argmax(far.max(axis=0)))
+            out.append(f"{int(np.sum(far.max(axis=1) > 0))} validation pose(s) lie outside the joint ranges calibrated "
+                       f"on, joint {j + 1} most: measure calibration poses that cover its range.")
+    if meas is not None and meas.n_poses < 5 * len(result.names):
+        out.append(f"{meas.n_poses} poses for {len(result.names)} parameters: about {5 * len(result.names)} would "
+                   "pin them down better.")
+    m = result.tcp_uncertainty
+    if not out and m is not None and m.at_poses is not None and m.summary()["p95_mm"] > 3 * np.median(m.at_poses):
+        out.append("The model is much less certain over the whole joint ranges than at the measured poses: add poses "
+                   "where the uncertainty map is bright.")
+    return out[:2] if out else ["Nothing calls for more: the model fits as well as these data allow."]
+
+
+def calibration_html(result: CalibrationResult, command: str | None = None) -> str:
+    """The report of one calibration as a self-contained HTML page: how accurate it is now and
+    where, what changed and whether it is significant, which model and why, what limits it, and
+    what to do next."""
     d = result.to_dict()
     parts = [f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>robocal calibration</title>"
              f"<style>{_CSS}</style></head><body>", f"<h1>Calibration of {html.escape(result.nominal.name)}</h1>",
-             _summary(result, d)]
-    parts += [f"<p class='warn'>{html.escape(w)}</p>" for w in result.warnings]
+             _run_header(result, command), _summary(result, d)]
+    parts += _said(result)
+    parts += ["<h2>What to do next</h2>"] + [f"<p class='next'>{s}</p>" for s in next_steps(result)]
     cols = {"before": result.metrics["before"], "after": result.metrics["after"]}
     if "validation_before" in result.metrics:
         cols["validation before"] = result.metrics["validation_before"]
@@ -218,19 +316,23 @@ def calibration_html(result: CalibrationResult) -> str:
                  + ".</p>")
     parts.append(_metrics_table(cols))
     parts += _per_target(result)
-    parts += _model_tables(result)
     parts += _error_figures(result)
+    parts += _worst(result)
+    parts += _model_tables(result)
     parts.append("<h2>Convergence</h2>")
     if result.noise is not None and result.noise.refits:
-        parts.append(f"<p>The fit with the weights it started from; the {result.noise.refits} refits after "
-                     "reweighting by the estimated noise are not drawn (χ² under other weights is another scale).</p>")
-    parts.append(_img(figures.convergence({result.method: result.optimization.history}, "best objective per iteration",
-                                          objective_label(result), figures.iteration_label([result.method]))))
+        refits = "refit" if result.noise.refits == 1 else f"{result.noise.refits} refits"
+        parts.append(f"<p>The first fit, with the weights it started from; the {refits} after reweighting by the "
+                     "estimated noise are not drawn (χ² under other weights is another scale), so the last point is "
+                     "not the final χ².</p>")
+    parts.append(_img(figures.convergence({result.method: result.optimization.history},
+                                          f"{result.method}: best objective", objective_label(result),
+                                          figures.iteration_label([result.method]))))
     parts += _parameter_tables(result, d)
     parts.append("<p>Generated by robocal.</p></body></html>")
     return "\n".join(parts)
 
 
-def write_report(result: CalibrationResult, path: str | Path) -> None:
-    """Write :func:`calibration_html` of ``result`` to ``path``."""
-    atomic_write(path, calibration_html(result))
+def write_report(result: CalibrationResult, path: str | Path, command: str | None = None) -> None:
+    """Write :func:`calibration_html` of ``result`` to ``path``; command: the command line, for its header."""
+    atomic_write(path, calibration_html(result, command))
