@@ -91,3 +91,25 @@ def test_plan_and_calibration_weigh_alike(quiet):
     predicted = dict(zip(plan.names, plan.predicted_std))
     for name, u in zip(res.names, res.uncertainty):
         assert u == pytest.approx(predicted[name], rel=1e-6), name
+
+
+def test_a_cell_plan_keeps_the_tool_in_the_workspace_facing_the_tracker_and_moves_short():
+    import math
+
+    from robocal.plan.design import plan_poses
+
+    robot = load_robot("kr5-arc")
+    box = np.array([[300.0, 900.0], [-400.0, 400.0], [100.0, 900.0]])
+    tracker = np.array([3000.0, 0.0, 500.0])
+    p = plan_poses(robot, 20, candidates=300, frames="base+tool", workspace=box, tracker=tracker, fov=120.0,
+                   model_error=0.2, seed=2)
+    T = robot.fk(p.q)
+    assert np.all((T[:, :3, 3] >= box[:, 0]) & (T[:, :3, 3] <= box[:, 1]))
+    to = tracker - T[:, :3, 3]
+    cos = np.einsum("mi,mi->m", T[:, :3, 2], to / np.linalg.norm(to, axis=1, keepdims=True))
+    assert np.all(cos >= math.cos(math.radians(60.0)) - 1e-12)
+    # the order is the nearest-neighbour one: never longer in total than the plan's poses taken as drawn
+    moves = np.max(np.abs(np.diff(p.q, axis=0)), axis=1).sum()
+    shuffled = p.q[np.random.default_rng(0).permutation(len(p.q))]
+    assert moves <= np.max(np.abs(np.diff(shuffled, axis=0)), axis=1).sum()
+    assert p.expected_rms == pytest.approx(math.sqrt(p.predicted_rms ** 2 + 3 * 0.2 ** 2))

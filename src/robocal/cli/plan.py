@@ -10,6 +10,8 @@ from .common import base_link_option, tip_link_option
 
 
 def _print_plan(p, r, poses: int, candidates: int, criterion: str, measure: str, noise: float, angle_noise: float):
+    import math
+
     import numpy as np
 
     from ..model.parameters import is_angle
@@ -25,6 +27,14 @@ def _print_plan(p, r, poses: int, candidates: int, criterion: str, measure: str,
     advice = ""
     if measure == "pose":
         advice = f"; calibrate with --noise {noise:g} --angle-noise {angle_noise:g} to weigh the data as planned"
+    if p.model_error > 0:
+        c.print(f"expected validation RMS {p.expected_rms:.4f} mm: {p.predicted_rms:.4f} mm from what these poses "
+                f"leave of the parameters, and {math.sqrt(3) * p.model_error:.4f} mm (3 axes × {p.model_error:g} mm) "
+                "the model cannot take, whatever the poses")
+    else:
+        c.print(f"predicted validation RMS {p.predicted_rms:.4f} mm counts the measuring noise only: what the model "
+                "cannot take (about half a millimetre of a real arm's geometric fit) comes on top; state it with "
+                "--model-error")
     c.print("least determined: " + ", ".join(f"{p.names[i]} ± {p.predicted_std[i]:.3g} "
                                              f"{'rad' if is_angle(p.names[i]) else 'mm'}" for i in worst) + advice)
 
@@ -35,12 +45,20 @@ def plan_cmd(
     candidates: int = typer.Option(2000, "--candidates", help="random joint sets to choose from"),
     criterion: str = typer.Option("O1", "--criterion", help="O1 | O2 | O3 | O4 | D"),
     measure: str = typer.Option("pose", "--measure", help="pose | position"),
-    frames: str = typer.Option("none", "--frames", help="none | base | base+tool"),
+    frames: str = typer.Option("base+tool", "--frames", help="none | base | base+tool (the frames the calibration "
+                               "will fit; base+tool when the tracker's place and the tool are not known)"),
     joint_range: str | None = typer.Option(None, "--range", help="LO,HI deg for every joint"),
     limits: str | None = typer.Option(None, "--limits", help="per joint lo:hi deg, comma-separated (work cell)"),
     noise: float = typer.Option(0.02, "--noise", help="position noise σ, mm"),
     angle_noise: float = typer.Option(0.001, "--angle-noise", help="orientation noise σ, deg"),
     seed: int = typer.Option(0, "--seed"),
+    workspace: str | None = typer.Option(None, "--workspace", help="xmin:xmax,ymin:ymax,zmin:zmax (mm, base frame): "
+                                         "where the tool may go"),
+    tracker: str | None = typer.Option(None, "--tracker", help="x,y,z of the tracker (mm, base frame): poses keep "
+                                       "the reflector facing it"),
+    fov: float = typer.Option(90.0, "--fov", help="the reflector's acceptance cone, full angle (deg), with --tracker"),
+    model_error: float = typer.Option(0.0, "--model-error", help="σ per axis (mm) of what the model cannot take "
+                                      "(e.g. an earlier calibration's scatter beyond the instrument), stated apart"),
     base_link: str | None = base_link_option(),
     tip_link: str | None = tip_link_option(),
     out: Path = typer.Option(..., "--out", help="measurement-file skeleton to write (pose_id, q1..qn)"),
@@ -50,6 +68,8 @@ def plan_cmd(
     """Choose the joint sets worth measuring (greedy + exchange on an observability criterion)."""
     import json
     import math
+
+    import numpy as np
 
     from .. import options as opt
     from ..io.atomic import atomic_write, together
@@ -64,8 +84,16 @@ def plan_cmd(
     jr = opt.joint_limits(limits, r.n_joints)
     if jr is None and joint_range is not None:
         jr = tuple(math.radians(v) for v in opt.floats(joint_range, "range", (2,)))
+    box = None
+    if workspace is not None:
+        box = opt.joint_limits(workspace, 3, "workspace")
+        box = None if box is None else np.degrees(box)  # joint_limits reads degrees; these are mm
+    at = None if tracker is None else np.array(opt.floats(tracker, "tracker", (3,)))
+    opt.number(fov, "fov", minimum=0.0, strict=True)
+    opt.number(model_error, "model_error", minimum=0.0)
     p = plan_poses(r, poses, candidates=candidates, criterion=criterion, measure=measure, frames=frames,
-                   joint_range=jr, noise=noise, angle_noise=math.radians(angle_noise), seed=seed)
+                   joint_range=jr, noise=noise, angle_noise=math.radians(angle_noise), seed=seed, workspace=box,
+                   tracker=at, fov=fov, model_error=model_error)
     lines = ["pose_id," + ",".join(f"q{i + 1}" for i in range(r.n_joints))]
     lines += [f"P{j + 1:03d}," + ",".join(f"{v:.6f}" for v in joints_to_file(q, r.prismatic))
               for j, q in enumerate(p.q)]

@@ -44,7 +44,8 @@ class Plan:
 
     q: (N, n) rad.  value: the criterion of the plan.  predicted_std: standard uncertainty
     of each parameter (mm, rad) for the stated noise.  predicted_rms: expected RMS position
-    error (mm) of the calibrated model on fresh poses.  random_*: the same figures for
+    error (mm) of the calibrated model on fresh poses from the noise alone (the parameters' spread);
+    expected_rms adds the model error the user states.  random_*: the same figures for
     random N-pose sets from the same candidates.
     """
 
@@ -58,12 +59,22 @@ class Plan:
     random_rms: list[float] = field(default_factory=list)
     exchanges: int = 0
     dropped: dict[str, str] = field(default_factory=dict)
+    #: σ per axis (mm) of what the model cannot take, given by the user
+    model_error: float = 0.0
+
+    @property
+    def expected_rms(self) -> float:
+        """The validation RMS to expect (mm): what the poses leave of the parameters, and the
+        model error no pose choice removes (3 axes of it)."""
+        return math.sqrt(self.predicted_rms**2 + 3.0 * self.model_error**2)
 
     def to_dict(self) -> dict:
         return {
             "criterion": self.criterion,
             "value": self.value,
             "predicted_rms_mm": self.predicted_rms,
+            "model_error_mm": self.model_error,
+            "expected_rms_mm": self.expected_rms,
             "random_median_value": float(np.median(self.random_values)) if self.random_values else None,
             "random_median_rms_mm": float(np.median(self.random_rms)) if self.random_rms else None,
             "parameters": [{"name": n, "predicted_std": float(s)} for n, s in zip(self.names, self.predicted_std)],
@@ -172,19 +183,74 @@ def _check(name, measure, frames, noise, angle_noise, n_poses, candidates) -> No
         raise InputError(f"need 1 ≤ poses ≤ candidates, got {n_poses} and {candidates}", option="poses")
 
 
+def reachable_candidates(robot: Robot, n: int, rng: np.random.Generator, joint_range=None, workspace=None,
+                         tracker=None, fov: float | None = None, attempts: int = 50) -> tuple[np.ndarray, int]:
+    """n random joint sets whose tool lies in ``workspace`` ((3, 2) mm box, base frame) and faces
+    ``tracker`` ((3,) mm, base frame): the angle between the tool's z axis and the line to the
+    tracker at most ``fov``/2 (deg, the reflector's acceptance cone); and how many were drawn."""
+    if workspace is None and tracker is None:
+        return random_joints(robot, n, rng, joint_range), n
+    kept, drawn = [], 0
+    for _ in range(attempts):
+        q = random_joints(robot, 4 * n, rng, joint_range)
+        drawn += len(q)
+        T = robot.replace(base=np.eye(4)).fk(q)
+        ok = np.ones(len(q), bool)
+        if workspace is not None:
+            w = np.asarray(workspace, float)
+            ok &= np.all((T[:, :3, 3] >= w[:, 0]) & (T[:, :3, 3] <= w[:, 1]), axis=1)
+        if tracker is not None:
+            to_tracker = np.asarray(tracker, float) - T[:, :3, 3]
+            to_tracker /= np.linalg.norm(to_tracker, axis=1, keepdims=True)
+            cos = np.einsum("mi,mi->m", T[:, :3, 2], to_tracker)
+            ok &= cos >= math.cos(math.radians((fov if fov is not None else 90.0) / 2))
+        kept.append(q[ok])
+        if sum(len(k) for k in kept) >= n:
+            break
+    q = np.concatenate(kept)[:n]
+    if len(q) < n:
+        raise InputError(f"only {len(q)} of {drawn} random joint sets put the tool in the workspace and in view of the "
+                         f"tracker; {n} candidates needed: widen --workspace, --fov or the joint limits",
+                         option="workspace")
+    return q, drawn
+
+
+def short_moves(q: np.ndarray) -> np.ndarray:
+    """An order of the poses q (N, n) that keeps joint moves short: nearest neighbour by the
+    largest joint move, from the pose nearest the middle of them all."""
+    n = len(q)
+    if n < 3:
+        return np.arange(n)
+    left = list(range(n))
+    current = int(np.argmin(np.max(np.abs(q - np.median(q, axis=0)), axis=1)))
+    order = [current]
+    left.remove(current)
+    while left:
+        d = np.max(np.abs(q[left] - q[current]), axis=1)
+        current = left[int(np.argmin(d))]
+        order.append(current)
+        left.remove(current)
+    return np.array(order)
+
+
 def plan_poses(robot: Robot, n_poses: int, *, candidates: int = 2000, criterion: str = "O1", measure: str = "pose",
                frames: str = "none", joint_range=None, noise: float = 0.02, angle_noise: float = math.radians(0.001),
-               seed: int = 0, random_sets: int = 20, validation: int = 500, max_passes: int = 10) -> Plan:
-    """Choose ``n_poses`` of ``candidates`` random joint sets (see the module docstring).
+               seed: int = 0, random_sets: int = 20, validation: int = 500, max_passes: int = 10, workspace=None,
+               tracker=None, fov: float | None = None, model_error: float = 0.0) -> Plan:
+    """Choose ``n_poses`` of ``candidates`` random joint sets (see the module docstring), in an
+    order that keeps joint moves short.
 
     joint_range: (lo, hi) rad for all joints or (n, 2) per joint, intersected with the
     limits.  noise / angle_noise: measurement σ (mm, rad) used to whiten the Jacobian.
+    workspace, tracker, fov: see :func:`reachable_candidates`.  model_error: σ per axis (mm) of
+    what the model cannot take (the residual scatter of an earlier calibration beyond the
+    instrument): the expected validation RMS adds it, apart from what the poses determine.
     """
     name = criterion
     _check(name, measure, frames, noise, angle_noise, n_poses, candidates)
     rng = np.random.default_rng(seed)
     robot = complete(robot)  # plan for the parameters a calibration will estimate
-    cand = random_joints(robot, candidates, rng, joint_range)
+    cand, _ = reachable_candidates(robot, candidates, rng, joint_range, workspace, tracker, fov)
     names = joint_candidates(robot) + frame_candidates(frames, ("",), measure == "pose")
     blocks, _ = _blocks(robot, cand, names, measure, noise, angle_noise)
     ident = analyse(blocks.reshape(-1, len(names)), names, np.array([is_angle(n) for n in names]), len(cand),
@@ -202,7 +268,9 @@ def plan_poses(robot: Robot, n_poses: int, *, candidates: int = 2000, criterion:
     _, val_pos = _blocks(robot, random_joints(robot, validation, rng, joint_range), ident.kept, measure, noise,
                          angle_noise)
     M_plan = M - ridge + 1e-15 * np.eye(k)
-    plan = Plan(q=cand[chosen], criterion=name, value=criterion_value(M_plan, name, scale, n_poses), names=ident.kept,
+    chosen = np.asarray(chosen)[short_moves(cand[np.asarray(chosen)])]
+    plan = Plan(q=cand[chosen], criterion=name, model_error=model_error,
+                value=criterion_value(M_plan, name, scale, n_poses), names=ident.kept,
                 predicted_std=standard_uncertainties(information=M_plan), predicted_rms=_predicted_rms(M_plan, val_pos),
                 exchanges=exchanges, dropped={n: r.text() for n, r in ident.reasons.items()})
     for _ in range(random_sets):
