@@ -53,7 +53,7 @@ def _frame(f: dict[str, Field]) -> np.ndarray:
 def parse_krl(text: str, source: str, targets: list[Target], notes: list[str]) -> tuple[np.ndarray | None,
                                                                                          np.ndarray | None]:
     """Targets of one KRL file appended to ``targets``; its TCP and base frame (4×4) if it sets them."""
-    tool = base = None
+    frames: dict[str, np.ndarray] = {}
     start = 0
     for raw in text.splitlines(keepends=True):
         code = raw.split(";", 1)[0]  # KRL comments and folds run from ';' to the end of the line
@@ -74,19 +74,14 @@ def parse_krl(text: str, source: str, targets: list[Target], notes: list[str]) -
                 continue
             if assign and not decl:
                 target = assign.group(1).upper()
-                if target.startswith(("$TOOL", "TOOL_DATA")) and is_pose:
-                    T = _frame(items)
-                    if tool is not None and not np.allclose(tool, T):
-                        notes.append(f"{source} line {line}: another tool ({assign.group(1)}); the first one is the "
-                                     "TCP of every target")
-                    tool = T if tool is None else tool
-                    continue
-                if target.startswith(("$BASE", "BASE_DATA")) and is_pose:
-                    T = _frame(items)
-                    if base is not None and not np.allclose(base, T):
-                        notes.append(f"{source} line {line}: another base ({assign.group(1)}); the first one is "
+                kind = "tool" if target.startswith(("$TOOL", "TOOL_DATA")) else \
+                    ("base" if target.startswith(("$BASE", "BASE_DATA")) else None)
+                if kind and is_pose:
+                    T, first = _frame(items), frames.get(kind)
+                    if first is not None and not np.allclose(first, T):
+                        notes.append(f"{source} line {line}: another {kind} ({assign.group(1)}); the first one is "
                                      "taken for every target")
-                    base = T if base is None else base
+                    frames.setdefault(kind, T)
                     continue
                 if target.startswith("$"):
                     continue
@@ -106,7 +101,7 @@ def parse_krl(text: str, source: str, targets: list[Target], notes: list[str]) -
                 q = np.radians([items[k].value for k in JOINT_KEYS])
                 targets.append(Target(name, line, "joints", items, q=q))
         start += len(raw)
-    return tool, base
+    return frames.get("tool"), frames.get("base")
 
 
 def load_krl(src_text: str, dat_text: str | None, source: str) -> Program:

@@ -101,6 +101,37 @@ def rewrite(text: str, changes: list[tuple[Field, str]]) -> str:
     return "".join(out)
 
 
+def blank_comments(text: str, marker: str) -> str:
+    """The text with strings and comments (``marker`` to the end of a line) blanked by spaces, so
+    that patterns find only code and every index still points into the original text."""
+    out = []
+    for line in text.splitlines(keepends=True):
+        body = line.rstrip("\r\n")
+        newline = line[len(body):]
+        body = re.sub(r'"[^"]*"', lambda m: " " * len(m.group()), body)
+        cut = body.find(marker)
+        if cut >= 0:
+            body = body[:cut] + " " * (len(body) - cut)
+        out.append(body + newline)
+    return "".join(out)
+
+
+def first_of(used: set[str], declared: dict, default: str, what: str, source: str, notes: list[str],
+             missing: str) -> tuple[object | None, bool]:
+    """The declared value of the first (sorted) name in ``used`` other than ``default``, saying
+    when it is not declared (``missing``: what happens then) or when there are several; and
+    whether ``default`` alone is used."""
+    named = sorted(used - {default})
+    if not named:
+        return None, default in used
+    if len(named) > 1:
+        notes.append(f"the motions use several {what}s ({', '.join(named)}); {named[0]} is taken for every target")
+    if named[0] in declared:
+        return declared[named[0]], False
+    notes.append(f"the motions use {what} {named[0]}, which {source} does not declare: {missing}")
+    return None, False
+
+
 def line_of(text: str, index: int) -> int:
     """1-based line number of a character index."""
     return text.count("\n", 0, index) + 1

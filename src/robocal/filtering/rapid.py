@@ -18,7 +18,7 @@ from scipy.spatial.transform import Rotation
 
 from ..exceptions import InputError
 from ..math.se3 import homogeneous
-from .program import Program, Target, fields_in, line_of
+from .program import Program, Target, blank_comments, fields_in, first_of, line_of
 
 _N = r"\s*[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?\s*"
 _LIST = lambda k: r"\[" + ",".join([_N] * k) + r"\]"  # noqa: E731
@@ -45,16 +45,7 @@ def _frame(xyz: str, quat: str) -> np.ndarray:
 
 def _code(text: str) -> str:
     """The text with comments (``!`` to the end of the line) and strings blanked, same length."""
-    out = []
-    for line in text.splitlines(keepends=True):
-        body, newline = (line[:-2], line[-2:]) if line.endswith("\r\n") else \
-            ((line[:-1], line[-1:]) if line.endswith("\n") else (line, ""))
-        body = re.sub(r'"[^"]*"', lambda m: " " * len(m.group()), body)
-        cut = body.find("!")
-        if cut >= 0:
-            body = body[:cut] + " " * (len(body) - cut)
-        out.append(body + newline)
-    return "".join(out)
+    return blank_comments(text, "!")
 
 
 def _tool_and_wobj(arguments: str) -> tuple[str | None, str | None]:
@@ -106,26 +97,9 @@ def load_rapid(text: str, source: str) -> Program:
     used = [_tool_and_wobj(m.group(1)) for m in _MOVE.finditer(code)]
     used_tools = {t for t, _ in used if t}
     used_wobjs = {w for _, w in used if w}
-    tool = None
-    named = sorted(used_tools - {"tool0"})
-    if named:
-        if named[0] in tools:
-            tool = tools[named[0]]
-        else:
-            notes.append(f"the motions use tool {named[0]}, which {source} does not declare: the TCP is --tool's or "
-                         "the robot file's")
-        if len(named) > 1:
-            notes.append(f"the motions use several tools ({', '.join(named)}); {named[0]} is the TCP of every target")
-    elif "tool0" in used_tools:
-        tool = np.eye(4)
-    base = None
-    wnamed = sorted(used_wobjs - {"wobj0"})
-    if wnamed:
-        if wnamed[0] in wobjs:
-            base = wobjs[wnamed[0]]
-        else:
-            notes.append(f"the motions use work object {wnamed[0]}, which {source} does not declare: targets are taken "
-                         "in the robot's base frame")
-        if len(wnamed) > 1:
-            notes.append(f"several work objects ({', '.join(wnamed)}); {wnamed[0]} is taken for every target")
+    tool, flange = first_of(used_tools, tools, "tool0", "tool", source, notes,
+                            "the TCP is --tool's or the robot file's")
+    tool = np.eye(4) if flange else tool
+    base, _ = first_of(used_wobjs, wobjs, "wobj0", "work object", source, notes,
+                       "targets are taken in the robot's base frame")
     return Program(text, "rapid", source, targets, tool, notes, base)

@@ -17,7 +17,7 @@ from scipy.spatial.transform import Rotation
 
 from ..exceptions import InputError
 from ..math.se3 import homogeneous
-from .program import Program, Target, fields_in, line_of
+from .program import Program, Target, blank_comments, fields_in, line_of
 
 _N = r"\s*[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?\s*"
 POSE = re.compile(r"\bp\[(" + ",".join([_N] * 6) + r")\]")
@@ -30,16 +30,7 @@ POSE_KEYS = ("x", "y", "z", "rx", "ry", "rz")
 
 def _code(text: str) -> str:
     """Comments (``#`` on) and strings blanked, lengths kept."""
-    out = []
-    for line in text.splitlines(keepends=True):
-        stripped = line.rstrip("\r\n")
-        newline = line[len(stripped):]
-        body = re.sub(r'"[^"]*"', lambda m: " " * len(m.group()), stripped)
-        cut = body.find("#")
-        if cut >= 0:
-            body = body[:cut] + " " * (len(body) - cut)
-        out.append(body + newline)
-    return "".join(out)
+    return blank_comments(text, "#")
 
 
 def _statement(code: str, index: int) -> tuple[int, int]:
