@@ -37,9 +37,9 @@ def filter_cmd(
     T = None if values is None else frame_from_values(values)
     result = filter_program(calibrated, src, nominal, tool=T, fmt=language)
     with together():
-        atomic_write(out, result.text.encode(_encoding(src)))
+        atomic_write(out, result.text.encode(result.encodings["main"]))
         if dat_out is not None and result.dat is not None:
-            atomic_write(dat_out, result.dat.encode(_encoding(src.with_suffix(".dat"))))
+            atomic_write(dat_out, result.dat.encode(result.encodings["dat"]))
         if summary is not None:
             atomic_write(summary, result.json())
     flagged = result.flagged
@@ -55,12 +55,6 @@ def filter_cmd(
         names = ", ".join(f"{c.target.name} ({c.status})" for c in flagged[:5]) + (" …" if len(flagged) > 5 else "")
         notes.append(f"{len(flagged)} target(s) left unchanged and flagged: {names}")
     print_warnings(notes)
-
-
-def _encoding(path: Path) -> str:
-    from ..filtering import read_program_text
-
-    return read_program_text(path)[1]
 
 
 def register(app: typer.Typer) -> None:

@@ -77,6 +77,8 @@ class FilterResult:
     dat: str | None
     corrections: list[Correction]
     notes: list[str]
+    #: the encodings the files were read in (``main``, and ``dat`` for KRL), to write them back in
+    encodings: dict
 
     @property
     def flagged(self) -> list[Correction]:
@@ -106,7 +108,7 @@ def filter_program(calibrated, program: str | Path, nominal, *, tool: np.ndarray
     if accurate.n_joints != nom.n_joints:
         raise InputError(f"the calibrated model has {accurate.n_joints} joints, the nominal {nom.n_joints}",
                          source=str(calibrated))
-    prog, _ = load_program(program, fmt)
+    prog, encodings = load_program(program, fmt)
     corrections, notes = filter_targets(prog, nom, accurate, tool, seed)
     text, dat = filtered_texts(prog, corrections)
-    return FilterResult(prog, text, dat, corrections, notes)
+    return FilterResult(prog, text, dat, corrections, notes, encodings)

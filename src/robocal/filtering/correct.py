@@ -21,9 +21,9 @@ import numpy as np
 from ..compensation.commands import compensate
 from ..compensation.ik import solve_ik
 from ..io.goals import Goals
-from ..iso9283.cube import ready_configurations
 from ..math.se3 import homogeneous, invert
 from ..math.so3 import orientation_error
+from ..model.jointspace import ready_configurations
 from ..model.robot import Robot
 from .program import Program, Target
 

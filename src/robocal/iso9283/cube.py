@@ -9,7 +9,6 @@ C8.  All five share one orientation.  A cycle visits P1, P2, P3, P4, P5 (§7.2.3
 
 from __future__ import annotations
 
-import itertools
 import math
 from dataclasses import dataclass
 
@@ -17,7 +16,7 @@ import numpy as np
 
 from ..exceptions import InputError
 from ..math.so3 import matrix_to_rpy
-from ..model.jointspace import condition_numbers
+from ..model.jointspace import ready_configurations
 from ..model.robot import Robot
 
 LABELS = ("P1", "P2", "P3", "P4", "P5")
@@ -29,8 +28,6 @@ FROM_CORNER = 0.10
 DEFAULT_EDGE = 0.15
 #: poses reached within these count as reached
 REACH_MM, REACH_RAD = 1e-3, 1e-6
-#: configurations tried as the cube's start, best conditioned first
-MAX_STARTS = 20
 
 
 def cube_positions(centre: np.ndarray, edge: float) -> np.ndarray:
@@ -39,24 +36,6 @@ def cube_positions(centre: np.ndarray, edge: float) -> np.ndarray:
     corners = centre + 0.5 * edge * CORNERS
     opposite = corners[[2, 3, 0, 1]]  # the plane's diagonals: C1–C7, C2–C8
     return np.vstack([centre, corners + FROM_CORNER * (opposite - corners)])
-
-
-def ready_configurations(robot: Robot) -> list[np.ndarray]:
-    """Configurations inside the limits to place the cube from, best conditioned first: the
-    middle of each joint's range, with the shoulder, elbow and wrist bent by up to ±90° in steps
-    of 30° (the middle of a ±360° range is a stretched, singular arm)."""
-    lo, hi = robot.limits[:, 0], robot.limits[:, 1]
-    finite = np.isfinite(lo) & np.isfinite(hi)
-    mid = np.where(finite, 0.5 * (np.where(finite, lo, 0.0) + np.where(finite, hi, 0.0)), 0.0)
-    bend = [j for j in (1, 2, 4) if j < robot.n_joints and not robot.prismatic[j]]
-    candidates = []
-    for signs in itertools.product((0.0, 1.0, -1.0, 2.0, -2.0, 3.0, -3.0), repeat=len(bend)):
-        q = mid.copy()
-        q[bend] += np.radians(30.0) * np.array(signs)
-        if np.all(q >= lo) and np.all(q <= hi):
-            candidates.append(q)
-    cond = condition_numbers(robot, np.array(candidates), True, robot.reach())
-    return [candidates[i] for i in np.argsort(cond)[:MAX_STARTS]]
 
 
 @dataclass(frozen=True)
