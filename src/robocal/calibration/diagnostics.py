@@ -20,6 +20,7 @@ import numpy as np
 
 from ..model.parameters import is_angle, is_frame
 from .problem import Problem
+from .statistics import chi2_summary
 
 #: χ² quantile beyond which a fit with stated noise is called a misfit
 MISFIT_QUANTILE = 0.999
@@ -38,14 +39,12 @@ class GoodnessOfFit:
 
     @property
     def reduced_chi2(self) -> float | None:
-        return self.chi2 / self.dof if self.dof > 0 else None
+        return chi2_summary(self.chi2, self.dof)[0]
 
     @property
     def p_value(self) -> float | None:
         """Probability of a χ² at least this large if the model were complete and the noise as stated."""
-        from scipy.special import chdtrc  # the χ² survival function, without scipy.stats' import
-
-        return float(chdtrc(self.dof, self.chi2)) if self.dof > 0 else None
+        return chi2_summary(self.chi2, self.dof)[1]
 
     def misfit(self) -> bool:
         """With stated noise: χ² beyond its 99.9 % quantile."""

@@ -31,6 +31,7 @@ import numpy as np
 
 from ..exceptions import InputError
 from ..model.measurements import Measurements
+from .statistics import chi2_summary
 
 #: the coverage factor of an MPE statement that gives none: U = 2σ
 DEFAULT_COVERAGE = 2.0
@@ -154,13 +155,11 @@ class InstrumentFit:
 
     @property
     def reduced_chi2(self) -> float | None:
-        return self.chi2 / self.dof if self.dof > 0 else None
+        return chi2_summary(self.chi2, self.dof)[0]
 
     @property
     def p_value(self) -> float | None:
-        from scipy.special import chdtrc
-
-        return float(chdtrc(self.dof, self.chi2)) if self.dof > 0 else None
+        return chi2_summary(self.chi2, self.dof)[1]
 
     def sentence(self) -> str:
         parts = []

@@ -118,3 +118,14 @@ def robust_outliers(position_errors: np.ndarray) -> tuple[np.ndarray, float]:
     if not gaps.size:
         return np.zeros(0, dtype=int), sigma
     return np.sort(order[:gaps[-1] + 1]), sigma
+
+
+def chi2_summary(chi2: float, dof: float) -> tuple[float | None, float | None]:
+    """Reduced χ² and the probability of a χ² at least this large on ``dof`` degrees of freedom
+    (None for both without degrees of freedom)."""
+    if not dof > 0:
+        return None, None
+    from scipy.special import chdtrc  # the χ² survival function, without scipy.stats' import
+
+    return chi2 / dof, float(chdtrc(dof, chi2))
+

@@ -8,7 +8,6 @@ declarations, line endings and the layout stay byte for byte.
 
 from __future__ import annotations
 
-import math
 import re
 from dataclasses import dataclass, field
 
@@ -135,7 +134,3 @@ def first_of(used: set[str], declared: dict, default: str, what: str, source: st
 def line_of(text: str, index: int) -> int:
     """1-based line number of a character index."""
     return text.count("\n", 0, index) + 1
-
-
-def finite(value: float) -> bool:
-    return math.isfinite(value)
