@@ -155,3 +155,19 @@ def test_bad_programs_are_input_errors_naming_the_file(tmp_path, accurate_files,
     code, _, err = run_cli("filter", accurate_files["kr5-arc"], src, "--nominal", "kr5-arc",
                            "--out", tmp_path / "o.src")
     assert code == 2 and "line 2" in err and "no number for Z" in err
+
+
+def test_a_calibrated_model_of_another_robot_is_said(tmp_path, accurate_files):
+    # an IRB 120's model against a KR5's program and nominal reaches none of it; a KR5 whose upper arm
+    # is 30 mm longer than the controller's model corrects by centimetres: both said
+    far = tmp_path / "long.toml"
+    far.write_text(ind.robot_toml("kr5-arc", {"a2": 30.0}))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        other = filter_program(accurate_files["irb120"], PROGRAMS / "krl/Program.src", "kr5-arc")
+        long = filter_program(far, PROGRAMS / "krl/Program.src", "kr5-arc")
+        fine = filter_program(accurate_files["kr5-arc"], PROGRAMS / "krl/Program.src", "kr5-arc")
+    assert any(n.startswith("no target could be corrected: check that --nominal") for n in other.notes)
+    assert any("mm: a calibration corrects by a few millimetres; check that --nominal" in n for n in long.notes)
+    assert not any("check that --nominal" in n for n in fine.notes)
+

@@ -130,3 +130,21 @@ def test_a_campaign_missing_a_cycle_is_refused_with_the_pose_named(tmp_path, run
     code, _, err = run_cli("iso9283", "evaluate", tmp_path / "m.csv")
     assert code == 2 and "pose P5 has no row for cycle 3" in err
     assert rows
+
+
+def test_an_honest_campaign_is_not_called_two_frames(tmp_path, run_cli):
+    _campaign_file(tmp_path / "m.csv", np.random.default_rng(5))
+    code, out, err = run_cli("iso9283", "evaluate", tmp_path / "m.csv", "--json")
+    assert code == 0 and "two frames" not in err and json.loads(out)[0]["notes"] == []
+
+
+def test_measured_and_commanded_poses_in_two_frames_are_said(tmp_path, run_cli):
+    rows = _campaign_file(tmp_path / "m.csv", np.random.default_rng(5))
+    text = (tmp_path / "m.csv").read_text().splitlines()
+    # the measured points as a tracker 3 m away gives them, the commands in the base frame
+    moved = [text[0]] + [",".join([*line.split(",")[:2], str(float(line.split(",")[2]) + 3000.0),
+                                   *line.split(",")[3:]]) for line in text[1:]]
+    (tmp_path / "m.csv").write_text("\n".join(moved) + "\n")
+    code, out, err = run_cli("iso9283", "evaluate", tmp_path / "m.csv", "--json")
+    assert code == 0 and rows
+    assert "look like two frames" in err and json.loads(out)[0]["notes"]

@@ -66,7 +66,7 @@ def evaluate_cmd(
     from ..iso9283.characteristics import characteristics
     from ..iso9283.files import load_campaign
     from ..report.iso9283 import distance_rows, pose_rows, write_iso9283_report
-    from .common import check_outputs, console, table
+    from .common import check_outputs, console, print_warnings, table
 
     check_outputs(tuple(measured) + ((robot,) if robot else ()), report=report)
     r = None if robot is None else load_robot(robot)
@@ -80,6 +80,7 @@ def evaluate_cmd(
                              f"({', '.join(p.pose for p in labels)})", source=str(path))
     if report is not None:
         write_iso9283_report(results, [str(p) for p in measured], report)
+    print_warnings([n for res in results for n in res.notes])
     if as_json:
         print(json.dumps([res.to_dict() for res in results], indent=2))
         return

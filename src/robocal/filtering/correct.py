@@ -31,6 +31,8 @@ from .program import Program, Target
 CHECK_MM, CHECK_DEG = 0.01, 0.001
 #: a nominal solution reaches its target within these (mm, rad)
 REACHED_MM, REACHED_RAD = 1e-3, 1e-6
+#: a correction beyond this (mm) is not a calibration's: two different robots or tools
+LARGE_CORRECTION_MM = 20.0
 #: random starts of the nominal inverse, beside the well-conditioned ones
 RANDOM_STARTS = 24
 
@@ -169,6 +171,14 @@ def filter_targets(program: Program, nominal: Robot, accurate: Robot, tool: np.n
             out[i] = c(program.targets[i], base)
     corrections = [out[i] for i in range(len(program.targets))]
     _round_trip(nominal, accurate, tcp, corrections, base)
+    largest = max((c for c in corrections if c.corrected), key=lambda c: c.moved_mm, default=None)
+    check = ("check that --nominal is the model this controller runs and that the calibrated model is of the same "
+             "robot, with the same tool")
+    if largest is None:
+        notes.append(f"no target could be corrected: {check}")
+    elif largest.moved_mm > LARGE_CORRECTION_MM:
+        notes.append(f"target {largest.target.name} moves by {largest.moved_mm:.4g} mm: a calibration corrects by a "
+                     f"few millimetres; {check}")
     if tool is None:  # compensation speaks of a --tool; here the TCP came from the program or the robot file
         whose = "the program's tool" if program.tool is not None else "the nominal model's tool"
         notes = [n.replace("the --tool given", whose) for n in notes]

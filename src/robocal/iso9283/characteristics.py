@@ -23,6 +23,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+#: a median pose accuracy beyond this (mm) is two frames, not a robot's error
+FRAME_GAP_MM = 50.0
+
 
 def _wrap(deg: np.ndarray) -> np.ndarray:
     return (np.asarray(deg, float) + 180.0) % 360.0 - 180.0
@@ -130,10 +133,11 @@ class Iso9283Result:
     name: str
     poses: list[PoseCharacteristics]
     distances: list[DistanceCharacteristics]
+    notes: tuple[str, ...] = ()
 
     def to_dict(self) -> dict:
         return {"campaign": self.name, "poses": [p.to_dict() for p in self.poses],
-                "distances": [d.to_dict() for d in self.distances]}
+                "distances": [d.to_dict() for d in self.distances], "notes": list(self.notes)}
 
 
 def characteristics(c: Campaign) -> Iso9283Result:
@@ -143,4 +147,10 @@ def characteristics(c: Campaign) -> Iso9283Result:
                                   c.commanded_abc[j] if full else None) for j, label in enumerate(c.poses)]
     distances = [distance_characteristics((c.poses[i], c.poses[j]), c.measured[i], c.measured[j], c.commanded[i],
                                           c.commanded[j]) for i, j in itertools.combinations(range(len(c.poses)), 2)]
-    return Iso9283Result(c.name, poses, distances)
+    notes = []
+    gap = float(np.median([p.AP_p for p in poses]))
+    if gap > FRAME_GAP_MM:  # a robot misses by millimetres; metres are a frame, not an error
+        notes.append(f"{c.name}: the attained poses lie {gap:.4g} mm from the commanded ones (median AP): measured and "
+                     "commanded poses look like two frames (the tracker's and the robot's base); give both in the "
+                     "base frame, or the commands as joints with --robot whose [base] is the measuring frame")
+    return Iso9283Result(c.name, poses, distances, tuple(notes))

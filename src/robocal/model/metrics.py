@@ -85,14 +85,12 @@ def per_pose(robot: Robot, meas: Measurements, label: str = "", outlier_rows=fro
     position data), whether it was left out as an outlier (``outlier_rows``: file rows), and how
     far (deg, mm for a sliding joint) it lies outside the region the model was calibrated on."""
     dp, dr = pose_errors(robot, meas)
-    outside = robot.region.outside(meas.q).max(axis=1) if robot.region is not None else np.zeros(meas.n_poses)
-    slide = robot.prismatic
+    far = np.zeros(meas.n_poses)
+    if robot.region is not None:  # degrees for a turning joint, mm for a sliding one
+        d = robot.region.outside(meas.q)
+        far = np.max(np.where(robot.prismatic, d, np.degrees(d)), axis=1)
     rows = []
     for i in range(meas.n_poses):
-        far = outside[i]
-        if robot.region is not None and far > 0:
-            d = robot.region.outside(meas.q[i:i + 1])[0]
-            far = float(np.max(np.where(slide, d, np.degrees(d))))
         rows.append({
             "set": label, "pose_id": "" if meas.pose_ids is None else meas.pose_ids[i], "row": int(meas.rows[i]),
             "reflector": "" if meas.targets is None else meas.targets[i],
@@ -101,5 +99,5 @@ def per_pose(robot: Robot, meas: Measurements, label: str = "", outlier_rows=fro
             **({"rx_deg": "", "ry_deg": "", "rz_deg": "", "angle_deg": ""} if dr is None else {
                 "rx_deg": float(np.degrees(dr[i, 0])), "ry_deg": float(np.degrees(dr[i, 1])),
                 "rz_deg": float(np.degrees(dr[i, 2])), "angle_deg": float(np.degrees(np.linalg.norm(dr[i])))}),
-            "outlier": int(meas.rows[i]) in outlier_rows, "outside_region_deg": float(far)})
+            "outlier": int(meas.rows[i]) in outlier_rows, "outside_region_deg": float(far[i])})
     return rows

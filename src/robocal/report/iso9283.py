@@ -48,6 +48,7 @@ def iso9283_html(results: list, sources: list[str]) -> str:
              f"<p>Campaigns: {campaigns}. Pose accuracy AP is the distance from the commanded pose to the "
              "barycentre of the attained ones; repeatability RP_l = l̄ + 3 S_l about that barycentre (ISO "
              "9283:1998 §7.2); distance accuracy AD and repeatability RD between each pair of poses (§7.3).</p>",
+             *(f"<p class='warn'>{html.escape(n)}</p>" for r in results for n in r.notes),
              _img(figures.iso9283_bars(results, "pose accuracy and repeatability")),
              "<h2>Pose characteristics</h2>", _table(*pose_rows(results)),
              "<h2>Distance characteristics</h2>", _table(*distance_rows(results)),
