@@ -99,9 +99,9 @@ BLAS_PARALLEL_SIDE = 2000
 
 class blas_threads:
     """For the block, BLAS and LAPACK (numpy's and scipy's) on one thread when the largest dense
-    matrix side is below :data:`BLAS_PARALLEL_SIDE`, else as they were.  threadpoolctl (a
-    scikit-learn dependency) sets the libraries loaded at entry, so scipy's linear algebra is
-    loaded first; the previous limits come back on exit."""
+    matrix side is below :data:`BLAS_PARALLEL_SIDE`, else as they were.  threadpoolctl sets the
+    libraries loaded at entry, so scipy's linear algebra is loaded first; the previous limits
+    come back on exit."""
 
     def __init__(self, side: int):
         self.side = side

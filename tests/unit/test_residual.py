@@ -1,14 +1,25 @@
-"""The residual model: its own prediction equals scikit-learn's, it survives JSON, it turns with
-the base, and it does not learn noise."""
+"""The residual model: its likelihood, tuning and prediction equal scikit-learn's, it survives
+JSON, it turns with the base, and it does not learn noise."""
 
 import json
 
 import numpy as np
 import pytest
 from sklearn.gaussian_process import GaussianProcessRegressor
+from sklearn.gaussian_process.kernels import RBF, ConstantKernel, WhiteKernel
 
-from robocal.calibration.residual import MIN_NOISE, fit_residual
+from robocal.calibration.likelihood import MarginalLikelihood, standardise
+from robocal.calibration.residual import MAX_LENGTH_SCALE, MIN_LENGTH_SCALE, MIN_NOISE, Kernel, fit_residual
 from robocal.model.residual import ResidualModel
+
+
+def _sklearn(kernel: Kernel | None = None, n: int = 6):
+    """scikit-learn's kernel: at robocal's values (fixed), or at the start of a tuning with its bounds."""
+    if kernel is None:
+        return (ConstantKernel(1.0, (1e-3, 1e2)) * RBF(np.ones(n), (MIN_LENGTH_SCALE, MAX_LENGTH_SCALE))
+                + WhiteKernel(0.5, (MIN_NOISE, 10.0)))
+    return (ConstantKernel(kernel.amplitude, "fixed") * RBF(kernel.length_scales, "fixed")
+            + WhiteKernel(kernel.noise, "fixed"))
 
 
 def _smooth(q):
@@ -19,7 +30,7 @@ def test_stored_prediction_equals_scikit_learn(rng):
     q = rng.uniform(-2, 2, (150, 6))
     e = _smooth(q) + rng.normal(0, 0.01, (150, 3))
     model, kernels = fit_residual(q, e, seed=1)
-    reference = GaussianProcessRegressor(kernels[0], normalize_y=True, optimizer=None).fit(q, e)
+    reference = GaussianProcessRegressor(_sklearn(kernels[0]), normalize_y=True, optimizer=None).fit(q, e)
     fresh = rng.uniform(-2, 2, (40, 6))
     np.testing.assert_allclose(model.predict(fresh), reference.predict(fresh), atol=1e-10)
     # and it learnt the function, not the noise
@@ -63,4 +74,28 @@ def test_pure_noise_is_left_as_noise(seed):
     fresh_q, fresh_e = rng.uniform(-2, 2, (200, 6)), rng.normal(0, 0.02, (200, 3))
     # predicting fresh noise with the process is no better than predicting zero
     assert np.sqrt(np.mean((fresh_e - model.predict(fresh_q)) ** 2)) >= 0.98 * np.sqrt(np.mean(fresh_e**2))
-    assert kernels[0].k2.noise_level >= MIN_NOISE
+    assert kernels[0].noise >= MIN_NOISE
+
+
+def test_likelihood_and_gradient_equal_scikit_learn(rng):
+    """The lean likelihood is scikit-learn's log marginal likelihood and gradient (another
+    formulation: its (n, n, p) gradient tensor), at several points of θ."""
+    q = rng.uniform(-2, 2, (120, 6))
+    y = _smooth(q) + rng.normal(0, 0.05, (120, 3))
+    reference = GaussianProcessRegressor(_sklearn(), normalize_y=True, optimizer=None).fit(q, y)
+    ours = MarginalLikelihood(q, standardise(y))
+    for theta in (Kernel.start(6).theta, np.log(np.r_[3.0, 0.3, 2.0, 5.0, 0.7, 1.5, 40.0, 0.05])):
+        lml, grad = reference.log_marginal_likelihood(theta, eval_gradient=True)
+        value, gradient = ours(theta)
+        np.testing.assert_allclose(-value, lml, rtol=1e-10)
+        np.testing.assert_allclose(-gradient, grad, rtol=1e-7, atol=1e-8)
+
+
+@pytest.mark.filterwarnings("ignore::sklearn.exceptions.ConvergenceWarning")
+def test_tuning_from_scratch_reaches_scikit_learns_kernel(rng):
+    """Same start, bounds and L-BFGS-B as GaussianProcessRegressor.fit: the same kernel."""
+    q = rng.uniform(-2, 2, (100, 6))
+    y = _smooth(q) + rng.normal(0, 0.02, (100, 3))
+    _, kernels = fit_residual(q, y, seed=0)
+    reference = GaussianProcessRegressor(_sklearn(), normalize_y=True, n_restarts_optimizer=0).fit(q, y)
+    np.testing.assert_allclose(kernels[0].theta, reference.kernel_.theta, atol=1e-4)

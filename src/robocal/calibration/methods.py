@@ -108,10 +108,11 @@ def run_swarm(search: Problem, config: CalibrationConfig, progress: Progress | N
 
 
 def optimize(problem: Problem, search: Problem, config: CalibrationConfig,
-             progress: Progress | None = None) -> Estimate:
-    """Run the configured method: LM on ``problem`` (the identifiable set), swarms on ``search``."""
+             progress: Progress | None = None, start: np.ndarray | None = None) -> Estimate:
+    """Run the configured method: LM on ``problem`` (the identifiable set), from ``start`` (its
+    parameters' values; None: the registered nominal model), swarms on ``search``."""
     if config.spec.swarm is None:
-        opt = fit_lm(problem, np.zeros(problem.n_params), config, progress)
+        opt = fit_lm(problem, np.zeros(problem.n_params) if start is None else start, config, progress)
         return Estimate(problem, opt, opt.x)
     swarm = run_swarm(search, config, progress)
     x_id, gap = reexpress(search, swarm.x, problem)

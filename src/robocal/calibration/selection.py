@@ -316,11 +316,12 @@ def fit_model(inputs: Inputs, config: CalibrationConfig, progress=None, stages=N
     k = len(TRIAL_ORDER)
     steps = 1 + k * (k + 1) // 2 + (2 if residuals else 0)
 
-    def rung(terms: tuple[str, ...]) -> Candidate:
+    def rung(terms: tuple[str, ...], parent: Candidate | None = None) -> Candidate:
         done = {c.terms: c for c, _ in ladder}
         if terms not in done:
             say(len(ladder), steps, f"model {len(ladder) + 1}/{steps}: {model_name(terms)}, fit and {K_FOLDS} folds")
-            fit = fit_parametric(inputs, config, term_spec(terms, meas, config), progress)
+            fit = fit_parametric(inputs, config, term_spec(terms, meas, config), progress,
+                                 None if parent is None else parent.fit)
             cv = cross_validate(fit, config)
             ladder.append((Candidate(terms, False, fit, cv.errors), cv))
             return ladder[-1][0]
@@ -330,7 +331,7 @@ def fit_model(inputs: Inputs, config: CalibrationConfig, progress=None, stages=N
     # that predicts held-out poses better (as :func:`choose` judges), until none does
     parametric = rung(())
     while True:
-        trials = [rung(with_term(parametric.terms, t)) for t in TRIAL_ORDER if t not in parametric.terms]
+        trials = [rung(with_term(parametric.terms, t), parametric) for t in TRIAL_ORDER if t not in parametric.terms]
         kept = choose([parametric, *trials], groups) if trials else parametric
         if kept is parametric:
             break

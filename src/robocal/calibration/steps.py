@@ -208,15 +208,23 @@ def complete_model(robot: Robot, config: CalibrationConfig) -> Robot:
     return complete(robot)
 
 
-def register(inputs: Inputs, config: CalibrationConfig, spec: TermSpec = TermSpec()) -> Setup:
+def register(inputs: Inputs, config: CalibrationConfig, spec: TermSpec = TermSpec(),
+             parent: Fit | None = None) -> Setup:
     """Step 2: the complete model, its frames fitted with the nominal joints (closed form, then
     LM on base and tools together: see :func:`~robocal.calibration.registration.fit_frames`),
     the parameter space around the result, and the noise weighting to start with.  A swarm
-    then searches a few millimetres around frames that are already right."""
+    then searches a few millimetres around frames that are already right.  With a ``parent``
+    fit of the same data (a simpler model), its registration (the same: it depends on the
+    nominal joints only) and its settled weights are the start."""
+    targets = inputs.meas.target_names if inputs.frames == "base+tool" else None
+    if parent is not None:
+        settled = parent.estimate.problem.setup
+        return Setup(ParameterSpace.of(parent.setup.space.robot, targets, spec), inputs.meas, settled.sigma_position,
+                     settled.sigma_orientation, config.use_orientation, config.backend, settled.instrument)
     sigma_p, sigma_r = config.noise_model.initial()
     with stage("optimize"):
         initial = fit_frames(complete_model(inputs.nominal, config), inputs.meas, inputs.frames, sigma_p, sigma_r)
-    space = ParameterSpace.of(initial, inputs.meas.target_names if inputs.frames == "base+tool" else None, spec)
+    space = ParameterSpace.of(initial, targets, spec)
     return Setup(space, inputs.meas, sigma_p, sigma_r, config.use_orientation, config.backend)
 
 
@@ -536,17 +544,29 @@ def term_spec(terms, meas: Measurements, config: CalibrationConfig) -> TermSpec:
     return TermSpec({name: TERMS[name].option_for(meas, settings) for name in terms if name in TERMS})
 
 
+def _start_from(parent: Fit | None, problem) -> np.ndarray | None:
+    """The parent fit's values of the parameters ``problem`` shares with it (zero for the rest)."""
+    if parent is None:
+        return None
+    values = dict(zip(parent.setup.space.names, parent.estimate.problem.full(parent.estimate.x)))
+    return np.array([values.get(n, 0.0) for n in problem.names])
+
+
 def fit_parametric(inputs: Inputs, config: CalibrationConfig, spec: TermSpec,
-                   progress: Progress | None = None) -> Fit:
-    """Steps 2–9 for one parametric model."""
-    setup = register(inputs, config, spec)
+                   progress: Progress | None = None, parent: Fit | None = None) -> Fit:
+    """Steps 2–9 for one parametric model; from a ``parent`` fit of the same data (a model with
+    fewer terms) when given: its registration, weights and estimate are where this one starts,
+    which changes the path, not the optimum (``auto`` tries each term on the model kept so far)."""
+    setup = register(inputs, config, spec, parent)
     with stage("compile"):
         setup.warm_up()
     candidates = choose_candidates(setup, config, inputs.frames)
     with stage("statistics"):
         ident, notes = analyse_identifiability(setup, candidates)
     with stage("optimize"):
-        est = optimize(setup.problem(ident.kept), setup.problem(searched_names(candidates, ident)), config, progress)
+        problem = setup.problem(ident.kept)
+        est = optimize(problem, setup.problem(searched_names(candidates, ident)), config, progress,
+                       start=_start_from(parent, problem))
     with stage("statistics"):  # the refits inside count as optimizing
         est, screening, said = screen_outliers(est, config)
         notes += said + _status_notes(est, config)

@@ -6,7 +6,7 @@ better than the base axes); it keeps the orientation of those axes in the robot'
 frame, R_o, so that it turns with the base when the robot is measured from elsewhere.  It is
 added to the model's pose in the measuring frame as p ← p + R_b R_o δp, R ← Exp(R_b R_o δr) R,
 with R_b the base frame's rotation (R_b R_o = I in the calibration's own frame).  It is fitted
-by :mod:`robocal.calibration.residual` (scikit-learn's GaussianProcessRegressor); predicting
+by :mod:`robocal.calibration.residual`; predicting
 needs only what is stored here, without pickle: the training inputs, the dual coefficients,
 and the kernels' parameters.
 
@@ -24,6 +24,14 @@ import numpy as np
 from ..math.so3 import exp_so3
 
 
+def rbf(a: np.ndarray, b: np.ndarray, length_scales: np.ndarray, amplitude: float) -> np.ndarray:
+    """The kernel's signal part c · exp(−½ Σ_i ((a_i − b_i)/ℓ_i)²) between joints a (m, n) and
+    b (k, n) rad: (m, k)."""
+    a, b = a / length_scales, b / length_scales
+    sq = np.sum(a * a, 1)[:, None] + np.sum(b * b, 1)[None, :] - 2 * a @ b.T
+    return amplitude * np.exp(-0.5 * np.maximum(sq, 0.0))
+
+
 @dataclass(frozen=True, eq=False)
 class Block:
     """One kernel and the outputs it predicts: alpha (N, t) dual coefficients; length_scales (n,)
@@ -38,9 +46,7 @@ class Block:
     dof: float = float("nan")
 
     def predict(self, X: np.ndarray, q: np.ndarray) -> np.ndarray:
-        Xs, d = X / self.length_scales, q / self.length_scales
-        sq = np.sum(d * d, 1)[:, None] + np.sum(Xs * Xs, 1)[None, :] - 2 * d @ Xs.T
-        return (self.amplitude * np.exp(-0.5 * np.maximum(sq, 0.0))) @ self.alpha * self.y_scale + self.y_mean
+        return rbf(q, X, self.length_scales, self.amplitude) @ self.alpha * self.y_scale + self.y_mean
 
     def to_dict(self) -> dict:
         return {"length_scales_rad": self.length_scales.tolist(), "amplitude": self.amplitude,
