@@ -83,3 +83,46 @@ def test_no_process_wide_state_changes():
 
     figures.png_bytes(figures.convergence({"a": np.array([3.0, 2.0, 1.0])}, "t"))
     assert matplotlib.get_backend() == backend
+
+
+def _pid_and_square(x):
+    return os.getpid(), x * x
+
+
+def _fails(x):
+    raise ValueError(f"piece {x}")
+
+
+def test_worker_pool_gives_the_serial_results_in_order(monkeypatch):
+    """With two idle cores the pieces run in forked workers (other process ids), and the results
+    come back as the serial map gives them; a piece's error reaches the caller."""
+    import robocal.backend as backend
+
+    monkeypatch.setattr(backend, "idle_cores", lambda: 2)
+    with backend.worker_pool() as pool:
+        out = pool.map(_pid_and_square, range(12))
+        with pytest.raises(ValueError, match="piece"):
+            pool.map(_fails, range(3))
+    assert [v for _, v in out] == [x * x for x in range(12)]
+    if sys.platform == "linux":
+        assert {pid for pid, _ in out} - {os.getpid()}
+    with backend.SERIAL as serial:  # one core: here, in order
+        assert serial.map(_pid_and_square, range(3)) == [(os.getpid(), x * x) for x in range(3)]
+
+
+def test_residual_tuning_on_workers_equals_tuning_here(monkeypatch):
+    """The tunings from several starts give the same kernel on workers as in this process (to
+    the rounding of BLAS on one thread there and on this process's threads here)."""
+    import numpy as np
+
+    import robocal.backend as backend
+    from robocal.calibration.residual import fit_residual
+
+    rng = np.random.default_rng(3)
+    q = rng.uniform(-2, 2, (90, 6))
+    e = np.column_stack([np.sin(2 * q[:, 0]), np.cos(q[:, 1]), q[:, 2] * 0.1]) + rng.normal(0, 0.05, (90, 3))
+    here = fit_residual(q, e, seed=0)[1][0]
+    monkeypatch.setattr(backend, "idle_cores", lambda: 2)
+    with backend.worker_pool() as pool:
+        there = fit_residual(q, e, seed=0, pool=pool)[1][0]
+    np.testing.assert_allclose(here.theta, there.theta, rtol=1e-6)

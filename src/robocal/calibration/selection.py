@@ -27,6 +27,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from ..backend import SERIAL, worker_pool
 from ..exceptions import InputError
 from ..model.measurements import Measurements
 from ..model.metrics import Metrics, pose_errors
@@ -190,9 +191,17 @@ def residual_errors(fit: Fit, x: np.ndarray, index: np.ndarray | None = None) ->
     return meas, dp if dr is None else np.concatenate([dp, dr], axis=1)
 
 
+def _fold_prediction(piece) -> np.ndarray:
+    """One fold (a worker's piece): the process re-tuned on the fold's training poses from the
+    given kernels, and its prediction at the held-out joints."""
+    q_train, e_train, q_test, seed, kernels = piece
+    gp, _ = fit_residual(q_train, e_train, seed, kernels, iterations=FOLD_TUNING)
+    return gp.predict(q_test)
+
+
 @staged("model")
-def cross_validate_residual(fit: Fit, cv: CrossValidation, seed: int | None,
-                            start: tuple | None = None) -> tuple[np.ndarray, tuple]:
+def cross_validate_residual(fit: Fit, cv: CrossValidation, seed: int | None, start: tuple | None = None,
+                            pool: worker_pool = SERIAL) -> tuple[np.ndarray, tuple]:
     """Held-out position errors (m, 3) mm of the parametric model plus a residual process, and
     the position kernel tuned on all the poses.
 
@@ -200,20 +209,23 @@ def cross_validate_residual(fit: Fit, cv: CrossValidation, seed: int | None,
     process that never saw them: a kernel tuned on all the poses and only conditioned per fold
     makes a process fitted to pure noise look better than none, and would be chosen.  The fold
     starts from the kernel of all the poses and runs :data:`FOLD_TUNING` iterations (from
-    scratch, eight hyperparameters on a thousand poses take a minute per fold); on pure noise
-    that is enough to leave the held-out poses unexplained, as they should be.  ``start``: the
-    kernel of another candidate's process on the same poses, from which this one's tuning on all
-    the poses starts (a warm start, not a shortcut: it runs to convergence).
+    scratch, eight hyperparameters on a thousand poses take seconds per fold); on pure noise
+    that is enough to leave the held-out poses unexplained, as they should be.  (A start from
+    another fold's kernel would carry as much of the held-out poses: that fold trained on them.)
+    ``start``: the kernel of another candidate's process on the same poses, from which this
+    one's tuning on all the poses starts (a warm start, not a shortcut: it runs to convergence).
+    The folds run on the pool's workers.
     """
     meas, e = residual_errors(fit, fit.estimate.x)
-    kernels = tune_kernels(meas.q, e[:, :3], seed, start)
-
-    corrected = np.array(cv.errors, copy=True)
+    kernels = tune_kernels(meas.q, e[:, :3], seed, start, pool=pool)
+    pieces = []
     for test, x in zip(cv.folds, cv.estimates):
         train = np.setdiff1d(np.arange(len(cv.errors)), test)
         train_meas, e_train = residual_errors(fit, x, train)
-        gp, _ = fit_residual(train_meas.q, e_train[:, :3], seed, kernels, iterations=FOLD_TUNING)
-        corrected[test] -= gp.predict(meas.q[test])
+        pieces.append((train_meas.q, e_train[:, :3], meas.q[test], seed, kernels))
+    corrected = np.array(cv.errors, copy=True)
+    for test, prediction in zip(cv.folds, pool.map(_fold_prediction, pieces)):
+        corrected[test] -= prediction
     return corrected, kernels
 
 
@@ -272,10 +284,11 @@ def choose(candidates: list[Candidate], groups: np.ndarray) -> Candidate:
 
 
 @staged("model")
-def residual_on_all(fit: Fit, seed: int | None, kernels: tuple | None = None) -> ResidualModel:
+def residual_on_all(fit: Fit, seed: int | None, kernels: tuple | None = None,
+                    pool: worker_pool = SERIAL) -> ResidualModel:
     """The residual model of a fit on all its poses (the position kernel reused when given)."""
     meas, e = residual_errors(fit, fit.estimate.x)
-    model = fit_residual(meas.q, e, seed, kernels)[0]
+    model = fit_residual(meas.q, e, seed, kernels, pool=pool)[0]
     return replace(model, axes=fit.robot.base[:3, :3].T.copy())  # the measuring axes, seen from the base
 
 
@@ -304,7 +317,10 @@ def fit_model(inputs: Inputs, config: CalibrationConfig, progress=None, stages=N
                              f"{len(set(pose_groups(meas)))} poses are too few (at least {MIN_RESIDUAL_POSES}); "
                              "measure more, or calibrate the parametric model alone", option="model")
         fit = fit_parametric(inputs, config, term_spec(terms, meas, config), progress)
-        residual = residual_on_all(fit, config.seed) if "residual" in terms else None
+        residual = None
+        if "residual" in terms:
+            with worker_pool() as pool:
+                residual = residual_on_all(fit, config.seed, pool=pool)
         geometric = fit
         if terms - {"residual"}:  # the fallback outside the calibrated region, and the error budget
             geometric = fit_parametric(inputs, config, term_spec((), meas, config))
@@ -340,16 +356,17 @@ def fit_model(inputs: Inputs, config: CalibrationConfig, progress=None, stages=N
     # take structure that joint terms would have taken more coarsely
     candidates = [c for c, _ in ladder]
     start = None
-    for c, cv in ladder:
-        if residuals and c.terms in dict.fromkeys((parametric.terms, ())):
-            name = model_name(c.terms + ("residual",))
-            say(len(candidates), len(candidates) + 2, f"model {len(candidates) + 1}: {name}, kernel and {K_FOLDS} "
-                "folds")
-            errors, kernels = cross_validate_residual(c.fit, cv, config.seed, start)
-            candidates.append(Candidate(c.terms, True, c.fit, errors, kernels))
-            start = kernels
-    chosen = choose(candidates, groups)
-    residual = residual_on_all(chosen.fit, config.seed, chosen.kernels) if chosen.residual else None
+    with worker_pool() as pool:
+        for c, cv in ladder:
+            if residuals and c.terms in dict.fromkeys((parametric.terms, ())):
+                name = model_name(c.terms + ("residual",))
+                say(len(candidates), len(candidates) + 2, f"model {len(candidates) + 1}: {name}, kernel and "
+                    f"{K_FOLDS} folds")
+                errors, kernels = cross_validate_residual(c.fit, cv, config.seed, start, pool)
+                candidates.append(Candidate(c.terms, True, c.fit, errors, kernels))
+                start = kernels
+        chosen = choose(candidates, groups)
+        residual = residual_on_all(chosen.fit, config.seed, chosen.kernels, pool) if chosen.residual else None
 
     def on_validation(c: Candidate) -> float | None:
         """What each candidate does on the validation poses, beside what cross-validation said."""
