@@ -143,6 +143,8 @@ class worker_pool:
     folds and its tunings from several starts), as many as the idle cores (:func:`idle_cores`),
     at most ``workers``.  They are forked, so they start in milliseconds with everything
     imported; scipy's LAPACK holds the interpreter lock, so threads could not share the work.
+    The pieces must not run numba's kernels: its OpenMP layer aborts a forked child that does
+    (the residual process's pieces are numpy and scipy alone).
     On one idle core, off Linux (fork is unsafe with macOS's frameworks) or inside a worker
     process already (a study's), the pieces run here, one after the other: ``map`` gives the
     same results either way, in order.

@@ -191,19 +191,24 @@ def residual_errors(fit: Fit, x: np.ndarray, index: np.ndarray | None = None) ->
     return meas, dp if dr is None else np.concatenate([dp, dr], axis=1)
 
 
-def _fold_prediction(piece) -> np.ndarray:
-    """One fold (a worker's piece): the process re-tuned on the fold's training poses from the
-    given kernels, and its prediction at the held-out joints."""
-    q_train, e_train, q_test, seed, kernels = piece
+def _fold_prediction(q_train, e_train, q_test, seed, kernels) -> np.ndarray:
+    """One fold: the process re-tuned on the fold's training poses from the given kernels, and
+    its prediction at the held-out joints."""
     gp, _ = fit_residual(q_train, e_train, seed, kernels, iterations=FOLD_TUNING)
     return gp.predict(q_test)
 
 
+def _piece(piece):
+    """A worker's piece of the residual candidates: a fold's prediction, or a tuning on all poses."""
+    kind, args = piece
+    return _fold_prediction(*args) if kind == "fold" else tune_kernels(*args)
+
+
 @staged("model")
-def cross_validate_residual(fit: Fit, cv: CrossValidation, seed: int | None, start: tuple | None = None,
-                            pool: worker_pool = SERIAL) -> tuple[np.ndarray, tuple]:
-    """Held-out position errors (m, 3) mm of the parametric model plus a residual process, and
-    the position kernel tuned on all the poses.
+def cross_validate_residuals(ladder: list[tuple[Fit, CrossValidation]], seed: int | None,
+                             pool: worker_pool = SERIAL) -> list[tuple[np.ndarray, tuple]]:
+    """For each parametric fit (with its cross-validation), the held-out position errors (m, 3)
+    mm of the fit plus a residual process, and the position kernel tuned on all the poses.
 
     Each fold tunes its own kernel on its training poses, so that the held-out poses judge a
     process that never saw them: a kernel tuned on all the poses and only conditioned per fold
@@ -212,21 +217,34 @@ def cross_validate_residual(fit: Fit, cv: CrossValidation, seed: int | None, sta
     scratch, eight hyperparameters on a thousand poses take seconds per fold); on pure noise
     that is enough to leave the held-out poses unexplained, as they should be.  (A start from
     another fold's kernel would carry as much of the held-out poses: that fold trained on them.)
-    ``start``: the kernel of another candidate's process on the same poses, from which this
-    one's tuning on all the poses starts (a warm start, not a shortcut: it runs to convergence).
-    The folds run on the pool's workers.
+
+    The first fit's kernel is tuned from scratch; each next fit's starts from the one before
+    (the same poses, residuals of a nearby model: a warm start, not a shortcut, it runs to
+    convergence) and is tuned on the workers beside the previous fit's folds.
     """
-    meas, e = residual_errors(fit, fit.estimate.x)
-    kernels = tune_kernels(meas.q, e[:, :3], seed, start, pool=pool)
-    pieces = []
-    for test, x in zip(cv.folds, cv.estimates):
-        train = np.setdiff1d(np.arange(len(cv.errors)), test)
-        train_meas, e_train = residual_errors(fit, x, train)
-        pieces.append((train_meas.q, e_train[:, :3], meas.q[test], seed, kernels))
-    corrected = np.array(cv.errors, copy=True)
-    for test, prediction in zip(cv.folds, pool.map(_fold_prediction, pieces)):
-        corrected[test] -= prediction
-    return corrected, kernels
+    prepared = []
+    for fit, cv in ladder:
+        meas, e = residual_errors(fit, fit.estimate.x)
+        folds = []
+        for test, x in zip(cv.folds, cv.estimates):
+            train = np.setdiff1d(np.arange(len(cv.errors)), test)
+            train_meas, e_train = residual_errors(fit, x, train)
+            folds.append((train_meas.q, e_train[:, :3], meas.q[test]))
+        prepared.append((meas.q, e[:, :3], folds))
+    kernels = tune_kernels(prepared[0][0], prepared[0][1], seed, pool=pool)
+    out = []
+    for i, ((_, cv), (_, _, folds)) in enumerate(zip(ladder, prepared)):
+        pieces = [("fold", (*fold, seed, kernels)) for fold in folds]
+        if i + 1 < len(ladder):
+            pieces.append(("tune", (prepared[i + 1][0], prepared[i + 1][1], seed, kernels)))
+        done = pool.map(_piece, pieces)
+        corrected = np.array(cv.errors, copy=True)
+        for test, prediction in zip(cv.folds, done):
+            corrected[test] -= prediction
+        out.append((corrected, kernels))
+        if i + 1 < len(ladder):
+            kernels = done[-1]
+    return out
 
 
 def rms(errors: np.ndarray) -> float:
@@ -344,7 +362,8 @@ def fit_model(inputs: Inputs, config: CalibrationConfig, progress=None, stages=N
         return done[terms]
 
     # forward selection: each round offers every term not yet in the model, and keeps the one
-    # that predicts held-out poses better (as :func:`choose` judges), until none does
+    # that predicts held-out poses better (as :func:`choose` judges), until none does.  The fits
+    # run here: on forked workers numba's OpenMP kernels would abort (OpenMP is not fork-safe)
     parametric = rung(())
     while True:
         trials = [rung(with_term(parametric.terms, t), parametric) for t in TRIAL_ORDER if t not in parametric.terms]
@@ -355,16 +374,15 @@ def fit_model(inputs: Inputs, config: CalibrationConfig, progress=None, stages=N
     # the residual process on the chosen parametric model, and on geometry alone: a process can
     # take structure that joint terms would have taken more coarsely
     candidates = [c for c, _ in ladder]
-    start = None
+    on = [(c, cv) for c, cv in ladder if residuals and c.terms in dict.fromkeys((parametric.terms, ()))]
     with worker_pool() as pool:
-        for c, cv in ladder:
-            if residuals and c.terms in dict.fromkeys((parametric.terms, ())):
-                name = model_name(c.terms + ("residual",))
-                say(len(candidates), len(candidates) + 2, f"model {len(candidates) + 1}: {name}, kernel and "
-                    f"{K_FOLDS} folds")
-                errors, kernels = cross_validate_residual(c.fit, cv, config.seed, start, pool)
+        if on:
+            names = ", ".join(model_name(c.terms + ("residual",)) for c, _ in on)
+            say(len(candidates), len(candidates) + len(on), f"models {len(candidates) + 1}–{len(candidates) + len(on)}:"
+                f" {names}, kernels and {K_FOLDS} folds")
+            for (c, _), (errors, kernels) in zip(on, cross_validate_residuals([(c.fit, cv) for c, cv in on],
+                                                                               config.seed, pool)):
                 candidates.append(Candidate(c.terms, True, c.fit, errors, kernels))
-                start = kernels
         chosen = choose(candidates, groups)
         residual = residual_on_all(chosen.fit, config.seed, chosen.kernels, pool) if chosen.residual else None
 
