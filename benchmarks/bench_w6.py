@@ -1,4 +1,4 @@
-"""Workload W6 of robocal's speed targets: --model auto on 1400 full poses of the UR10 (series C),
+"""Workload W6 of robocal's speed targets: --model auto on the UR10 half split (series C, 1386 full poses),
 beside a geometric LM on the same poses.  Run from the source tree: python benchmarks/bench_w6.py [REPEATS]"""
 
 import sys

@@ -144,7 +144,8 @@ class worker_pool:
     at most ``workers``.  They are forked, so they start in milliseconds with everything
     imported; scipy's LAPACK holds the interpreter lock, so threads could not share the work.
     The pieces must not run numba's kernels: its OpenMP layer aborts a forked child that does
-    (the residual process's pieces are numpy and scipy alone).
+    (the pieces are numpy and scipy alone).  Should a worker die all the same, the pieces run
+    here.
     On one idle core, off Linux (fork is unsafe with macOS's frameworks) or inside a worker
     process already (a study's), the pieces run here, one after the other: ``map`` gives the
     same results either way, in order.
@@ -175,10 +176,16 @@ class worker_pool:
         if self._pool is None or len(items) < 2:
             return [fn(item) for item in items]
         import warnings
+        from concurrent.futures.process import BrokenProcessPool
 
-        with warnings.catch_warnings():  # Python ≥ 3.12 warns of forking a process that has threads
-            warnings.simplefilter("ignore", DeprecationWarning)
-            return list(self._pool.map(fn, items))
+        try:
+            with warnings.catch_warnings():  # Python ≥ 3.12 warns of forking a process that has threads
+                warnings.simplefilter("ignore", DeprecationWarning)
+                return list(self._pool.map(fn, items))
+        except BrokenProcessPool:  # a worker died (killed, out of memory): the pieces run here
+            self._pool.shutdown(wait=False, cancel_futures=True)
+            self._pool = None
+            return [fn(item) for item in items]
 
     def __exit__(self, *exc):
         if self._pool is not None:

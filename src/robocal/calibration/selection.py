@@ -39,7 +39,7 @@ from .methods import fit_lm
 from .residual import MAX_POINTS, fit_residual, tune_kernels
 from .result import BudgetRow, LadderRow
 from .steps import Fit, Inputs, fit_parametric, term_spec
-from .timing import staged
+from .timing import stage, staged
 
 #: the joint terms in the order ``auto`` tries them (each term's ``rung``: the cheaper first)
 TRIAL_ORDER: tuple[str, ...] = tuple(sorted(TERMS, key=lambda t: TERMS[t].rung))
@@ -189,6 +189,14 @@ def residual_errors(fit: Fit, x: np.ndarray, index: np.ndarray | None = None) ->
     meas = problem.meas if index is None else problem.meas.subset(index)
     dp, dr = problem.setup.with_measurements(meas).problem(problem.names).errors(x)
     return meas, dp if dr is None else np.concatenate([dp, dr], axis=1)
+
+
+def _rung(piece) -> tuple[Fit, CrossValidation]:
+    """A worker's piece of the ladder: one parametric model fitted (from its parent's fit) and
+    cross-validated."""
+    inputs, config, spec, parent = piece
+    fit = fit_parametric(inputs, config, spec, None, parent)
+    return fit, cross_validate(fit, config)
 
 
 def _fold_prediction(q_train, e_train, q_test, seed, kernels) -> np.ndarray:
@@ -350,27 +358,39 @@ def fit_model(inputs: Inputs, config: CalibrationConfig, progress=None, stages=N
     k = len(TRIAL_ORDER)
     steps = 1 + k * (k + 1) // 2 + (2 if residuals else 0)
 
-    def rung(terms: tuple[str, ...], parent: Candidate | None = None) -> Candidate:
+    def rungs(wanted: list[tuple[str, ...]], parent: Candidate, pool: worker_pool) -> list[Candidate]:
+        """The candidates of ``wanted`` (each set of terms fitted once, from the parent's fit):
+        those not fitted yet on the pool's workers, each with its folds."""
         done = {c.terms: c for c, _ in ladder}
-        if terms not in done:
-            say(len(ladder), steps, f"model {len(ladder) + 1}/{steps}: {model_name(terms)}, fit and {K_FOLDS} folds")
-            fit = fit_parametric(inputs, config, term_spec(terms, meas, config), progress,
-                                 None if parent is None else parent.fit)
-            cv = cross_validate(fit, config)
-            ladder.append((Candidate(terms, False, fit, cv.errors), cv))
-            return ladder[-1][0]
-        return done[terms]
+        new = [t for t in dict.fromkeys(wanted) if t not in done]
+        if new:
+            say(len(ladder), steps, f"models {len(ladder) + 1}–{len(ladder) + len(new)}/{steps}: "
+                f"{', '.join(model_name(t) for t in new)}, fits and {K_FOLDS} folds each")
+            with stage("model"):  # a fit on a worker counts here, its own stages there
+                fitted = pool.map(_rung, [(inputs, rung_config, term_spec(t, meas, config), parent.fit) for t in new])
+            for t, (fit, cv) in zip(new, fitted):
+                ladder.append((Candidate(t, False, fit, cv.errors), cv))
+                done[t] = ladder[-1][0]
+        return [done[t] for t in wanted]
 
     # forward selection: each round offers every term not yet in the model, and keeps the one
-    # that predicts held-out poses better (as :func:`choose` judges), until none does.  The fits
-    # run here: on forked workers numba's OpenMP kernels would abort (OpenMP is not fork-safe)
-    parametric = rung(())
-    while True:
-        trials = [rung(with_term(parametric.terms, t), parametric) for t in TRIAL_ORDER if t not in parametric.terms]
-        kept = choose([parametric, *trials], groups) if trials else parametric
-        if kept is parametric:
-            break
-        parametric = kept
+    # that predicts held-out poses better (as :func:`choose` judges), until none does.  A round's
+    # fits run on numpy's kernels, here or on forked workers, whatever the load: numba's OpenMP
+    # kernels abort in a forked child, and the numbers must not depend on the machine's load
+    rung_config = CalibrationConfig.build(config, backend="numpy")
+    say(0, steps, f"model 1/{steps}: geometric, fit and {K_FOLDS} folds")
+    geometric = fit_parametric(inputs, config, term_spec((), meas, config), progress)
+    geometric_cv = cross_validate(geometric, config)
+    ladder.append((Candidate((), False, geometric, geometric_cv.errors), geometric_cv))
+    parametric = ladder[0][0]
+    with worker_pool() as pool:
+        while True:
+            trials = rungs([with_term(parametric.terms, t) for t in TRIAL_ORDER if t not in parametric.terms],
+                           parametric, pool)
+            kept = choose([parametric, *trials], groups) if trials else parametric
+            if kept is parametric:
+                break
+            parametric = kept
     # the residual process on the chosen parametric model, and on geometry alone: a process can
     # take structure that joint terms would have taken more coarsely
     candidates = [c for c, _ in ladder]
