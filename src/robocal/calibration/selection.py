@@ -36,7 +36,7 @@ from ..model.robot import Robot
 from ..model.terms import TERMS
 from .config import CalibrationConfig
 from .methods import fit_lm
-from .residual import MAX_POINTS, fit_residual, tune_kernels
+from .residual import HYPER_POINTS, MAX_POINTS, fit_residual, tune_kernels
 from .result import BudgetRow, LadderRow
 from .steps import Fit, Inputs, fit_parametric, term_spec
 from .timing import stage, staged
@@ -243,15 +243,15 @@ def cross_validate_residuals(ladder: list[tuple[Fit, CrossValidation]], seed: in
     out = []
     for i, ((_, cv), (_, _, folds)) in enumerate(zip(ladder, prepared)):
         pieces = [("fold", (*fold, seed, kernels)) for fold in folds]
-        if i + 1 < len(ladder):
-            pieces.append(("tune", (prepared[i + 1][0], prepared[i + 1][1], seed, kernels)))
+        if i + 1 < len(ladder):  # the longest piece first, so that no worker waits for it at the end
+            pieces.insert(0, ("tune", (prepared[i + 1][0], prepared[i + 1][1], seed, kernels)))
         done = pool.map(_piece, pieces)
         corrected = np.array(cv.errors, copy=True)
-        for test, prediction in zip(cv.folds, done):
+        for test, prediction in zip(cv.folds, done[len(done) - len(folds):]):
             corrected[test] -= prediction
         out.append((corrected, kernels))
         if i + 1 < len(ladder):
-            kernels = done[-1]
+            kernels = done[0]
     return out
 
 
@@ -357,6 +357,10 @@ def fit_model(inputs: Inputs, config: CalibrationConfig, progress=None, stages=N
     # at most: geometry, each term alone, then each further term on the one kept so far
     k = len(TRIAL_ORDER)
     steps = 1 + k * (k + 1) // 2 + (2 if residuals else 0)
+    # what a stage tells the terminal is work done, in parametric fits: a residual candidate (its
+    # tunings on up to 1000 poses and its folds) is about 8 of them on a thousand poses
+    process = max(1.0, 8.0 * (min(len(set(groups)), HYPER_POINTS) / 1000) ** 2)
+    work = steps - 2 + 2 * process if residuals else steps
 
     def rungs(wanted: list[tuple[str, ...]], parent: Candidate, pool: worker_pool) -> list[Candidate]:
         """The candidates of ``wanted`` (each set of terms fitted once, from the parent's fit):
@@ -364,7 +368,7 @@ def fit_model(inputs: Inputs, config: CalibrationConfig, progress=None, stages=N
         done = {c.terms: c for c, _ in ladder}
         new = [t for t in dict.fromkeys(wanted) if t not in done]
         if new:
-            say(len(ladder), steps, f"models {len(ladder) + 1}–{len(ladder) + len(new)}/{steps}: "
+            say(len(ladder), work, f"models {len(ladder) + 1}–{len(ladder) + len(new)}/{steps}: "
                 f"{', '.join(model_name(t) for t in new)}, fits and {K_FOLDS} folds each")
             with stage("model"):  # a fit on a worker counts here, its own stages there
                 fitted = pool.map(_rung, [(inputs, rung_config, term_spec(t, meas, config), parent.fit) for t in new])
@@ -378,7 +382,7 @@ def fit_model(inputs: Inputs, config: CalibrationConfig, progress=None, stages=N
     # fits run on numpy's kernels, here or on forked workers, whatever the load: numba's OpenMP
     # kernels abort in a forked child, and the numbers must not depend on the machine's load
     rung_config = CalibrationConfig.build(config, backend="numpy")
-    say(0, steps, f"model 1/{steps}: geometric, fit and {K_FOLDS} folds")
+    say(0, work, f"model 1/{steps}: geometric, fit and {K_FOLDS} folds")
     geometric = fit_parametric(inputs, config, term_spec((), meas, config), progress)
     geometric_cv = cross_validate(geometric, config)
     ladder.append((Candidate((), False, geometric, geometric_cv.errors), geometric_cv))
@@ -398,7 +402,8 @@ def fit_model(inputs: Inputs, config: CalibrationConfig, progress=None, stages=N
     with worker_pool() as pool:
         if on:
             names = ", ".join(model_name(c.terms + ("residual",)) for c, _ in on)
-            say(len(candidates), len(candidates) + len(on), f"models {len(candidates) + 1}–{len(candidates) + len(on)}:"
+            say(len(candidates), len(candidates) + process * len(on),
+                f"models {len(candidates) + 1}–{len(candidates) + len(on)}:"
                 f" {names}, kernels and {K_FOLDS} folds")
             for (c, _), (errors, kernels) in zip(on, cross_validate_residuals([(c.fit, cv) for c, cv in on],
                                                                                config.seed, pool)):
