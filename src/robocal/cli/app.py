@@ -37,7 +37,7 @@ iso9283.register(app)
 def _one_line_warnings(python_show, held: list[str] | None = None):
     """A warning printer for the command line: robocal's own as one line on stderr, or kept in
     ``held`` to be printed once the command has succeeded (an input error is then the one line
-    said).  The libraries' (numpy's overflow RuntimeWarnings, scikit-learn's convergence notes)
+    said).  The libraries' (numpy's overflow RuntimeWarnings, scipy's optimizer notes)
     are not for the user: whatever they flag, robocal checks and says in its own words; set
     ROBOCAL_SHOW_WARNINGS=1 to see them as Python prints them."""
     import os
