@@ -13,7 +13,7 @@ import functools
 import importlib.util
 import os
 
-from .exceptions import InputError
+from .exceptions import InputError, RobocalWarning
 
 BACKENDS = ("auto", "numba", "numpy")
 
@@ -185,6 +185,9 @@ class worker_pool:
         except BrokenProcessPool:  # a worker died (killed, out of memory): the pieces run here
             self._pool.shutdown(wait=False, cancel_futures=True)
             self._pool = None
+            warnings.warn(RobocalWarning("a worker process ended abruptly (killed, or out of memory?): its pieces of "
+                                         "the work ran again in this process, with the same results, more slowly"),
+                          stacklevel=2)
             return [fn(item) for item in items]
 
     def __exit__(self, *exc):

@@ -126,3 +126,23 @@ def test_residual_tuning_on_workers_equals_tuning_here(monkeypatch):
     with backend.worker_pool() as pool:
         there = fit_residual(q, e, seed=0, pool=pool)[1][0]
     np.testing.assert_allclose(here.theta, there.theta, rtol=1e-6)
+
+
+_PARENT = os.getpid()
+
+
+def _dies_in_a_worker(x):
+    if os.getpid() != _PARENT:
+        os._exit(1)
+    return x + 1
+
+
+def test_a_pool_whose_worker_dies_runs_the_pieces_here_and_says_so(monkeypatch):
+    import robocal.backend as backend
+    from robocal.exceptions import RobocalWarning
+
+    if sys.platform != "linux":
+        pytest.skip("workers are forked on Linux only")
+    monkeypatch.setattr(backend, "idle_cores", lambda: 2)
+    with backend.worker_pool() as pool, pytest.warns(RobocalWarning, match="worker process ended abruptly"):
+        assert pool.map(_dies_in_a_worker, range(4)) == [1, 2, 3, 4]

@@ -395,11 +395,10 @@ def fit_model(inputs: Inputs, config: CalibrationConfig, progress=None, stages=N
             if kept is parametric:
                 break
             parametric = kept
-    # the residual process on the chosen parametric model, and on geometry alone: a process can
-    # take structure that joint terms would have taken more coarsely
-    candidates = [c for c, _ in ladder]
-    on = [(c, cv) for c, cv in ladder if residuals and c.terms in dict.fromkeys((parametric.terms, ()))]
-    with worker_pool() as pool:
+        # the residual process on the chosen parametric model, and on geometry alone: a process
+        # can take structure that joint terms would have taken more coarsely
+        candidates = [c for c, _ in ladder]
+        on = [(c, cv) for c, cv in ladder if residuals and c.terms in dict.fromkeys((parametric.terms, ()))]
         if on:
             names = ", ".join(model_name(c.terms + ("residual",)) for c, _ in on)
             say(len(candidates), len(candidates) + process * len(on),
