@@ -45,13 +45,36 @@ def resolve(backend: str = "auto") -> str:
 PARALLEL_MIN_WORK = 200_000
 
 
-def idle_cores() -> int:
+def _runnable_now(looks: int = 5, interval: float = 0.005) -> int | None:
+    """Threads running or waiting for a core right now, this one included: the least of a few
+    looks at Linux's count of runnable tasks (/proc/loadavg) over ``looks × interval`` s, since
+    a helper thread that spins a moment after its work counts as running; None elsewhere."""
+    import time
+
+    counts = []
+    try:
+        for i in range(looks):
+            with open("/proc/loadavg", encoding="ascii") as f:
+                counts.append(int(f.read().split()[3].split("/")[0]))
+            if i + 1 < looks:
+                time.sleep(interval)
+    except (OSError, ValueError, IndexError):
+        return None
+    return min(counts)
+
+
+def idle_cores(now: bool = False) -> int:
     """Cores this process may use that the rest of the system leaves free (at least 1): the
-    1-minute load less this process's own running thread."""
+    1-minute load less this process's own running thread, or with ``now`` (Linux) the threads
+    runnable at this moment (the 1-minute load lags a minute behind work that starts or ends,
+    this process's own just-ended workers included)."""
     try:
         cores = len(os.sched_getaffinity(0))
     except AttributeError:  # not on Linux
         cores = os.cpu_count() or 1
+    runnable = _runnable_now() if now else None
+    if runnable is not None:
+        return max(1, min(cores, cores - (runnable - 1)))
     try:
         busy = max(0.0, os.getloadavg()[0] - 1.0)
     except (AttributeError, OSError):
@@ -138,10 +161,16 @@ def _worker_start() -> None:
         pass
 
 
+def _workers_allowed() -> int:
+    """``ROBOCAL_WORKERS`` when set to a whole number ≥ 1, else no cap."""
+    value = os.environ.get("ROBOCAL_WORKERS", "")
+    return int(value) if value.isdigit() and int(value) >= 1 else 1 << 16
+
+
 class worker_pool:
     """Worker processes for the independent pieces of one calibration (the residual process's
-    folds and its tunings from several starts), as many as the idle cores (:func:`idle_cores`),
-    at most ``workers``.  They are forked, so they start in milliseconds with everything
+    folds and its tunings from several starts), as many as the cores idle when it opens
+    (:func:`idle_cores` now), at most ``workers``.  They are forked, so they start in milliseconds with everything
     imported; scipy's LAPACK holds the interpreter lock, so threads could not share the work.
     The pieces must not run numba's kernels: its OpenMP layer aborts a forked child that does
     (the pieces are numpy and scipy alone).  Should a worker die all the same, the pieces run
@@ -150,8 +179,8 @@ class worker_pool:
     process already (a study's), the pieces run here, one after the other: ``map`` gives the
     same results either way, in order.
 
-    On the 2-core development machine the ten folds of ``--model auto`` on the UR10 half split
-    took 1.7 times less wall time on two workers than in one process."""
+    The environment variable ``ROBOCAL_WORKERS`` caps the workers (``1``: none), read when a
+    pool opens.  ``robocal bench`` times ``--model auto`` with and without them (W6)."""
 
     def __init__(self, workers: int = 8):
         self.workers = workers
@@ -161,7 +190,8 @@ class worker_pool:
         import multiprocessing
         import sys
 
-        n = min(self.workers, idle_cores())
+        n = min(self.workers, _workers_allowed())
+        n = min(n, idle_cores(now=True)) if n >= 2 else n
         if n >= 2 and sys.platform == "linux" and multiprocessing.parent_process() is None:
             from concurrent.futures import ProcessPoolExecutor
 

@@ -98,7 +98,7 @@ def test_worker_pool_gives_the_serial_results_in_order(monkeypatch):
     come back as the serial map gives them; a piece's error reaches the caller."""
     import robocal.backend as backend
 
-    monkeypatch.setattr(backend, "idle_cores", lambda: 2)
+    monkeypatch.setattr(backend, "idle_cores", lambda now=False: 2)
     with backend.worker_pool() as pool:
         out = pool.map(_pid_and_square, range(12))
         with pytest.raises(ValueError, match="piece"):
@@ -122,7 +122,7 @@ def test_residual_tuning_on_workers_equals_tuning_here(monkeypatch):
     q = rng.uniform(-2, 2, (90, 6))
     e = np.column_stack([np.sin(2 * q[:, 0]), np.cos(q[:, 1]), q[:, 2] * 0.1]) + rng.normal(0, 0.05, (90, 3))
     here = fit_residual(q, e, seed=0)[1][0]
-    monkeypatch.setattr(backend, "idle_cores", lambda: 2)
+    monkeypatch.setattr(backend, "idle_cores", lambda now=False: 2)
     with backend.worker_pool() as pool:
         there = fit_residual(q, e, seed=0, pool=pool)[1][0]
     np.testing.assert_allclose(here.theta, there.theta, rtol=1e-6)
@@ -143,6 +143,25 @@ def test_a_pool_whose_worker_dies_runs_the_pieces_here_and_says_so(monkeypatch):
 
     if sys.platform != "linux":
         pytest.skip("workers are forked on Linux only")
-    monkeypatch.setattr(backend, "idle_cores", lambda: 2)
+    monkeypatch.setattr(backend, "idle_cores", lambda now=False: 2)
     with backend.worker_pool() as pool, pytest.warns(RobocalWarning, match="worker process ended abruptly"):
         assert pool.map(_dies_in_a_worker, range(4)) == [1, 2, 3, 4]
+
+
+@pytest.mark.skipif(not os.path.exists("/proc/loadavg"), reason="Linux's count of runnable tasks")
+def test_idle_cores_now_sees_busy_processes_the_minute_average_has_not_yet():
+    """One busy process per core, started a moment ago: no core is idle now (at least 1 is
+    said, for this process), whatever the 1-minute load still says."""
+    import time
+
+    import robocal.backend as backend
+
+    cores = len(os.sched_getaffinity(0))
+    busy = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(cores)]
+    try:
+        time.sleep(0.5)
+        assert backend.idle_cores(now=True) == 1
+    finally:
+        for p in busy:
+            p.kill()
+            p.wait()

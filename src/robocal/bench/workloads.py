@@ -247,6 +247,21 @@ def _command_line(data: Path, model: str, out: Path) -> float:
     return time.perf_counter() - start
 
 
+def _without_workers(fn):
+    """``fn()`` with ``ROBOCAL_WORKERS=1`` (every piece in this process), the variable restored after."""
+    import os
+
+    before = os.environ.get("ROBOCAL_WORKERS")
+    os.environ["ROBOCAL_WORKERS"] = "1"
+    try:
+        return fn()
+    finally:
+        if before is None:
+            del os.environ["ROBOCAL_WORKERS"]
+        else:
+            os.environ["ROBOCAL_WORKERS"] = before
+
+
 def w6_auto(repeats: int = 1, data: Path = UR10_DATA) -> list[Row]:
     """W6: ``--model auto`` on the UR10 half split (1386 full poses, frames base+tool) beside a
     geometric LM calibration of the same poses, the two interleaved: on the command line (as a
@@ -269,7 +284,7 @@ def w6_auto(repeats: int = 1, data: Path = UR10_DATA) -> list[Row]:
 
         run("geometric")  # imports and caches outside the timing
         _command_line(path, "geometric", Path(folder) / "warm.json")  # numba's cache on disk
-        cli_geometric, cli_auto, geometric, auto = [], [], [], []
+        cli_geometric, cli_auto, geometric, auto, alone = [], [], [], [], []
         for _ in range(repeats):
             cli_geometric.append(_command_line(path, "geometric", Path(folder) / "g.json"))
             cli_auto.append(_command_line(path, "auto", Path(folder) / "a.json"))
@@ -277,6 +292,7 @@ def w6_auto(repeats: int = 1, data: Path = UR10_DATA) -> list[Row]:
             t = time.perf_counter()
             result = run("auto")
             auto.append(time.perf_counter() - t)
+            alone.append(_without_workers(lambda: median_time(lambda: run("auto"), 1)))
     tried = [r.model for r in result.model_selection]
     cli_ratio = statistics.median(a / g for a, g in zip(cli_auto, cli_geometric))
     ratio = statistics.median(a / g for a, g in zip(auto, geometric))
@@ -285,6 +301,8 @@ def w6_auto(repeats: int = 1, data: Path = UR10_DATA) -> list[Row]:
         Row(f"W6 --model auto, UR10 half split ({meas.n_poses} full poses)", t_auto, "s", "≤ 60 s", t_auto <= 60.0,
             note=f"chose {result.model}; {sum('residual' not in m for m in tried)} parametric models × 5 folds, "
                  f"{sum('residual' in m for m in tried)} residual processes"),
+        Row("W6 --model auto without worker processes (ROBOCAL_WORKERS=1)", statistics.median(alone), "s", "—", None,
+            note=f"the workers take {statistics.median(a / w for a, w in zip(alone, auto)):.2f}× less wall time"),
         Row("W6 geometric LM, same poses", statistics.median(geometric), "s", "—", None),
         Row("W6 time ratio auto / geometric, Python API", ratio, "×", "—", None, note="median of paired runs"),
         Row("W6 robocal calibrate --model auto", statistics.median(cli_auto), "s", "—", None),
