@@ -168,14 +168,14 @@ def _workers_allowed() -> int:
 
 
 class worker_pool:
-    """Worker processes for the independent pieces of one calibration (the residual process's
-    folds and its tunings from several starts), as many as the cores idle when it opens
-    (:func:`idle_cores` now), at most ``workers``.  They are forked, so they start in milliseconds with everything
-    imported; scipy's LAPACK holds the interpreter lock, so threads could not share the work.
-    The pieces must not run numba's kernels: its OpenMP layer aborts a forked child that does
-    (the pieces are numpy and scipy alone).  Should a worker die all the same, the pieces run
-    here.
-    On one idle core, off Linux (fork is unsafe with macOS's frameworks) or inside a worker
+    """Worker processes for the independent pieces of one calibration (``auto``'s parametric
+    fits of a round, the residual process's tunings from several starts and its folds), as many
+    as the cores idle when it opens (:func:`idle_cores` now), at most ``workers``.  They are
+    forked, so they start in milliseconds with everything imported; scipy's LAPACK holds the
+    interpreter lock, so threads could not share the work.  The pieces must not run numba's
+    kernels: its OpenMP layer aborts a forked child that does (the pieces are numpy and scipy
+    alone); should a worker die all the same, the pieces run here and a warning says so.  On
+    one idle core, off Linux (fork is unsafe with macOS's frameworks) or inside a worker
     process already (a study's), the pieces run here, one after the other: ``map`` gives the
     same results either way, in order.
 

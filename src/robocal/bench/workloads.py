@@ -265,7 +265,7 @@ def _without_workers(fn):
 def w6_auto(repeats: int = 1, data: Path = UR10_DATA) -> list[Row]:
     """W6: ``--model auto`` on the UR10 half split (1386 full poses, frames base+tool) beside a
     geometric LM calibration of the same poses, the two interleaved: on the command line (as a
-    user runs them, the issue's measure) and as calls of the Python API in one process."""
+    user runs them; the ≤ 8× target is theirs) and as calls of the Python API in one process."""
     import tempfile
 
     from ..io.measurements import load_measurements

@@ -6,9 +6,9 @@ on standardised outputs.  Its hyperparameters are tuned by maximising the log ma
 likelihood summed over the outputs, exactly as ``GaussianProcessRegressor.fit`` does (same
 parameters in log space, same bounds, same jitter, same L-BFGS-B): only the arithmetic is
 arranged for speed.  scikit-learn builds the kernel's gradient as an (n, n, p) array and
-contracts it with an (n, n, t) one at every evaluation; here the squared joint differences
-are computed once per data set, the gradient needs W ∘ K (W = ααᵀ − t K⁻¹) only
-through a few products, and K⁻¹ comes from the Cholesky factor (LAPACK ``potri``).  On a
+contracts it with an (n, n, t) one at every evaluation; here the gradient needs W ∘ K
+(W = ααᵀ − t K⁻¹) only through a few products, and K⁻¹ comes from the Cholesky factor
+(LAPACK ``potri``).  On a
 thousand poses an evaluation costs about the Cholesky factor and the inverse (30 of 40 ms here),
 and the tuning is the bulk of ``--model auto``.
 """
@@ -80,8 +80,14 @@ class MarginalLikelihood:
         return -lml, -grad
 
 
-def standardise(y: np.ndarray) -> np.ndarray:
-    """The outputs as ``normalize_y=True`` sees them: each centred and divided by its std."""
+def moments(y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each output's mean and scale as ``normalize_y=True`` takes them: its std, 1 where it is 0."""
     y = np.asarray(y, float)
     std = y.std(axis=0)
-    return (y - y.mean(axis=0)) / np.where(std == 0, 1.0, std)
+    return y.mean(axis=0), np.where(std == 0, 1.0, std)
+
+
+def standardise(y: np.ndarray) -> np.ndarray:
+    """The outputs as ``normalize_y=True`` sees them: each centred and divided by its scale."""
+    mean, scale = moments(y)
+    return (np.asarray(y, float) - mean) / scale

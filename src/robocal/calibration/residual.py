@@ -128,17 +128,16 @@ def _block(q, y, keep, kernel: Kernel, rng: np.random.Generator) -> Block:
     + (σ² + jitter) I factored once, α = K⁻¹ y."""
     from scipy.linalg import cho_solve, cholesky
 
-    from .likelihood import JITTER, standardise
+    from .likelihood import JITTER, moments
 
     X, y = q[keep], y[keep]
     K = rbf(X, X, kernel.length_scales, kernel.amplitude)
     K[np.diag_indices_from(K)] += kernel.noise + JITTER
     L = cholesky(K, lower=True, overwrite_a=True, check_finite=False)
-    std = y.std(axis=0)
-    alpha = cho_solve((L, True), standardise(y), check_finite=False)
+    mean, scale = moments(y)
+    alpha = cho_solve((L, True), (y - mean) / scale, check_finite=False)
     return Block(alpha=alpha.reshape(len(keep), -1), length_scales=kernel.length_scales, amplitude=kernel.amplitude,
-                 y_mean=y.mean(axis=0), y_scale=np.where(std == 0, 1.0, std),
-                 dof=effective_dof(L, kernel.noise, rng) * y.shape[1])
+                 y_mean=mean, y_scale=scale, dof=effective_dof(L, kernel.noise, rng) * y.shape[1])
 
 
 def _blocks(errors: np.ndarray):
