@@ -20,7 +20,7 @@ import numpy as np
 
 from ..model.parameters import is_angle, is_frame
 from .problem import Problem
-from .statistics import chi2_summary
+from .statistics import ChiSquared
 
 #: χ² quantile beyond which a fit with stated noise is called a misfit
 MISFIT_QUANTILE = 0.999
@@ -30,21 +30,12 @@ HARMONICS = (1, 2)
 
 
 @dataclass(frozen=True)
-class GoodnessOfFit:
+class GoodnessOfFit(ChiSquared):
     """χ² = Σ (residual/σ)² at the solution, on dof = N − k degrees of freedom."""
 
     chi2: float
     dof: int
     noise_source: str
-
-    @property
-    def reduced_chi2(self) -> float | None:
-        return chi2_summary(self.chi2, self.dof)[0]
-
-    @property
-    def p_value(self) -> float | None:
-        """Probability of a χ² at least this large if the model were complete and the noise as stated."""
-        return chi2_summary(self.chi2, self.dof)[1]
 
     def misfit(self) -> bool:
         """With stated noise: χ² beyond its 99.9 % quantile."""

@@ -31,7 +31,7 @@ import numpy as np
 
 from ..exceptions import InputError
 from ..model.measurements import Measurements
-from .statistics import chi2_summary
+from .statistics import ChiSquared
 
 #: the coverage factor of an MPE statement that gives none: U = 2σ
 DEFAULT_COVERAGE = 2.0
@@ -140,7 +140,7 @@ def paule_mandel(r2: np.ndarray, s2: np.ndarray, dof: float) -> float:
 
 
 @dataclass(frozen=True)
-class InstrumentFit:
+class InstrumentFit(ChiSquared):
     """The misfit against the instrument's own noise: χ² = Σ r²/σ_i² over the blocks with σ, its
     degrees of freedom, and τ, the scatter per axis the model leaves beyond the instrument (mm,
     rad); source says where the σ came from."""
@@ -152,14 +152,6 @@ class InstrumentFit:
     tau_orientation: float | None
     sigma_position: tuple[float, float, float] | None  # min, median, max (mm)
     sigma_orientation: tuple[float, float, float] | None  # rad
-
-    @property
-    def reduced_chi2(self) -> float | None:
-        return chi2_summary(self.chi2, self.dof)[0]
-
-    @property
-    def p_value(self) -> float | None:
-        return chi2_summary(self.chi2, self.dof)[1]
 
     def sentence(self) -> str:
         parts = []

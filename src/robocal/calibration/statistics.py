@@ -129,3 +129,19 @@ def chi2_summary(chi2: float, dof: float) -> tuple[float | None, float | None]:
 
     return chi2 / dof, float(chdtrc(dof, chi2))
 
+
+
+class ChiSquared:
+    """Reduced χ² and its probability, for a result that holds ``chi2`` and ``dof``."""
+
+    chi2: float
+    dof: float
+
+    @property
+    def reduced_chi2(self) -> float | None:
+        return chi2_summary(self.chi2, self.dof)[0]
+
+    @property
+    def p_value(self) -> float | None:
+        """Probability of a χ² at least this large if the model were complete and the noise as stated."""
+        return chi2_summary(self.chi2, self.dof)[1]

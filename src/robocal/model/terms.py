@@ -440,7 +440,28 @@ class Harmonics(Term):
         return {"harmonics": h}
 
 
-class Backlash(Term):
+class PerJointTerm(Term):
+    """A term of one parameter per joint (``NAME1..NAMEn``), held as one array named after it,
+    planted from {joint (1-based): value}."""
+
+    def names(self, option, n):
+        return [f"{self.name}{i + 1}" for i in range(n)]
+
+    def values(self, terms, option, n):
+        v = terms.get(self.name)
+        return np.zeros(n) if v is None else v
+
+    def arrays_of(self, option, n, values):
+        return {self.name: values.copy()}
+
+    def plant(self, planted, n):
+        v = np.zeros(n)
+        for j, value in planted.items():
+            v[j - 1] = value
+        return {self.name: v}
+
+
+class Backlash(PerJointTerm):
     """Δq_i = b_i · dir_i: the joint stands b_i off its commanded angle on the side of its last
     move (half its dead band), dir_i = +1 or −1 from ``dir1..dirN`` columns or the measuring
     order (0 where unknown, before a joint's first move).  Option: 1."""
@@ -453,33 +474,17 @@ class Backlash(Term):
     def reported(self, parameter, terms=None):
         return "deg", 180.0 / np.pi
 
-    def names(self, option, n):
-        return [f"backlash{i + 1}" for i in range(n)]
-
     def basis(self, option, x):
         m, n = x.q.shape
         d = np.zeros((m, n)) if x.inputs.directions is None else np.asarray(x.inputs.directions, float)
         d = np.where(prismatic_mask(x.convention, x.geom), 0.0, d)  # turning joints: an angle's dead band
         return np.einsum("mi,ik->mik", d, np.eye(n))
 
-    def values(self, terms, option, n):
-        b = terms.get("backlash")
-        return np.zeros(n) if b is None else b
-
-    def arrays_of(self, option, n, values):
-        return {"backlash": values.copy()}
-
     def option_of(self, terms):
         return None if terms.get("backlash") is None else 1
 
     def option_for(self, meas, settings):
         return 1
-
-    def plant(self, planted, n):
-        b = np.zeros(n)
-        for j, value in planted.items():
-            b[j - 1] = value
-        return {"backlash": b}
 
 
 #: the drift's time scale S per clock: rates per hour of seconds, per 1000 rows of a file
@@ -491,7 +496,7 @@ def clock_kind(clock: str) -> str:
     return clock.split(":", 1)[0]
 
 
-class Drift(Term):
+class Drift(PerJointTerm):
     """Joint zeros that move linearly with time: Δq_i = r_i (t − t₀)/S.  Option: (clock, t₀),
     the clock ``s`` (a time column) or ``row:SOURCE`` (the line numbers of that file; a model
     read back from a robot file has ``row``, which matches no file) and the reference t₀ on it.
@@ -506,9 +511,6 @@ class Drift(Term):
         kind = clock_kind(terms.clock[0]) if terms is not None and terms.clock else "s"
         return ("deg/h" if kind == "s" else "deg/1000 rows"), 180.0 / np.pi
 
-    def names(self, option, n):
-        return [f"drift{i + 1}" for i in range(n)]
-
     def basis(self, option, x):
         m, n = x.q.shape
         clock, reference = option
@@ -517,13 +519,6 @@ class Drift(Term):
             else np.zeros(m)
         d = np.where(prismatic_mask(x.convention, x.geom), 0.0, 1.0)
         return np.einsum("m,i,ik->mik", elapsed, d, np.eye(n))
-
-    def values(self, terms, option, n):
-        r = terms.get("drift")
-        return np.zeros(n) if r is None else r
-
-    def arrays_of(self, option, n, values):
-        return {"drift": values.copy()}
 
     def option_of(self, terms):
         if terms.get("drift") is None:
@@ -536,12 +531,6 @@ class Drift(Term):
         if inputs.time is None:
             return None
         return (inputs.clock, float(np.max(inputs.time)))
-
-    def plant(self, planted, n):
-        r = np.zeros(n)
-        for j, value in planted.items():
-            r[j - 1] = value
-        return {"drift": r}
 
 
 #: the joint terms, in the order their parameters follow the geometry's
