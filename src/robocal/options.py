@@ -80,6 +80,26 @@ def frame_values(value, option: str) -> tuple[float, ...] | None:
     return v[:3] + tuple(math.radians(a) for a in v[3:])
 
 
+def named_frames(items, option: str) -> tuple[tuple[float, ...] | None, dict[str, tuple[float, ...]]]:
+    """``[NAME=]x,y,z,rx,ry,rz`` items (mm, deg) → the unnamed one (or None) and the named ones,
+    as :func:`frame_values` gives them; a name twice, or two unnamed, is an error."""
+    unnamed, named = None, {}
+    for item in items or ():
+        name, sep, values = str(item).rpartition("=")
+        if sep and not name.strip():
+            raise InputError(f"expected NAME=x,y,z,rx,ry,rz or x,y,z,rx,ry,rz, got {item!r}", option=option)
+        frame = frame_values(values, option)
+        if not sep:
+            if unnamed is not None:
+                raise InputError("given twice without a name (name each: NAME=x,y,z,rx,ry,rz)", option=option)
+            unnamed = frame
+        elif name.strip() in named:
+            raise InputError(f"{name.strip()!r} given twice", option=option)
+        else:
+            named[name.strip()] = frame
+    return unnamed, named
+
+
 def column_map(items) -> dict[str, str] | None:
     """``FILE=ROBOCAL`` pairs, each item possibly a comma list (``J1=q1,J2=q2``)."""
     if not items:

@@ -315,7 +315,7 @@ def test_compensating_with_a_tracker_target_tool_says_so_and_serves_the_tcp(tmp_
 
 
 def test_a_solution_on_another_branch_is_named_so():
-    from robocal.compensation.ik import _statuses
+    from robocal.inverse.local import _statuses
 
     reached, moved = np.array([True, True]), np.radians([45.0, 1.0])
     status = _statuses(reached, moved, np.array([50.0, 50.0]), np.zeros(2, bool), np.zeros(2, bool))

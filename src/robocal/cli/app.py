@@ -80,7 +80,7 @@ def main(argv: list[str] | None = None) -> int:
     finally:
         if own_sigint:
             signal.signal(signal.SIGINT, previous)
-    if code == 0:  # what was noticed on the way; after an error, the error alone is said
+    if code in (0, 3):  # what was noticed on the way (3: written, in part); after an error, the error alone
         for text in held:
             print(text, file=sys.stderr)
     return code

@@ -6,55 +6,86 @@ from pathlib import Path
 
 import typer
 
+from .common import base_link_option, tip_link_option
+
+#: exit status of a run that wrote the program but left targets uncorrected (2 is bad input)
+PARTIAL = 3
+
 
 def filter_cmd(
     calibrated: str = typer.Argument(..., help="the accurate model: a robot file from calibrate --export"),
-    program: Path = typer.Argument(..., help="the program: KRL .src (its .dat beside it), RAPID .mod/.prg, or "
-                                   "URScript .script"),
+    program: Path = typer.Argument(..., help="the program: KRL .src (its .dat beside it), RAPID .mod/.prg, "
+                                   "URScript .script, FANUC .ls"),
     nominal: str = typer.Option(..., "--nominal", help="the nominal model the controller runs (built-in name or "
                                 "file)"),
     out: Path = typer.Option(..., "--out", help="the filtered program to write (KRL: its .dat beside it)"),
-    tool: str | None = typer.Option(None, "--tool", help="TCP x,y,z,rx,ry,rz (mm, deg, flange frame; default: the "
-                                    "program's tool data, else the nominal model's tool)"),
-    fmt: str = typer.Option("auto", "--format", help="auto | krl | rapid | urscript"),
-    summary: Path | None = typer.Option(None, "--json", help="JSON summary to write: every target's correction "
-                                        "and status"),
+    tool: list[str] | None = typer.Option(None, "--tool", help="a TCP, flange frame: x,y,z,rx,ry,rz (mm, deg, "
+                                          "R = Rz(rz)·Ry(ry)·Rx(rx): FANUC's w,p,r, KUKA's C,B,A) for every target, "
+                                          "or NAME=x,y,z,rx,ry,rz for the program's tool NAME (KRL TOOL_DATA[n] "
+                                          "and FANUC UT n: n; RAPID: the tooldata's name); repeatable"),
+    user_frame: list[str] | None = typer.Option(None, "--user-frame", help="a user frame in the robot's world, "
+                                                "[NAME=]x,y,z,rx,ry,rz as --tool (KRL BASE_DATA[n] and FANUC UF "
+                                                "n: n; RAPID: the wobjdata's name); repeatable"),
+    controller_frames: Path | None = typer.Option(None, "--controller-frames", help="KRL: the controller's "
+                                                  "$config.dat with TOOL_DATA and BASE_DATA (default: found "
+                                                  "beside the program or in a folder above it)"),
+    fmt: str = typer.Option("auto", "--format", help="auto | krl | rapid | urscript | fanuc"),
+    summary: Path | None = typer.Option(None, "--json", help="JSON summary to write: every target's status, "
+                                        "reason, correction, check and configuration"),
+    seed: int = typer.Option(0, "--seed", help="random starts of a nominal inverse with no closed form"),
+    base_link: str | None = base_link_option(),
+    tip_link: str | None = tip_link_option(),
+    quiet: bool = typer.Option(False, "--quiet", "-q", help="no table; warnings and the counts still on stderr"),
 ) -> None:
     """Rewrite a program's targets so the uncalibrated controller drives the real robot where the
-    programmer meant; everything else in the file stays byte for byte."""
+    programmer meant; everything else in the files stays byte for byte.  Exit status 3: the program
+    was written but some targets were left uncorrected (listed, with the reason of each)."""
+    import sys
+
     from .. import options as opt
-    from ..filtering import filter_program, language_of
+    from ..filtering import Frames, filter_program, language_of, load_program
     from ..io.atomic import atomic_write, together
+    from ..io.robotfile import load_robot
     from ..math.se3 import frame_from_values
-    from .common import check_outputs, console, print_warnings, table
+    from .common import check_outputs, console, one_line, print_warnings, table
 
     language = language_of(program, fmt)
-    src = program.with_suffix(".src") if language == "krl" and program.suffix.lower() == ".dat" else program
-    inputs = (calibrated, nominal, src) + ((src.with_suffix(".dat"),) if language == "krl" else ())
-    dat_out = out.with_suffix(".dat") if language == "krl" and src.with_suffix(".dat").is_file() else None
-    check_outputs(inputs, out=out, summary=summary, **({"dat": dat_out} if dat_out else {}))
-    values = opt.frame_values(tool, "tool")
-    T = None if values is None else frame_from_values(values)
-    result = filter_program(calibrated, src, nominal, tool=T, fmt=language)
+    tcp, tools = opt.named_frames(tool, "tool")
+    user, users = opt.named_frames(user_frame, "user_frame")
+    prog = load_program(program, language.name, controller_frames)  # reading it names its companion files
+    outputs = [out if f.out_suffix is None else out.with_suffix(f.out_suffix) for f in prog.files]
+    inputs = (calibrated, nominal, controller_frames, *(f.path for f in prog.files))
+    companions = {f.out_suffix.strip("."): path for f, path in zip(prog.files[1:], outputs[1:])}
+    check_outputs(inputs, out=out, summary=summary, **companions)
+    frames = Frames(tcp=None if tcp is None else frame_from_values(tcp),
+                    tools={k: frame_from_values(v) for k, v in tools.items()}, users={k: frame_from_values(v) for k, v
+                                                                                     in users.items()},
+                    user=None if user is None else frame_from_values(user))
+    nom = load_robot(nominal, base_link=base_link, tip_link=tip_link)
+    result = filter_program(calibrated, prog, nom, frames=frames, frames_file=controller_frames, seed=seed)
     with together():
-        atomic_write(out, result.text.encode(result.encodings["main"]))
-        if dat_out is not None and result.dat is not None:
-            atomic_write(dat_out, result.dat.encode(result.encodings["dat"]))
+        for path, data in result.outputs(out):
+            atomic_write(path, data)
         if summary is not None:
             atomic_write(summary, result.json())
     flagged = result.flagged
-    rows = [(c.target.name, str(c.target.line), c.target.kind, c.status,
-             f"{c.moved_mm:.3f}" if c.corrected and c.target.kind == "pose" else "",
-             f"{c.turned_deg:.4f}" if c.corrected and c.target.kind == "pose" else "",
-             f"{c.joints_deg:.4f}" if c.corrected else "") for c in result.corrections]
-    console().print(table(f"{src} → {out}: {len(rows) - len(flagged)} of {len(rows)} targets corrected",
-                          ("target", "line", "kind", "status", "moved mm", "turned °", "joints °"), rows,
-                          text_columns=(0, 2, 3)))
-    notes = list(result.notes)
+    if not quiet:
+        rows = [(c.target.name, str(c.target.line), c.target.kind, c.status,
+                 "" if c.moved_mm is None or not c.corrected else f"{c.moved_mm:.3f}",
+                 "" if c.turned_deg is None or not c.corrected else f"{c.turned_deg:.4f}",
+                 "" if c.joints_deg is None or not c.corrected else f"{c.joints_deg:.4f}",
+                 "" if c.check_mm is None else f"{c.check_mm:.2g}") for c in result.corrections]
+        console().print(table(f"{program} → {out}: {len(rows) - len(flagged)} of {len(rows)} targets corrected",
+                              ("target", "line", "kind", "status", "moved mm", "turned °", "joints °", "check mm"),
+                              rows, text_columns=(0, 2, 3)))
+    print_warnings(result.notes)
+    for c in flagged:
+        print(f"robocal: not corrected: {c.target.name} (line {c.target.line}): {c.status}: {one_line(c.reason)}",
+              file=sys.stderr)
+    counts = ", ".join(f"{v} {k}" for k, v in result.counts().items())
+    print(f"robocal: {len(result.corrections)} targets: {counts}", file=sys.stderr)
     if flagged:
-        names = ", ".join(f"{c.target.name} ({c.status})" for c in flagged[:5]) + (" …" if len(flagged) > 5 else "")
-        notes.append(f"{len(flagged)} target(s) left unchanged and flagged: {names}")
-    print_warnings(notes)
+        raise typer.Exit(PARTIAL)
 
 
 def register(app: typer.Typer) -> None:

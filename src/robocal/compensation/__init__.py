@@ -1,7 +1,7 @@
 """Compensation: joint commands and Cartesian goals that make the real robot land on its goals.
 
-- :mod:`.ik` — batched damped-least-squares inverse kinematics with statuses.
-- :mod:`.commands` — :func:`compensate`: nominal and calibrated model → commands.
+- :mod:`.commands` — :func:`compensate`: nominal and calibrated model → commands, through the
+  one inverse kinematics (:mod:`robocal.inverse`) and the one frame algebra (:mod:`robocal.cell`).
 """
 
 from .commands import CompensationResult, compensate

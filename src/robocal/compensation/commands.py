@@ -25,18 +25,20 @@ from pathlib import Path
 import numpy as np
 
 from .. import options as opt
+from ..cell.frames import make_cell
 from ..exceptions import InputError
+from ..inverse.local import ROT_WEIGHT, SINGULAR_CONDITION, solve_ik
+from ..inverse.solve import controller_joints
 from ..io.atomic import atomic_write
 from ..io.goals import Goals
 from ..io.measurements import joints_to_file
 from ..math.se3 import homogeneous, invert
 from ..math.so3 import matrix_to_rpy, orientation_error
-from ..model.jointspace import condition_numbers
+from ..model.jointspace import condition_numbers, ready_configurations
 from ..model.measurements import move_directions
 from ..model.metrics import Metrics
 from ..model.robot import Robot
 from ..model.terms import JointInputs, drift_note, missing_torques
-from .ik import ROT_WEIGHT, SINGULAR_CONDITION, STATUSES, solve_ik
 
 
 @dataclass
@@ -63,9 +65,15 @@ class CompensationResult:
     true_rot_after: np.ndarray | None = None
     warnings: list[str] = field(default_factory=list)
     prismatic: np.ndarray | None = None
+    #: per goal, what its status means with its numbers
+    reasons: list[str] = field(default_factory=list)
 
     def counts(self) -> dict[str, int]:
-        return {s: self.status.count(s) for s in STATUSES if s in self.status}
+        return {s: self.status.count(s) for s in dict.fromkeys(self.status)}
+
+    @property
+    def reached(self) -> int:
+        return self.status.count("ok")
 
     def validation(self) -> dict[str, Metrics] | None:
         """True-robot errors at the nominal and at the compensated commands.
@@ -99,7 +107,7 @@ class CompensationResult:
     def to_csv(self) -> str:
         n = self.q.shape[1]
         header = ["pose_id"] + [f"q{i + 1}" for i in range(n)] + ["cx", "cy", "cz", "crx", "cry", "crz"]
-        header += ["residual_mm", "residual_deg", "dq_max_deg", "status"]
+        header += ["residual_mm", "residual_deg", "dq_max_deg", "status", "reason"]
         if self.true_before is not None:
             header += ["true_error_before_mm", "true_error_after_mm"]
         out = io.StringIO()
@@ -111,7 +119,8 @@ class CompensationResult:
         for j in range(len(qd)):
             row = [self.goals.ids[j]] + [repr(float(v)) for v in qd[j]]
             row += [repr(float(v)) for v in self.cartesian[j, :3, 3]] + [repr(float(v)) for v in rpy[j]]
-            row += [f"{self.residual_mm[j]:.3e}", f"{self.residual_deg[j]:.3e}", f"{dq[j]:.6f}", self.status[j]]
+            row += [f"{self.residual_mm[j]:.3e}", f"{self.residual_deg[j]:.3e}", f"{dq[j]:.6f}", self.status[j],
+                    self.reasons[j] if self.reasons else ""]
             if self.true_before is not None:
                 row += [f"{np.linalg.norm(self.true_before[j]):.6f}", f"{np.linalg.norm(self.true_after[j]):.6f}"]
             w.writerow(row)
@@ -121,57 +130,26 @@ class CompensationResult:
         atomic_write(path, self.to_csv())
 
 
-def _mid_range(robot: Robot, m: int) -> np.ndarray:
-    lim = robot.limits
-    return np.tile(np.where(np.isfinite(lim).all(axis=1), lim.mean(axis=1), 0.0), (m, 1))
-
-
 def _nominal_commands(nominal: Robot, goals: Goals, position_only: bool | None, rot_weight: float,
                       targets: list[str] | None = None):
-    """Desired poses (m, 4, 4) in the nominal base frame, the nominal joints, and whether full pose."""
+    """Desired poses (m, 4, 4) in the controller's world, the nominal joints, whether full pose,
+    and the nominal solve's status and reason per goal (None: joint goals need no solve)."""
     m = goals.n
     if goals.position is None:
-        return nominal.fk(goals.q, targets), goals.q, True
+        return nominal.fk(goals.q, targets), goals.q, True, None
     R = goals.rotation if goals.rotation is not None else np.broadcast_to(np.eye(3), (m, 3, 3))
     T_des = homogeneous(R, goals.position)
     full = goals.rotation is not None
-    start = goals.q if goals.q is not None else _mid_range(nominal, m)
+    if full and not position_only and targets is None:
+        q, status, reasons, _ = controller_joints(nominal, T_des, goals.q)
+        return T_des, q, full, (status, reasons)
+    # a position alone (or a reflector's) leaves the arm free: the nearest solution to the start
+    start = goals.q if goals.q is not None else np.tile(ready_configurations(nominal)[0], (m, 1))
     sol = solve_ik(nominal, T_des[:, :3, 3], T_des[:, :3, :3] if full and not position_only else None, start,
                    rot_weight=rot_weight, targets=targets)
-    return T_des, sol.q, full
-
-
-#: a calibrated tool further than this from the TCP (mm, deg) is another point: the target the
-#: calibration measured, not a refinement of the TCP
-TOOL_MATCH_MM, TOOL_MATCH_DEG = 5.0, 2.0
-
-
-def _frame_gap(a: np.ndarray, b: np.ndarray) -> tuple[float, float]:
-    """Distance (mm) and rotation angle (deg) between two frames."""
-    return float(np.linalg.norm(a[:3, 3] - b[:3, 3])), float(np.degrees(np.linalg.norm(
-        orientation_error(a[None, :3, :3], b[None, :3, :3])[0])))
-
-
-def with_tcp(nominal: Robot, calibrated: Robot, truth: Robot | None, tool: np.ndarray | None,
-             notes: list[str]) -> tuple[Robot, Robot, Robot | None]:
-    """The robots with the tool centre point that the commands are for.
-
-    The controller's TCP is ``tool`` when given, else the nominal model's tool.  A calibrated
-    model's tool is the point the calibration measured: a refinement of the TCP when it lies
-    within TOOL_MATCH_MM / TOOL_MATCH_DEG of it (kept: it is the better estimate), else another
-    point (a tracker target on the flange), which is replaced by the TCP, and said: compensating
-    for the target would move the TCP to the wrong place by their distance and more.
-    """
-    tcp = nominal.tool if tool is None else tool
-    mm, deg = _frame_gap(calibrated.tool, tcp)
-    if tool is None and mm <= TOOL_MATCH_MM and deg <= TOOL_MATCH_DEG:
-        return nominal, calibrated, truth
-    if mm > TOOL_MATCH_MM or deg > TOOL_MATCH_DEG:
-        whose = "the --tool given" if tool is not None else "the nominal model's tool"
-        notes.append(f"the calibrated model's tool is {mm:.4g} mm and {deg:.3g}° from {whose}: it is the point the "
-                     f"calibration measured, not the TCP; commands are computed for {whose} on the calibrated "
-                     "joints and base" + ("" if tool is not None else " (give --tool to name another TCP)"))
-    return nominal.with_tool(tcp), calibrated.with_tool(tcp), None if truth is None else truth.with_tool(tcp)
+    reached = [s in ("ok", "branch") for s in sol.status]
+    return T_des, sol.q, full, (["ok" if r else s for r, s in zip(reached, sol.status)],
+                                ["reached" if r else sol.reason(i) for i, r in enumerate(reached)])
 
 
 def _check_goal_targets(calibrated: Robot, goals: Goals) -> list[str] | None:
@@ -195,7 +173,7 @@ def compensate(nominal: Robot, calibrated: Robot, goals: Goals, *, truth: Robot 
     orientation columns; joint goals use the full nominal pose).  truth: a simulated true
     robot; its errors at the nominal and the compensated commands are returned.  payload:
     kg at every goal, where the goals file has no ``payload`` column.  tool: the TCP (4×4,
-    flange frame, mm) the commands are for; default the nominal model's (see :func:`with_tcp`).
+    flange frame, mm) the commands are for; default the nominal model's (see :func:`robocal.cell.frames.make_cell`).
     Goals with a ``target`` column place that reflector of the calibrated model instead.
     """
     if nominal.n_joints != calibrated.n_joints or (truth is not None and truth.n_joints != nominal.n_joints):
@@ -204,14 +182,19 @@ def compensate(nominal: Robot, calibrated: Robot, goals: Goals, *, truth: Robot 
     notes: list[str] = []
     targets = _check_goal_targets(calibrated, goals)
     if targets is None:
-        nominal, calibrated, truth = with_tcp(nominal, calibrated, truth, tool, notes)
+        cell = make_cell(nominal, calibrated, tool, "the --tool given" if tool is not None else "")
+        notes += cell.notes
+        nominal, calibrated, truth = cell.nominal, cell.accurate, None if truth is None else cell.on(truth)
     else:  # the nominal model places the reflectors where the calibrated one has them
         reflectors = {t: calibrated.targets[t] for t in set(targets) if t}
         nominal = nominal.replace(targets={**nominal.targets, **reflectors})
         truth = None if truth is None else truth.replace(targets={**reflectors, **truth.targets})
-    T_des, q_nom, full = _nominal_commands(nominal, goals, position_only, rot_weight, targets)
+        cell = make_cell(nominal, calibrated, nominal.tool)
+    T_des, q_nom, full, nominal_status = _nominal_commands(nominal, goals, position_only, rot_weight, targets)
     full = full and not position_only
-    T_cal = calibrated.base @ invert(nominal.base) @ T_des
+    solvable = np.isfinite(q_nom).all(axis=1)
+    q_nom = np.where(solvable[:, None], q_nom, 0.0)
+    T_cal = cell.to_accurate(T_des)
     load = goals.payload
     if load is None and payload is not None:
         load = np.full(goals.n, opt.number(payload, "payload", minimum=0.0))
@@ -233,14 +216,19 @@ def compensate(nominal: Robot, calibrated: Robot, goals: Goals, *, truth: Robot 
     nominal_cond = condition_numbers(nominal, q_nom, full, rot_weight)
     sol.status = ["singular" if s == "branch" and c > SINGULAR_CONDITION else s
                   for s, c in zip(sol.status, nominal_cond)]
+    reasons = [sol.reason(i) for i in range(goals.n)]
+    if nominal_status is not None:  # a goal the controller's own model cannot solve is said as such
+        for i, (st, why) in enumerate(zip(*nominal_status)):
+            if st != "ok":
+                sol.status[i], reasons[i] = f"{st} (nominal)", why
     result = CompensationResult(
         goals=goals, q_nominal=q_nom, q=sol.q, cartesian=nominal.fk(sol.q, targets),
         residual_mm=sol.position_error,
         residual_deg=np.degrees(sol.rotation_error), status=sol.status, full_pose=full, warnings=notes,
-        prismatic=nominal.prismatic,
+        prismatic=nominal.prismatic, reasons=reasons,
     )
     if truth is not None:
-        T_true = truth.base @ invert(nominal.base) @ T_des
+        T_true = truth.base @ invert(nominal.base) @ T_des  # the truth's world, as the calibrated model's
         for attr, q in (("before", q_nom), ("after", sol.q)):
             Tq = truth.fk(q, targets, inputs)
             setattr(result, f"true_{attr}", T_true[:, :3, 3] - Tq[:, :3, 3])

@@ -1,114 +1,111 @@
-"""Program filtering: the targets of a KUKA KRL, ABB RAPID or URScript program rewritten so that
-the uncalibrated controller drives the real robot where the programmer meant (:mod:`.correct`),
-nothing else in the file touched (:mod:`.program`, :mod:`.write`)."""
+"""Program filtering: the targets of a KUKA KRL, ABB RAPID, URScript or FANUC TP program rewritten
+so that the uncalibrated controller drives the real robot where the programmer meant
+(:mod:`.correct`), nothing else in the files touched (:mod:`.program`, :mod:`.write`).  The
+languages are a registry (:mod:`.language`): one module each."""
 
 from __future__ import annotations
 
 import json
+import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
-
 from ..exceptions import InputError
-from .correct import Correction, filter_targets
-from .program import Program
-
-FORMATS = ("auto", "krl", "rapid", "urscript")
-SUFFIXES = {".src": "krl", ".dat": "krl", ".mod": "rapid", ".modx": "rapid", ".prg": "rapid", ".sys": "rapid",
-            ".script": "urscript", ".urscript": "urscript"}
+from .correct import Correction, Frames, check, plan, summary_notes
+from .language import Language, language_of, languages
+from .program import Program, encode
 
 
-def read_program_text(path: Path) -> tuple[str, str]:
-    """A program file's text exactly as written (line endings kept) and its encoding."""
-    if not path.is_file():
-        raise InputError("no such program file", source=path)
-    raw = path.read_bytes()
-    for encoding in ("utf-8", "cp1252"):  # KUKA and ABB files are often Windows-1252
-        try:
-            return raw.decode(encoding), encoding
-        except UnicodeDecodeError:
-            continue
-    return raw.decode("latin-1"), "latin-1"
-
-
-def language_of(path: Path, fmt: str = "auto") -> str:
-    from .. import options as opt
-
-    opt.choice(fmt, FORMATS, "format", "program format")
-    if fmt != "auto":
-        return fmt
-    language = SUFFIXES.get(path.suffix.lower())
-    if language is None:
-        raise InputError(f"cannot tell the language from the suffix {path.suffix!r} (.src/.dat KRL, .mod/.prg RAPID, "
-                         ".script URScript): give --format", source=path)
-    return language
-
-
-def load_program(path: str | Path, fmt: str = "auto") -> tuple[Program, dict[str, str]]:
-    """A program and the encodings of its files (``main``, and ``dat`` for KRL)."""
+def load_program(path: str | Path, fmt: str = "auto", frames_file: str | Path | None = None) -> Program:
+    """A program in the language ``fmt`` (or its suffix's), with its companion files."""
     path = Path(path)
-    language = language_of(path, fmt)
-    if language == "krl":
-        from .krl import load_krl
-
-        src = path.with_suffix(".src") if path.suffix.lower() == ".dat" else path
-        dat = src.with_suffix(".dat")
-        text, enc = read_program_text(src)
-        dat_text, dat_enc = read_program_text(dat) if dat.is_file() else (None, None)
-        return load_krl(text, dat_text, str(src)), {"main": enc, "dat": dat_enc}
-    text, enc = read_program_text(path)
-    if language == "rapid":
-        from .rapid import load_rapid
-
-        return load_rapid(text, str(path)), {"main": enc}
-    from .urscript import load_urscript
-
-    return load_urscript(text, str(path)), {"main": enc}
+    return language_of(path, fmt).read(path, None if frames_file is None else Path(frames_file))
 
 
 @dataclass
 class FilterResult:
-    """A filtered program: its texts (the program, and a KRL program's .dat), the correction of
-    every target, and what was said."""
+    """A filtered program: the texts of its files, the correction of every target, and what was said."""
 
     program: Program
-    text: str
-    dat: str | None
+    language: Language
+    texts: list[str]
     corrections: list[Correction]
     notes: list[str]
-    #: the encodings the files were read in (``main``, and ``dat`` for KRL), to write them back in
-    encodings: dict
+
+    @property
+    def text(self) -> str:
+        return self.texts[0]
 
     @property
     def flagged(self) -> list[Correction]:
         return [c for c in self.corrections if not c.corrected]
 
+    def counts(self) -> dict[str, int]:
+        out: dict[str, int] = {}
+        for c in self.corrections:
+            out[c.status] = out.get(c.status, 0) + 1
+        return out
+
+    def outputs(self, out: str | Path) -> list[tuple[Path, bytes]]:
+        """(path, bytes) of every file to write for ``--out``: the program, and its companions beside it."""
+        out = Path(out)
+        return [(out if f.out_suffix is None else out.with_suffix(f.out_suffix), encode(text, f.encoding))
+                for f, text in zip(self.program.files, self.texts)]
+
     def to_dict(self) -> dict:
         ok = [c for c in self.corrections if c.corrected]
-        return {"program": self.program.source, "language": self.program.language,
-                "targets": [c.to_dict() for c in self.corrections], "corrected": len(ok),
-                "flagged": len(self.flagged),
-                "largest_correction_mm": max((c.moved_mm for c in ok), default=0.0),
-                "largest_joint_change_deg": max((c.joints_deg for c in ok), default=0.0), "notes": self.notes}
+        return {"program": self.program.source, "language": self.language.name,
+                "files": [f.path for f in self.program.files], "targets": [c.to_dict() for c in self.corrections],
+                "corrected": len(ok), "flagged": len(self.flagged), "status": self.counts(),
+                "largest_correction_mm": max((c.moved_mm or 0.0 for c in ok), default=0.0),
+                "largest_joint_change_deg": max((c.joints_deg or 0.0 for c in ok), default=0.0), "notes": self.notes}
 
     def json(self) -> str:
         return json.dumps(self.to_dict(), indent=2) + "\n"
 
 
-def filter_program(calibrated, program: str | Path, nominal, *, tool: np.ndarray | None = None,
-                   fmt: str = "auto", seed: int = 0) -> FilterResult:
-    """Filter ``program`` for the accurate model ``calibrated`` (a robot file or Robot, its whole
-    model) on a controller running ``nominal`` (name, file or Robot); tool: the TCP (4×4,
-    flange frame, mm), default the program's tool data, else the nominal model's tool."""
+def _reread(program: Program, language: Language, texts: list[str], frames_file) -> Program:
+    """The written files read back as the controller gets them (same names, in a scratch folder)."""
+    with tempfile.TemporaryDirectory() as folder:
+        paths = []
+        for f, text in zip(program.files, texts):
+            p = Path(folder) / Path(f.path).name
+            p.write_bytes(encode(text, f.encoding))
+            paths.append(p)
+        return language.read(paths[0], frames_file)
+
+
+def filter_program(calibrated, program: str | Path | Program, nominal, *, frames: Frames | None = None,
+                   fmt: str = "auto", frames_file: str | Path | None = None, seed: int = 0) -> FilterResult:
+    """Filter ``program`` (a path, or a :class:`~.program.Program` read by :func:`load_program`) for
+    the accurate model ``calibrated`` (a robot file or Robot, its whole model) on a controller
+    running ``nominal`` (name, file or Robot).  frames: TCPs and user frames
+    given beside the program's own (:class:`~robocal.filtering.correct.Frames`); frames_file: a
+    controller's file of frames (KRL ``$config.dat``; else found beside the program)."""
     from ..io.robotfile import load_robot
-    from .write import filtered_texts
 
     accurate, nom = load_robot(calibrated), load_robot(nominal)
     if accurate.n_joints != nom.n_joints:
         raise InputError(f"the calibrated model has {accurate.n_joints} joints, the nominal {nom.n_joints}",
                          source=str(calibrated))
-    prog, encodings = load_program(program, fmt)
-    corrections, notes = filter_targets(prog, nom, accurate, tool, seed)
-    text, dat = filtered_texts(prog, corrections)
-    return FilterResult(prog, text, dat, corrections, notes, encodings)
+    frames = frames or Frames()
+    frames_path = None if frames_file is None else Path(frames_file)
+    if isinstance(program, Program):
+        prog, language = program, languages()[program.language]
+    else:
+        language = language_of(Path(program), fmt)
+        prog = language.read(Path(program), frames_path)
+    corrections, notes = plan(prog, language, nom, accurate, frames, seed)
+    from .write import filtered_texts
+
+    texts = filtered_texts(prog, language, corrections)
+    if any(c.corrected for c in corrections):
+        again = _reread(prog, language, texts, frames_path)
+        if len(again.targets) != len(prog.targets):
+            raise RuntimeError("the filtered program reads back with another number of targets")
+        check(prog, again, language, corrections, nom, accurate, frames, seed)
+        texts = filtered_texts(prog, language, corrections)  # failed checks left as they were
+    return FilterResult(prog, language, texts, corrections, summary_notes(corrections, notes))
+
+
+__all__ = ["Correction", "FilterResult", "Frames", "filter_program", "language_of", "languages", "load_program"]

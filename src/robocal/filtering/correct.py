@@ -1,57 +1,70 @@
 """Program filtering: the corrected value of every target of a program.
 
-The controller keeps its nominal model.  A Cartesian target is the TCP pose the programmer
-wants (in the program's base frame).  robocal finds the joints q with which the accurate
-(calibrated) robot puts the TCP there, on the configuration the target names, and writes the
-pose the nominal model gives for q: the controller, inverting its nominal model on that
-configuration, then commands exactly q.  A joint target keeps its intent, the pose the
-nominal model gives for the taught joints: it is replaced by the joints that make the
-accurate robot reach that pose.  Every corrected target is checked by sending it back through
-the nominal inverse and the accurate forward model; a target that cannot be corrected (out of
-reach, singular, at a limit, or the check fails) keeps its value and is flagged.
+The controller keeps its nominal model.  A Cartesian target is the TCP pose the programmer wants,
+in the program's user frame.  robocal finds the joints the controller would go to (its nominal
+inverse, on the solution the target's configuration data name, else the one nearest the joints it
+was taught at or the previous target's: :func:`~robocal.inverse.solve.controller_joints`), then
+from there the joints q with which the calibrated robot puts the TCP on the target, and writes the
+pose the nominal model gives for q, with the configuration data of q: the controller, inverting its
+model on that configuration, then commands exactly q.  A joint target keeps its intent, the pose
+the nominal model gives for the taught joints: it is replaced by the joints that make the
+calibrated robot reach that pose.  Frames come from :mod:`robocal.cell.frames`, one chain for
+every target.
+
+Every corrected target is checked as a controller would take it: the written program is read
+again, each target's new numbers go through the nominal inverse on the configuration it now names
+(nearest the taught joints where it names none) and the calibrated forward model, and must land on
+the original within CHECK_MM and CHECK_DEG.  A target that cannot be corrected (a frame not given,
+out of reach, singular, at a limit, in no solution of its configuration, a failed check) keeps its
+numbers and is flagged with its reason and numbers.
 """
 
 from __future__ import annotations
 
-import math
-from dataclasses import dataclass
+from collections import defaultdict
+from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..compensation.commands import compensate
-from ..compensation.ik import solve_ik
-from ..io.goals import Goals
-from ..math.se3 import homogeneous, invert
-from ..math.so3 import orientation_error
-from ..model.jointspace import ready_configurations
+from ..cell.frames import Cell, frame_gap, make_cell
+from ..inverse.configuration import arm_configuration
+from ..inverse.local import SINGULAR_CONDITION, solve_ik
+from ..inverse.solve import controller_joints
+from ..math.se3 import homogeneous
+from ..model.jointspace import condition_numbers
 from ..model.robot import Robot
+from .language import Language
 from .program import Program, Target
 
-#: the round trip (nominal inverse, accurate forward) must land within these (mm, deg)
+#: the round trip (nominal inverse, calibrated forward) must land within these (mm, deg)
 CHECK_MM, CHECK_DEG = 0.01, 0.001
-#: a nominal solution reaches its target within these (mm, rad)
-REACHED_MM, REACHED_RAD = 1e-3, 1e-6
 #: a correction beyond this (mm) is not a calibration's: two different robots or tools
 LARGE_CORRECTION_MM = 20.0
-#: random starts of the nominal inverse, beside the well-conditioned ones
-RANDOM_STARTS = 24
 
 
 @dataclass
 class Correction:
-    """A target's outcome: status (``ok`` or why it was left as it was), the corrected pose
-    (4×4, program frame, mm) or joints (rad), the accurate robot's joints for it, how much it
-    moved (mm, deg; joints: deg) and what the round trip shows (mm, deg)."""
+    """A target's outcome: ``status`` (``ok``, or why it was left as it was) and ``reason`` (what
+    the status means, with its numbers); the corrected pose (4×4 mm, in its user frame) or joints;
+    the controller's joints before (``q_nominal``) and the calibrated robot's (``q``), both as the
+    controller states them (rad); how much it moved (mm, deg; joints: deg); what the round trip
+    shows (mm, deg); the configuration data before and after; the tool and user frame it is in."""
 
     target: Target
     status: str
+    reason: str
     pose: np.ndarray | None = None
     q: np.ndarray | None = None
-    moved_mm: float = 0.0
-    turned_deg: float = 0.0
-    joints_deg: float = 0.0
+    q_nominal: np.ndarray | None = None
+    moved_mm: float | None = None
+    turned_deg: float | None = None
+    joints_deg: float | None = None
     check_mm: float | None = None
     check_deg: float | None = None
+    config_before: dict = field(default_factory=dict)
+    config_after: dict = field(default_factory=dict)
+    tool: str | None = None
+    user: str | None = None
 
     @property
     def corrected(self) -> bool:
@@ -59,184 +72,245 @@ class Correction:
 
     def to_dict(self) -> dict:
         t = self.target
-        out = {"target": t.name, "line": t.line, "kind": t.kind, "status": self.status}
-        if self.corrected:
-            out.update({"moved_mm": self.moved_mm, "turned_deg": self.turned_deg, "joints_deg": self.joints_deg,
-                        "check_mm": self.check_mm, "check_deg": self.check_deg})
-        return out
+
+        def num(x):
+            return None if x is None or not np.isfinite(x) else float(x)
+
+        def deg(q):
+            return None if q is None or not np.isfinite(q).all() else [float(v) for v in np.degrees(q)]
+
+        return {"target": t.name, "line": t.line, "kind": t.kind, "status": self.status, "reason": self.reason,
+                "tool": self.tool, "user_frame": self.user,
+                "correction": {"mm": num(self.moved_mm), "deg": num(self.turned_deg),
+                               "joints_deg": num(self.joints_deg)},
+                "check": {"mm": num(self.check_mm), "deg": num(self.check_deg)},
+                "config_before": _plain(self.config_before), "config_after": _plain(self.config_after),
+                "joints_before_deg": deg(self.q_nominal), "joints_after_deg": deg(self.q)}
 
 
-def _gap(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Distance (mm) and angle (deg) between frames a and b (m, 4, 4)."""
-    return (np.linalg.norm(a[:, :3, 3] - b[:, :3, 3], axis=1),
-            np.degrees(np.linalg.norm(orientation_error(a[:, :3, :3], b[:, :3, :3]), axis=1)))
+def _plain(config: dict) -> dict:
+    return {k: (int(v) if isinstance(v, (int, np.integer)) else v) for k, v in config.items()}
 
 
-def config_mismatch(language: str, q: np.ndarray, config: dict) -> int:
-    """How many of the configuration flags a target names the joints q (n,) rad miss."""
-    deg = np.degrees(q)
-    if language == "krl" and "T" in config:
-        turn = sum(1 << i for i in range(min(6, len(q))) if deg[i] < 0)
-        return bin(turn ^ config["T"]).count("1")
-    if language == "rapid" and "cf1" in config:
-        return sum(int(math.floor(deg[j] / 90.0)) != config[k] for j, k in ((0, "cf1"), (3, "cf4"), (5, "cf6"))
-                   if j < len(q))
-    return 0
+def _facts(arm, i: int) -> dict | None:
+    return None if arm is None else {k: int(getattr(arm, k)[i]) for k in ("front", "elbow", "lower")}
 
 
-def _turns(q: np.ndarray, turn: int, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
-    """q with each joint whose sign differs from KRL's T turned by ±360° where the limits allow."""
-    q = q.copy()
-    for i in range(min(6, len(q))):
-        negative = bool(turn >> i & 1)
-        if (q[i] < 0) != negative:
-            alt = q[i] + (-2.0 if not negative else 2.0) * np.pi
-            if lo[i] <= alt <= hi[i]:
-                q[i] = alt
-    return q
+@dataclass
+class Frames:
+    """The frames a filter is given beside the program's own: ``tcp`` for every target (an unnamed
+    --tool), named tools and user frames (``--tool N=…``, ``--user-frame N=…``), ``user`` for every
+    target (an unnamed --user-frame); 4×4 mm."""
+
+    tcp: np.ndarray | None = None
+    tools: dict[str, np.ndarray] = field(default_factory=dict)
+    users: dict[str, np.ndarray] = field(default_factory=dict)
+    user: np.ndarray | None = None
 
 
-def nominal_joints(nominal: Robot, goals: np.ndarray, targets: list[Target], language: str,
-                   seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
-    """Joints (m, n) rad with which the nominal model reaches each goal (m, 4, 4) on the
-    configuration its target names (KRL T, RAPID cf1 cf4 cf6, a PolyScope waypoint's taught
-    joints), nearest the previous target's where the flags leave a choice; and whether reached."""
-    m, n = len(goals), nominal.n_joints
-    rng = np.random.default_rng(seed)
-    lo, hi = nominal.limits[:, 0], nominal.limits[:, 1]
-    finite_lo, finite_hi = np.where(np.isfinite(lo), lo, -np.pi), np.where(np.isfinite(hi), hi, np.pi)
-    starts = np.vstack([*ready_configurations(nominal)[:8], rng.uniform(finite_lo, finite_hi, (RANDOM_STARTS, n))])
-    per_target = []
-    for t in targets:
-        extra = [t.taught] if t.taught is not None else []
-        if language == "krl" and "T" in t.config:  # the signs T names, on the well-conditioned starts
-            signs = np.array([-1.0 if t.config["T"] >> i & 1 else 1.0 for i in range(n)])
-            extra += [np.clip(np.maximum(np.abs(s0), np.radians(5.0)) * signs, lo, hi) for s0 in starts[:8]]
-        if language == "rapid" and "cf1" in t.config:  # the quadrants' middles
-            s = starts[0].copy()
-            for j, k in ((0, "cf1"), (3, "cf4"), (5, "cf6")):
-                s[j] = np.radians((t.config[k] + 0.5) * 90.0)
-            extra.append(np.clip(s, lo, hi))
-        per_target.append(np.vstack([*extra, starts]) if extra else starts)
-    k = max(len(s) for s in per_target)
-    seeds = np.stack([np.vstack([s, np.repeat(s[-1:], k - len(s), axis=0)]) for s in per_target])  # (m, k, n)
-    T = np.repeat(goals, k, axis=0)
-    sol = solve_ik(nominal, T[:, :3, 3], T[:, :3, :3], seeds.reshape(-1, n))
-    q = sol.q.reshape(m, k, n)
-    ok = ((sol.position_error <= REACHED_MM) & (sol.rotation_error <= REACHED_RAD)).reshape(m, k)
-    out, reached, previous = np.zeros((m, n)), np.zeros(m, bool), None
-    for i, t in enumerate(targets):
-        candidates = [j for j in range(k) if ok[i, j]]
-        if not candidates:
-            continue
-        if language == "krl" and "T" in t.config:  # a turn of ±360° within the limits: the same pose
-            for j in candidates:
-                q[i, j] = _turns(q[i, j], t.config["T"], lo, hi)
-        reference = t.taught if t.taught is not None else previous
-        scores = [(config_mismatch(language, q[i, j], t.config),
-                   0.0 if reference is None else float(np.max(np.abs(q[i, j] - reference)))) for j in candidates]
-        best = candidates[min(range(len(candidates)), key=scores.__getitem__)]
-        out[i], reached[i], previous = q[i, best], True, q[i, best]
-    return out, reached
-
-
-def filter_targets(program: Program, nominal: Robot, accurate: Robot, tool: np.ndarray | None = None,
-                   seed: int = 0) -> tuple[list[Correction], list[str]]:
-    """The correction of every target of ``program`` (see the module docstring); the notes."""
-    notes = list(program.notes)
-    tcp = tool if tool is not None else (program.tool if program.tool is not None else nominal.tool)
-    base = program.base
-    base = np.eye(4) if base is None else base
-    nominal = nominal.with_tool(tcp)
-    out: dict[int, Correction] = {}
-    poses = [i for i, t in enumerate(program.targets) if t.kind == "pose"]
-    joints = [i for i, t in enumerate(program.targets) if t.kind == "joints"]
-    if poses:
-        targets = [program.targets[i] for i in poses]
-        goals = base @ homogeneous(np.stack([t.rotation for t in targets]), np.stack([t.position for t in targets]))
-        q_nom, reached = nominal_joints(nominal, goals, targets, program.language, seed)
-        for i, t, r in zip(poses, targets, reached):
-            if not r:
-                out[i] = Correction(t, "unreachable (nominal model)")
-        keep = [j for j, r in enumerate(reached) if r]
-        if keep:
-            res = _compensate(nominal, accurate, tcp, q_nom[keep], goals[keep], notes)
-            for j, c in zip(keep, res):
-                out[poses[j]] = c(program.targets[poses[j]], base)
-    if joints:
-        targets = [program.targets[i] for i in joints]
-        q = np.stack([t.q for t in targets])
-        res = _compensate(nominal, accurate, tcp, q, None, notes)
-        for i, c in zip(joints, res):
-            out[i] = c(program.targets[i], base)
-    corrections = [out[i] for i in range(len(program.targets))]
-    _round_trip(nominal, accurate, tcp, corrections, base)
-    largest = max((c for c in corrections if c.corrected), key=lambda c: c.moved_mm, default=None)
-    check = ("check that --nominal is the model this controller runs and that the calibrated model is of the same "
-             "robot, with the same tool")
-    if largest is None:
-        notes.append(f"no target could be corrected: {check}")
-    elif largest.moved_mm > LARGE_CORRECTION_MM:
-        notes.append(f"target {largest.target.name} moves by {largest.moved_mm:.4g} mm: a calibration corrects by a "
-                     f"few millimetres; {check}")
-    if tool is None:  # compensation speaks of a --tool; here the TCP came from the program or the robot file
-        whose = "the program's tool" if program.tool is not None else "the nominal model's tool"
-        notes = [n.replace("the --tool given", whose) for n in notes]
-    return corrections, notes
-
-
-def _compensate(nominal: Robot, accurate: Robot, tcp: np.ndarray, q: np.ndarray, goals: np.ndarray | None,
-                notes: list[str]):
-    """compensate() on these goals: poses (with their nominal joints as starts) or joint sets."""
-    m = len(q)
-    ids = [str(i) for i in range(m)]
-    if goals is None:
-        g = Goals(q=q, position=None, rotation=None, ids=ids, source="program")
+def _resolve(program: Program, frames: Frames, t: Target, nominal: Robot):
+    """(tool key, TCP, source) and (user frame or None), or the reason one is unknown."""
+    if frames.tcp is not None:
+        tool = ("--tool", frames.tcp, "the --tool given")
+    elif t.tool is None:
+        tool = ("", nominal.tool, "the nominal model's tool")
+    elif t.tool in frames.tools:
+        tool = (t.tool, frames.tools[t.tool], f"tool {t.tool} (given)")
+    elif t.tool in program.tools:
+        tool = (t.tool, program.tools[t.tool], f"the program's tool {t.tool}")
     else:
-        g = Goals(q=q, position=goals[:, :3, 3], rotation=goals[:, :3, :3], ids=ids, source="program")
-    res = compensate(nominal, accurate, g, tool=tcp)
-    for w in res.warnings:
-        if w not in notes:
-            notes.append(w)
-
-    def make(k):
-        def build(target: Target, base: np.ndarray) -> Correction:
-            status = res.status[k]
-            if status != "ok":
-                return Correction(target, status)
-            pose = invert(base) @ invert(nominal.base) @ res.cartesian[k]
-            if target.kind == "pose":
-                original = homogeneous(target.rotation, target.position)
-                mm, deg = _gap(pose[None], original[None])
-                return Correction(target, "ok", pose=pose, q=res.q[k], moved_mm=float(mm[0]), turned_deg=float(deg[0]),
-                                  joints_deg=float(np.degrees(np.max(np.abs(res.q[k] - res.q_nominal[k])))))
-            return Correction(target, "ok", q=res.q[k],
-                              joints_deg=float(np.degrees(np.max(np.abs(res.q[k] - target.q)))))
-        return build
-
-    return [make(k) for k in range(m)]
+        return None, None, f"its tool {t.tool} is unknown: " + program.missing.get(
+            t.tool, f"the program does not declare it (give --tool {t.tool}=x,y,z,rx,ry,rz)")
+    if frames.user is not None:
+        return tool, frames.user, None
+    if t.user is None:
+        return tool, None, None
+    if t.user in frames.users:
+        return tool, frames.users[t.user], None
+    if t.user in program.users:
+        return tool, program.users[t.user], None
+    return None, None, f"its user frame {t.user} is unknown: " + program.missing.get(
+        t.user, f"the program does not declare it (give --user-frame {t.user}=x,y,z,rx,ry,rz)")
 
 
-def _round_trip(nominal: Robot, accurate: Robot, tcp: np.ndarray, corrections: list[Correction],
-                base: np.ndarray) -> None:
-    """Each corrected target through the controller's view (nominal inverse on the solution's
-    branch, or the joints as written) and the accurate forward model, against its intent."""
-    from ..compensation.commands import with_tcp
+def plan(program: Program, language: Language, nominal: Robot, accurate: Robot, frames: Frames,
+         seed: int = 0) -> tuple[list[Correction], list[str]]:
+    """The correction of every target of ``program`` (see the module docstring), before the
+    check; the notes."""
+    notes = list(program.notes)
+    out: dict[int, Correction] = {}
+    groups: dict[str, list] = defaultdict(list)
+    cells: dict[str, Cell] = {}
+    hints = _order_hints(program, nominal)
+    for i, t in enumerate(program.targets):
+        if t.unsupported:
+            out[i] = Correction(t, "unsupported", t.unsupported, tool=t.tool, user=t.user)
+            continue
+        tool, user, why = _resolve(program, frames, t, nominal)
+        if why:
+            out[i] = Correction(t, "frame", why, tool=t.tool, user=t.user)
+            continue
+        key, tcp, source = tool
+        if key not in cells:
+            cells[key] = make_cell(nominal, accurate, tcp, source)
+            notes += [n for n in cells[key].notes if n not in notes]
+            if key == "":
+                notes.append("the program names no tool: the TCP is the nominal model's tool (give --tool)")
+        groups[key].append((i, user))
+    for key, members in groups.items():
+        cell = cells[key]
+        poses = [(i, u) for i, u in members if program.targets[i].kind == "pose"]
+        joints = [(i, u) for i, u in members if program.targets[i].kind == "joints"]
+        if poses:
+            out.update(_poses(program, language, cell, poses, hints, seed))
+        if joints:
+            out.update(_joints(program, language, cell, joints))
+    return [out[i] for i in range(len(program.targets))], notes
 
-    nominal_t, accurate_t, _ = with_tcp(nominal, accurate, None, tcp, [])
-    for c in corrections:
+
+def _order_hints(program: Program, nominal: Robot) -> np.ndarray:
+    """Per target, the model's joints to solve it near: its own (taught, qnear), else those of a
+    joint target just before it in the program; NaN where none (it follows the previous target)."""
+    n = nominal.n_joints
+    out = np.full((len(program.targets), n), np.nan)
+    previous = None
+    for i, t in enumerate(program.targets):
+        if t.kind == "joints":
+            previous = nominal.from_controller(t.q) if t.q is not None and len(t.q) == n else None
+            continue
+        if t.hint is not None and len(t.hint) == n:
+            out[i] = nominal.from_controller(t.hint)
+        elif previous is not None:
+            out[i] = previous
+        previous = None if t.kind == "pose" else previous
+    return out
+
+
+def _poses(program: Program, language: Language, cell: Cell, members, hints, seed) -> dict[int, Correction]:
+    nominal, accurate = cell.nominal, cell.accurate
+    idx = [i for i, _ in members]
+    targets = [program.targets[i] for i in idx]
+    users = [u for _, u in members]
+    T_prog = homogeneous(np.stack([t.rotation for t in targets]), np.stack([t.position for t in targets]))
+    goals = np.stack([cell.goal(u, T) for u, T in zip(users, T_prog)])
+    requests = [language.request(t) for t in targets]
+    q_nom, status, reasons, _ = controller_joints(nominal, goals, hints[idx], requests, seed)
+    out: dict[int, Correction] = {}
+    ok = [k for k, s in enumerate(status) if s == "ok"]
+    for k, s in enumerate(status):
+        if s != "ok":
+            out[idx[k]] = Correction(targets[k], f"{s} (nominal)", reasons[k], config_before=targets[k].config,
+                                     tool=targets[k].tool, user=targets[k].user)
+    if not ok:
+        return out
+    g = cell.to_accurate(goals[ok])
+    sol = solve_ik(accurate, g[:, :3, 3], g[:, :3, :3], q_nom[ok])
+    singular = condition_numbers(nominal, q_nom[ok], True, 1000.0) > SINGULAR_CONDITION
+    q_acc = sol.q
+    new_world = nominal.fk(q_acc)
+    arm_nom, arm_acc = arm_configuration(nominal, q_nom[ok]), arm_configuration(nominal, q_acc)
+    for j, k in enumerate(ok):
+        t, i = targets[k], idx[k]
+        before = t.config or language.encode(nominal.to_controller(q_nom[k]), _facts(arm_nom, j), {})
+        common = dict(q_nominal=nominal.to_controller(q_nom[k]), config_before=before, tool=t.tool, user=t.user)
+        st = "singular" if singular[j] and sol.status[j] in ("ok", "branch") else sol.status[j]
+        if st != "ok":
+            why = sol.reason(j) if st == sol.status[j] else "the nominal model is singular at its joints"
+            out[i] = Correction(t, st, why, **common)
+            continue
+        pose = cell.in_user(users[k], new_world[j])
+        mm, deg = frame_gap(pose, T_prog[k])
+        J = nominal.to_controller(q_acc[j])
+        out[i] = Correction(t, "ok", "corrected", pose=pose, q=J, moved_mm=float(mm), turned_deg=float(deg),
+                            joints_deg=float(np.degrees(np.max(np.abs(q_acc[j] - q_nom[k])))),
+                            config_after=language.encode(J, _facts(arm_acc, j), t.config), **common)
+    return out
+
+
+def _joints(program: Program, language: Language, cell: Cell, members) -> dict[int, Correction]:
+    nominal, accurate = cell.nominal, cell.accurate
+    idx = [i for i, _ in members]
+    targets = [program.targets[i] for i in idx]
+    q = nominal.from_controller(np.stack([t.q for t in targets]))
+    intent = cell.to_accurate(nominal.fk(q))
+    sol = solve_ik(accurate, intent[:, :3, 3], intent[:, :3, :3], q)
+    singular = condition_numbers(nominal, q, True, 1000.0) > SINGULAR_CONDITION
+    out = {}
+    for j, (t, i) in enumerate(zip(targets, idx)):
+        common = dict(q_nominal=t.q, tool=t.tool, user=t.user)
+        st = "singular" if singular[j] and sol.status[j] in ("ok", "branch") else sol.status[j]
+        if st != "ok":
+            out[i] = Correction(t, st, sol.reason(j) if st == sol.status[j] else
+                                "the nominal model is singular at the taught joints", **common)
+            continue
+        out[i] = Correction(t, "ok", "corrected", q=nominal.to_controller(sol.q[j]),
+                            joints_deg=float(np.degrees(np.max(np.abs(sol.q[j] - q[j])))), **common)
+    return out
+
+
+def check(program: Program, reread: Program, language: Language, corrections: list[Correction], nominal: Robot,
+          accurate: Robot, frames: Frames, seed: int = 0) -> None:
+    """Each corrected target as the controller takes it from the written program (``reread``):
+    its new numbers through the nominal inverse on the configuration they name, nearest the joints
+    it was taught at, and the calibrated forward model, against its intent; a target that lands
+    further than CHECK_MM / CHECK_DEG is ``check failed`` (and left as it was by the caller)."""
+    hints = _order_hints(program, nominal)
+    cells: dict[str, tuple] = {}
+    for i, c in enumerate(corrections):
         if not c.corrected:
             continue
-        if c.target.kind == "pose":
-            T = base @ c.pose
-            sol = solve_ik(nominal_t, T[None, :3, 3], T[None, :3, :3], c.q[None])
-            q = sol.q[0]
-            intent = base @ homogeneous(c.target.rotation, c.target.position)
-        else:
-            q = c.q
-            intent = nominal_t.fk(c.target.q[None])[0]
-        reached = accurate_t.base @ invert(nominal_t.base) @ intent  # the accurate model's frame
-        mm, deg = _gap(accurate_t.fk(q[None]), reached[None])
-        c.check_mm, c.check_deg = float(mm[0]), float(deg[0])
-        if c.check_mm > CHECK_MM or c.check_deg > CHECK_DEG:
-            c.status = "check failed"
+        tool, user, _ = _resolve(program, frames, c.target, nominal)
+        if tool[0] not in cells:
+            cells[tool[0]] = (make_cell(nominal, accurate, tool[1], tool[2]), [])
+        cells[tool[0]][1].append((i, user))
+    for cell, members in cells.values():
+        poses = [(i, u) for i, u in members if corrections[i].target.kind == "pose"]
+        joints = [i for i, _ in members if corrections[i].target.kind == "joints"]
+        reached, intent = [], []
+        if poses:
+            idx = [i for i, _ in poses]
+            new = [reread.targets[i] for i in idx]
+            T_new = homogeneous(np.stack([t.rotation for t in new]), np.stack([t.position for t in new]))
+            T_old = homogeneous(np.stack([corrections[i].target.rotation for i in idx]),
+                                np.stack([corrections[i].target.position for i in idx]))
+            goals = np.stack([cell.goal(u, T) for (_, u), T in zip(poses, T_new)])
+            start = np.where(np.isnan(hints[idx]), np.stack([nominal.from_controller(corrections[i].q_nominal)
+                                                              for i in idx]), hints[idx])
+            q, status, _, _ = controller_joints(cell.nominal, goals, start, [language.request(t) for t in new], seed)
+            q = np.where(np.isfinite(q), q, 0.0)
+            reached.append((idx, cell.accurate.fk(q), np.array([s == "ok" for s in status])))
+            intent.append(cell.to_accurate(np.stack([cell.goal(u, T) for (_, u), T in zip(poses, T_old)])))
+        if joints:
+            q_new = nominal.from_controller(np.stack([reread.targets[i].q for i in joints]))
+            q_old = nominal.from_controller(np.stack([corrections[i].target.q for i in joints]))
+            reached.append((joints, cell.accurate.fk(q_new), np.ones(len(joints), bool)))
+            intent.append(cell.to_accurate(cell.nominal.fk(q_old)))
+        for (idx, T, solved), want in zip(reached, intent):
+            mm, deg = frame_gap(T, want)
+            for k, i in enumerate(idx):
+                c = corrections[i]
+                c.check_mm, c.check_deg = float(mm[k]), float(deg[k])
+                if not solved[k] or mm[k] > CHECK_MM or deg[k] > CHECK_DEG:
+                    c.status = "check failed"
+                    c.reason = (f"sent back through the nominal inverse and the calibrated model, it lands "
+                                f"{mm[k]:.3g} mm and {deg[k]:.3g}° from the original (bar {CHECK_MM} mm, "
+                                f"{CHECK_DEG}°)" if solved[k] else "the nominal inverse finds no solution of the "
+                                "corrected target in the configuration it names")
+
+
+def summary_notes(corrections: list[Correction], notes: list[str]) -> list[str]:
+    """What the corrections say as a whole: none corrected, or a correction no calibration makes."""
+    largest = max((c for c in corrections if c.corrected and c.moved_mm is not None), key=lambda c: c.moved_mm,
+                  default=None)
+    hint = ("check that --nominal is the model this controller runs and that the calibrated model is of the same "
+            "robot, with the same tool")
+    kinematic = [c for c in corrections if c.status not in ("frame", "unsupported")]
+    if kinematic and not any(c.corrected for c in corrections):
+        notes.append(f"no target could be corrected: {hint}")
+    elif largest is not None and largest.moved_mm > LARGE_CORRECTION_MM:
+        notes.append(f"target {largest.target.name} moves by {largest.moved_mm:.4g} mm: a calibration corrects by a "
+                     f"few millimetres; {hint}")
+    return notes
+
+
+__all__ = ["CHECK_DEG", "CHECK_MM", "Correction", "Frames", "check", "plan", "summary_notes"]

@@ -1,70 +1,158 @@
-"""KUKA KRL: targets in a .src and its .dat.
+"""KUKA KRL: targets in a .src and its .dat, frames from the program and ``$config.dat``.
 
 Aggregates ``{X …, Y …, Z …, A …, B …, C …, S …, T …, E1 …}`` (E6POS, POS; mm and degrees,
-R = Rz(A) Ry(B) Rx(C)) and ``{A1 …, …, A6 …, E1 …}`` (E6AXIS, AXIS; degrees) are targets where
-a ``DECL E6POS|POS|E6AXIS|AXIS`` declares them, where a motion (PTP, LIN, CIRC, SPTP, SLIN,
-SCIRC) takes them inline, and where a variable is assigned one.  ``$TOOL`` / ``TOOL_DATA[n]``
-aggregates give the TCP and ``$BASE`` / ``BASE_DATA[n]`` the base frame the targets are in; FRAME
-declarations, relative motions (``…_REL``) and everything after ``;`` on a line (comments,
-folds) are left alone.  S (status) and T (turn) name the configuration: T's bit i is set when
-joint i + 1 is negative.
+R = Rz(A)·Ry(B)·Rx(C)) and ``{A1 …, …, A6 …, E1 …}`` (E6AXIS, AXIS; degrees) are targets where a
+``DECL E6POS|POS|E6AXIS|AXIS`` declares them, where a motion (PTP, LIN, CIRC, SPTP, SLIN, SCIRC)
+takes them inline, and where a variable is assigned one.  Everything after ``;`` on a line
+(comments, folds) is left alone.
+
+Frames: a Cartesian target is the ``$TOOL`` pose in ``$BASE``.  The .src is read in order: the
+tool and base in force at each motion (``$TOOL = TOOL_DATA[n]``, ``BAS(#TOOL, n)``, an inline
+``$TOOL = {…}``, ``FDAT_ACT = Fxx`` with its TOOL_NO, BASE_NO and IPO_FRAME from the .dat; the same
+for the base) are the frames of the targets it names.  TOOL_DATA[n] and BASE_DATA[n] are read from
+``$config.dat`` (given, or found beside the program or in a folder above it, as a KRC backup lays
+it out); number 0 is the flange and the world.  A motion with ``IPO_FRAME #TCP`` (a stationary
+tool), a relative motion (``…_REL``) and a target the motions reach in two different frames are
+left unchanged and flagged.
+
+Configuration (KUKA's Status and Turn): S bit 0 the wrist point behind axis 1 ("overhead"),
+bit 1 the elbow up (A3 beyond the angle where the forearm is stretched), bit 2 A5 ≤ 0; T bit i
+set when axis i + 1 is negative.  Higher bits are kept as written.
 """
 
 from __future__ import annotations
 
 import re
+from pathlib import Path
 
 import numpy as np
 
 from ..exceptions import InputError
+from ..inverse.configuration import TOLERANCE_RAD
+from ..inverse.solve import Request
 from ..math.se3 import homogeneous
 from ..math.so3 import rpy_to_matrix
-from .program import Field, Program, Target, line_of
+from .language import DECIMALS, Language, fixed_xyz, keep_on_boundary, set_number, set_text
+from .program import NUMBER, Field, Program, ProgramFile, Target, line_of, read_file
 
 _AGGREGATE = re.compile(r"\{([^{}]*)\}")
-_ITEM = re.compile(r"([A-Za-z_$][\w$]*)\s+([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)")
-_DECL = re.compile(r"\bDECL\s+(?:GLOBAL\s+)?(E6POS|POS|E6AXIS|AXIS|FRAME)\s+(\w+)\s*=\s*$", re.I)
-_MOTION = re.compile(r"\b(PTP|LIN|CIRC|SPTP|SLIN|SCIRC)(_REL)?\s+$", re.I)
+_ITEM = re.compile(r"([A-Za-z_$][\w$]*)\s+(" + NUMBER + r"|#\w+)")
+_DECL = re.compile(r"\bDECL\s+(?:GLOBAL\s+)?(E6POS|POS|E6AXIS|AXIS|FRAME|FDAT)\s+(\w+)\s*=\s*$", re.I)
+_MOTION = re.compile(r"\b(PTP|LIN|CIRC|SPTP|SLIN|SCIRC)(_REL)?\s+", re.I)
 _ASSIGN = re.compile(r"(\$?[\w\[\]]+)\s*=\s*$")
+_DATA = re.compile(r"\b(TOOL|BASE)_DATA\s*\[\s*(\d+)\s*\]\s*=\s*\{([^{}]*)\}", re.I)
+_SELECT = re.compile(r"\$(TOOL|BASE)\s*=\s*(?:(TOOL|BASE)_DATA\s*\[\s*(\d+)\s*\]|\$NULLFRAME|(\{[^{}]*\}))", re.I)
+_BAS = re.compile(r"\bBAS\s*\(\s*#(TOOL|BASE)\s*,\s*(\d+)\s*\)", re.I)
+_FDAT = re.compile(r"\bFDAT_ACT\s*=\s*(\w+|\{[^{}]*\})", re.I)
 POSE_KEYS = ("X", "Y", "Z", "A", "B", "C")
 JOINT_KEYS = ("A1", "A2", "A3", "A4", "A5", "A6")
+CONFIG_FILE = "$config.dat"
 
 
 def _items(body: str, offset: int) -> dict[str, Field]:
     """KEY value pairs of an aggregate body (an optional ``TYPE:`` prefix skipped)."""
-    out = {}
-    for m in _ITEM.finditer(body):
-        key = m.group(1).upper()
-        out[key] = Field(offset + m.start(2), offset + m.end(2), m.group(2))
-    return out
+    return {m.group(1).upper(): Field(offset + m.start(2), offset + m.end(2), m.group(2))
+            for m in _ITEM.finditer(body)}
 
 
 def pose_matrix(f: dict[str, Field]) -> tuple[np.ndarray, np.ndarray]:
-    """Position mm and rotation of X Y Z A B C."""
-    abc = np.radians([f["C"].value, f["B"].value, f["A"].value])  # rpy: R = Rz(A) Ry(B) Rx(C)
+    """Position mm and rotation of X Y Z A B C (R = Rz(A)·Ry(B)·Rx(C))."""
+    abc = np.radians([f["C"].value, f["B"].value, f["A"].value])
     return np.array([f[k].value for k in "XYZ"]), rpy_to_matrix(abc)
 
 
-def _frame(f: dict[str, Field]) -> np.ndarray:
-    p, R = pose_matrix(f)
+def _frame_of(body: str, source: str, line: int) -> np.ndarray:
+    items = _items(body, 0)
+    missing = [k for k in POSE_KEYS if k not in items]
+    if missing:
+        raise InputError(f"a frame with no number for {', '.join(missing)}", source=source, where=f"line {line}")
+    p, R = pose_matrix(items)
     return homogeneous(R, p)
 
 
-def parse_krl(text: str, source: str, targets: list[Target], notes: list[str]) -> tuple[np.ndarray | None,
-                                                                                         np.ndarray | None]:
-    """Targets of one KRL file appended to ``targets``; its TCP and base frame (4×4) if it sets them."""
-    frames: dict[str, np.ndarray] = {}
+def find_config(program: Path) -> Path | None:
+    """``$config.dat`` beside the program, or in a folder above it (KRC/R1/System/$config.dat)."""
+    folder = program.resolve().parent
+    for level in [folder, *list(folder.parents)[:3]]:
+        for candidate in (level, level / "System", level / "R1" / "System", level / "KRC" / "R1" / "System"):
+            if candidate.is_dir():
+                for f in candidate.iterdir():
+                    if f.name.lower() == CONFIG_FILE:
+                        return f
+    return None
+
+
+def _config_frames(path: Path, program: Program) -> None:
+    text, _ = read_file(path, "controller frames file")
+    code = "\n".join(line.split(";", 1)[0] for line in text.splitlines())
+    found = 0
+    for m in _DATA.finditer(code):
+        kind, number = m.group(1).lower(), str(int(m.group(2)))
+        frame = _frame_of(m.group(3), str(path), line_of(code, m.start()))
+        (program.tools if kind == "tool" else program.users).setdefault(number, frame)
+        found += 1
+    program.notes.append(f"frames read from {path}: {found} TOOL_DATA/BASE_DATA")
+
+
+class _State:
+    """The tool and base in force as the .src runs, and the external-TCP flag."""
+
+    def __init__(self):
+        self.tool, self.base, self.external = None, None, False
+
+
+def _fdat(body: str, state: _State) -> None:
+    items = {m.group(1).upper(): m.group(2) for m in _ITEM.finditer(body)}
+    if "TOOL_NO" in items:
+        state.tool = str(int(float(items["TOOL_NO"])))
+    if "BASE_NO" in items:
+        state.base = str(int(float(items["BASE_NO"])))
+    if "IPO_FRAME" in items:
+        state.external = items["IPO_FRAME"].upper() == "#TCP"
+
+
+def _parse(text: str, file: int, source: str, program: Program, fdats: dict, uses: dict, state: _State) -> None:
+    """Targets of one file appended to the program; the frames each motion of it uses in ``uses``."""
     start = 0
     for raw in text.splitlines(keepends=True):
         code = raw.split(";", 1)[0]  # KRL comments and folds run from ';' to the end of the line
+        line = line_of(text, start)
+        for m in _SELECT.finditer(code):  # $TOOL = TOOL_DATA[n] | $NULLFRAME | {…}
+            kind = m.group(1).lower()
+            if m.group(4):
+                name = f"${kind.upper()} (line {line})"
+                (program.tools if kind == "tool" else program.users)[name] = _frame_of(m.group(4)[1:-1], source, line)
+            else:
+                name = str(int(m.group(3))) if m.group(3) else "0"
+            setattr(state, "tool" if kind == "tool" else "base", name)
+        for m in _BAS.finditer(code):
+            setattr(state, m.group(1).lower(), str(int(m.group(2))))
+        for m in _FDAT.finditer(code):
+            ref = m.group(1)
+            if ref.startswith("{"):
+                _fdat(ref[1:-1], state)
+            elif ref.upper() in fdats:
+                _fdat(fdats[ref.upper()], state)
+        motion = _MOTION.search(code)
+        if motion:
+            rest = code[motion.end():]
+            names = re.findall(r"^\s*([A-Za-z_]\w*)(?:\s*,?\s*([A-Za-z_]\w*))?", rest)
+            words = [w for w in (names[0] if names else ()) if w and not w.upper().startswith("C_")]
+            if motion.group(1).upper() not in ("CIRC", "SCIRC"):
+                words = words[:1]
+            for w in words:
+                uses.setdefault(w.upper(), []).append((state.tool, state.base, state.external, bool(motion.group(2)),
+                                                       line))
         for m in _AGGREGATE.finditer(code):
             before = code[:m.start()]
-            body_offset = start + m.start(1)
-            items = _items(m.group(1), body_offset)
+            items = _items(m.group(1), start + m.start(1))
             is_pose = all(k in items for k in POSE_KEYS)
             is_joints = all(k in items for k in JOINT_KEYS)
-            decl, motion, assign = _DECL.search(before), _MOTION.search(before), _ASSIGN.search(before)
-            line = line_of(text, start + m.start())
+            decl, assign = _DECL.search(before), _ASSIGN.search(before)
+            inline = _MOTION.search(before)
+            if decl and decl.group(1).upper() == "FDAT":
+                fdats[decl.group(2).upper()] = m.group(1)
+                continue
             if not (is_pose or is_joints):
                 if decl and decl.group(1).upper() != "FRAME":
                     keys = JOINT_KEYS if "AXIS" in decl.group(1).upper() else POSE_KEYS
@@ -72,51 +160,155 @@ def parse_krl(text: str, source: str, targets: list[Target], notes: list[str]) -
                     raise InputError(f"{decl.group(1)} {decl.group(2)}: no number for {', '.join(missing)}",
                                      source=source, where=f"line {line}")
                 continue
-            if assign and not decl:
-                target = assign.group(1).upper()
-                kind = "tool" if target.startswith(("$TOOL", "TOOL_DATA")) else \
-                    ("base" if target.startswith(("$BASE", "BASE_DATA")) else None)
-                if kind and is_pose:
-                    T, first = _frame(items), frames.get(kind)
-                    if first is not None and not np.allclose(first, T):
-                        notes.append(f"{source} line {line}: another {kind} ({assign.group(1)}); the first one is "
-                                     "taken for every target")
-                    frames.setdefault(kind, T)
-                    continue
-                if target.startswith("$"):
-                    continue
             if decl and decl.group(1).upper() == "FRAME":
-                continue  # a frame (a base or tool), not a target
-            if motion and motion.group(2):
-                notes.append(f"{source} line {line}: a relative motion ({motion.group(1)}_REL) is left as it is")
+                continue  # a frame, not a target
+            if assign and not decl and assign.group(1).startswith("$"):
+                continue  # a system variable ($TOOL, $BASE, $POS_ACT …), read above where it is a frame
+            if not (decl or inline or assign):
                 continue
-            if not (decl or motion or assign):
-                continue
-            name = decl.group(2) if decl else (assign.group(1) if assign and not motion else f"line {line}")
-            if is_pose:
-                p, R = pose_matrix(items)
-                config = {k: int(items[k].value) for k in ("S", "T") if k in items}
-                targets.append(Target(name, line, "pose", items, p, R, config=config))
+            if inline:
+                name = f"line {line}" + (" (.dat)" if file else "")
+                frames = (state.tool, state.base, state.external, bool(inline.group(2)), line)
             else:
-                q = np.radians([items[k].value for k in JOINT_KEYS])
-                targets.append(Target(name, line, "joints", items, q=q))
+                name = decl.group(2) if decl else assign.group(1)
+                frames = None
+            t = _target(items, is_pose, name, line, file)
+            if frames is not None:
+                uses.setdefault(f"#{id(t)}", []).append(frames)
+                t.config["_key"] = f"#{id(t)}"
+            program.targets.append(t)
         start += len(raw)
-    return frames.get("tool"), frames.get("base")
 
 
-def load_krl(src_text: str, dat_text: str | None, source: str) -> Program:
-    """A KRL program: its .src and, when there is one, its .dat (targets of both)."""
-    targets: list[Target] = []
-    notes: list[str] = []
-    tool, base = parse_krl(src_text, source, targets, notes)
-    src_count = len(targets)
+def _target(items: dict[str, Field], is_pose: bool, name: str, line: int, file: int) -> Target:
+    if is_pose:
+        p, R = pose_matrix(items)
+        config = {k: int(items[k].value) for k in ("S", "T") if k in items}
+        return Target(name, line, "pose", items, p, R, config=config, file=file)
+    return Target(name, line, "joints", items, q=np.radians([items[k].value for k in JOINT_KEYS]), file=file)
+
+
+def _assign_frames(program: Program, uses: dict) -> None:
+    """Each target's tool and base: those of the motions that reach it."""
+    everything = {(u[0], u[1]) for us in uses.values() for u in us if not u[3]}
+    for t in program.targets:
+        key = t.config.pop("_key", t.name.upper())
+        used = uses.get(key, [])
+        if not used:
+            if len(everything) == 1:
+                t.tool, t.user = next(iter(everything))
+            elif everything:
+                t.unsupported = "no motion of the program reaches it, and its motions use several tools or bases"
+            continue
+        frames = {(u[0], u[1]) for u in used}
+        if any(u[3] for u in used):
+            t.unsupported = f"a relative motion ({'line ' + str(used[0][4])}) reaches it"
+        elif any(u[2] for u in used):
+            t.unsupported = "a motion with IPO_FRAME #TCP (a stationary tool) reaches it"
+        elif len(frames) > 1:
+            listed = ", ".join(f"tool {a}, base {b}" for a, b in sorted(frames, key=str))
+            t.unsupported = f"the motions reach it with different frames ({listed})"
+        else:
+            t.tool, t.user = next(iter(frames))
+
+
+def read(path: Path, frames_file: Path | None = None) -> Program:
+    """A KRL program: its .src, its .dat when there is one (said when it is not), and the frames
+    of ``$config.dat`` (``frames_file``, else found beside the program)."""
+    src = path.with_suffix(".src") if path.suffix.lower() == ".dat" else path
+    text, enc = read_file(src)
+    program = Program("krl", str(src), [ProgramFile(str(src), text, enc)], [])
+    program.tools["0"], program.users["0"] = np.eye(4), np.eye(4)
+    dat = src.with_suffix(".dat")
+    fdats: dict[str, str] = {}
+    uses: dict[str, list] = {}
+    dat_text = None
+    if dat.is_file():
+        dat_text, dat_enc = read_file(dat)
+        program.files.append(ProgramFile(str(dat), dat_text, dat_enc, ".dat"))
+        for m in _AGGREGATE.finditer(dat_text):  # the .dat's FDATs serve the .src's motions
+            decl = _DECL.search(dat_text[max(0, m.start() - 200):m.start()])
+            if decl and decl.group(1).upper() == "FDAT":
+                fdats[decl.group(2).upper()] = m.group(1)
+    _parse(text, 0, str(src), program, fdats, uses, _State())
     if dat_text is not None:
-        t2, b2 = parse_krl(dat_text, source.rsplit(".", 1)[0] + ".dat", targets, notes)
-        tool, base = tool if tool is not None else t2, base if base is not None else b2
-    for t in targets[src_count:]:
-        t.name = f"{t.name} (.dat)" if t.name.startswith("line ") else t.name
-    if not targets:
-        raise InputError("no targets found (E6POS, POS, E6AXIS or AXIS aggregates)", source=source)
-    return Program(src_text, "krl", source, targets, tool, notes, base, dat_text, src_count)
+        _parse(dat_text, 1, str(dat), program, fdats, uses, _State())
+    else:
+        declared = {t.name.upper() for t in program.targets}
+        undeclared = [(name, used) for name, used in uses.items() if not name.startswith("#") and name not in declared]
+        if undeclared:
+            program.notes.append(f"{dat.name} not found beside {src.name}: the targets its motions name there cannot "
+                                 "be corrected")
+        for name, used in undeclared:
+            program.targets.append(Target(name, used[0][4], "pose", {}, unsupported=f"declared in {dat.name}, "
+                                          "which is missing"))
+    if not program.targets:
+        raise InputError("no targets found (E6POS, POS, E6AXIS or AXIS aggregates)", source=src)
+    _assign_frames(program, uses)
+    config = frames_file or find_config(src)
+    if config is not None:
+        _config_frames(Path(config), program)
+    named = {t.tool for t in program.targets if t.tool} | {t.user for t in program.targets if t.user}
+    if config is None and named - {"0"} - set(program.tools) - set(program.users):
+        for n in named:
+            program.missing[n] = f"it is in {CONFIG_FILE}, which was not found beside the program " \
+                                 f"(give --controller-frames, or --tool/--user-frame {n}=x,y,z,rx,ry,rz)"
+    return program
 
 
+def request(t: Target) -> Request | None:
+    """KUKA's S and T as a :class:`Request`."""
+    c = t.config
+    if not c:
+        return None
+    joints: list = [None] * 6
+    front = elbow = 0
+    if "S" in c:
+        s = c["S"]
+        front, elbow = (-1 if s & 1 else 1), (1 if s & 2 else -1)
+        joints[4] = (-np.inf, 0.0) if s & 4 else (0.0, np.inf)
+    if "T" in c:
+        for i in range(6):
+            bounds = (-np.inf, 0.0) if c["T"] >> i & 1 else (0.0, np.inf)
+            joints[i] = bounds if joints[i] is None else (max(joints[i][0], bounds[0]), min(joints[i][1], bounds[1]))
+    return Request(front=front, elbow=elbow, joints=tuple(joints))
+
+
+def encode(q: np.ndarray, facts: dict | None, config: dict) -> dict:
+    """S and T at joints q (the target's own bit where a fact or a joint is on its boundary)."""
+    out = {}
+    on_zero = np.abs(q) <= TOLERANCE_RAD
+    if "S" in config:
+        s0 = config["S"]
+        bit0 = keep_on_boundary(int(facts["front"] < 0), facts["front"], s0 & 1) if facts else s0 & 1
+        bit1 = keep_on_boundary(int(facts["elbow"] > 0), facts["elbow"], s0 >> 1 & 1) if facts else s0 >> 1 & 1
+        bit2 = (s0 >> 2 & 1) if on_zero[4] else int(q[4] <= 0)
+        out["S"] = (s0 & ~7) | bit0 | bit1 << 1 | bit2 << 2
+    if "T" in config:
+        t0 = config["T"]
+        bits = [(t0 >> i & 1) if on_zero[i] else int(q[i] < 0) for i in range(min(6, len(q)))]
+        out["T"] = (t0 & ~63) | sum(b << i for i, b in enumerate(bits))
+    return out
+
+
+def write(t: Target, pose: np.ndarray | None, q: np.ndarray | None, config: dict) -> list[tuple[Field, str]]:
+    f, out = t.fields, []
+    if t.kind == "joints":
+        for i, key in enumerate(JOINT_KEYS[:len(q)]):
+            set_number(out, f[key], float(np.degrees(q[i])), DECIMALS["deg"])
+        return out
+    for k, v in zip("XYZ", pose[:3, 3]):
+        set_number(out, f[k], float(v), DECIMALS["mm"])
+    c, b, a = fixed_xyz(pose[:3, :3], (f["C"].value, f["B"].value, f["A"].value))
+    for k, v in zip("ABC", (a, b, c)):
+        set_number(out, f[k], float(v), DECIMALS["deg"])
+    for k in ("S", "T"):
+        if k in config and k in f:
+            set_text(out, f[k], str(config[k]))
+    return out
+
+
+LANGUAGE = Language(
+    name="krl", title="KUKA KRL", suffixes=(".src", ".dat"), read=read, write=write, request=request,
+    encode=encode, units="mm, deg", orientation="R = Rz(A)·Ry(B)·Rx(C)",
+    frames="$TOOL/$BASE: TOOL_DATA[n], BASE_DATA[n] from $config.dat, BAS(#TOOL|#BASE, n), FDAT_ACT, inline frames")

@@ -1,24 +1,29 @@
-"""A robot program as filtering sees it: its text, and the targets in it as spans of numbers.
+"""A robot program as filtering sees it: its files, and the targets in them as spans of numbers.
 
-Every language reader (:mod:`.krl`, :mod:`.rapid`, :mod:`.urscript`) finds its targets and
-records, for each number of a target, where it stands in the text (a :class:`Field`); writing
-replaces exactly those characters and nothing else, so comments, speeds, zones, other
-declarations, line endings and the layout stay byte for byte.
+Every language reader (:mod:`.krl`, :mod:`.rapid`, :mod:`.urscript`, :mod:`.fanuc`) finds its
+targets and records, for each number of a target, where it stands in its file's text (a
+:class:`Field`); writing replaces exactly those characters and nothing else, so comments, speeds,
+zones, other declarations, line endings, the encoding and the layout stay byte for byte.
 """
 
 from __future__ import annotations
 
 import re
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
-_NUMBER = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
+from ..exceptions import InputError
+
+#: a number token, whole: not the tail of a name (P1), nor cut short by a letter or a dot (1.5x)
+NUMBER = r"(?<![\w.])[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?(?![\w.])"
+_NUMBER = re.compile(NUMBER)
 
 
 @dataclass(frozen=True)
 class Field:
-    """One number of a target: its span [start, end) in the text and the text there."""
+    """One number of a target: its span [start, end) in its file's text and the text there."""
 
     start: int
     end: int
@@ -28,14 +33,17 @@ class Field:
     def value(self) -> float:
         return float(self.text)
 
+    def decimals(self) -> int:
+        mantissa = self.text.lower().split("e")[0]
+        return len(mantissa.split(".")[1]) if "." in mantissa else 0
+
     def formatted(self, value: float, minimum_decimals: int) -> str:
         """``value`` written in this field's style: as many decimals as it had, at least
-        ``minimum_decimals`` (enough for the correction), an explicit sign if it had one."""
-        mantissa = self.text.lower().split("e")[0]
-        decimals = len(mantissa.split(".")[1]) if "." in mantissa else 0
+        ``minimum_decimals`` (enough for the correction), an explicit sign if it had one, no
+        leading zero if it had none (FANUC's ``-.500``)."""
+        decimals = max(self.decimals(), minimum_decimals)
         if "e" in self.text.lower():
-            return f"{value:.{max(decimals, minimum_decimals)}e}"
-        decimals = max(decimals, minimum_decimals)
+            return f"{value:.{decimals}e}"
         text = f"{value:.{decimals}f}"
         if text.startswith("-") and float(text) == 0.0:
             text = text[1:]  # no "-0.000"
@@ -45,6 +53,12 @@ class Field:
             text = re.sub(r"^([-+]?)0\.", r"\1.", text)
         return text
 
+    def unchanged(self, value: float, minimum_decimals: int) -> bool:
+        """Whether ``value`` differs from the written one by less than half a unit of the
+        finest place robocal would write: then the text stays as it is (an identity filter is
+        byte for byte the program)."""
+        return abs(value - self.value) < 0.5 * 10.0 ** -max(self.decimals(), minimum_decimals)
+
 
 def fields_in(text: str, offset: int = 0) -> list[Field]:
     """Every number of ``text`` as a Field (spans shifted by ``offset``)."""
@@ -52,12 +66,27 @@ def fields_in(text: str, offset: int = 0) -> list[Field]:
 
 
 @dataclass
+class ProgramFile:
+    """One file of a program: where it was read, its text exactly as written, its encoding, and
+    the suffix of the file it is written to (None: the --out path itself)."""
+
+    path: str
+    text: str
+    encoding: str
+    out_suffix: str | None = None
+
+
+@dataclass
 class Target:
-    """A target of a program: ``name`` (the variable, or ``line N`` for an inline one), the
-    line it is on, and its kind: ``pose`` (position mm and rotation in the robot's base frame
-    as the program states it) or ``joints`` (q rad, n).  ``fields`` maps each named number
-    (x, y, z, a, b, c, q1 … or a language's own) to its place; ``config`` holds what the
-    language says of the arm's configuration (KRL S and T, RAPID cf1 cf4 cf6 cfx)."""
+    """A target of a program: ``name`` (the variable, or ``line N`` for an inline one), the file
+    (index into :attr:`Program.files`) and line it is on, and its kind: ``pose`` (position mm and
+    rotation as the program states them, in its user frame) or ``joints`` (the controller's joint
+    values, rad, mm for a sliding joint).  ``fields`` maps each named number to its place;
+    ``config`` holds the configuration data as the language writes them (KRL S and T, RAPID cf1
+    cf4 cf6 cfx, FANUC's CONFIG string); ``hint`` the joints a pose was taught at or is to be
+    solved near (a PolyScope waypoint's NAME_q, URScript's qnear; controller values, rad);
+    ``tool`` and ``user`` the names of the frames it is taught in (None: the program names none);
+    ``unsupported``: why it cannot be corrected (a position register, an offset, a relative motion)."""
 
     name: str
     line: int
@@ -66,27 +95,32 @@ class Target:
     position: np.ndarray | None = None
     rotation: np.ndarray | None = None
     q: np.ndarray | None = None
-    config: dict[str, int] = field(default_factory=dict)
-    #: for a pose, the joints it was taught at, where the program keeps them (rad)
-    taught: np.ndarray | None = None
+    config: dict = field(default_factory=dict)
+    hint: np.ndarray | None = None
+    file: int = 0
+    tool: str | None = None
+    user: str | None = None
+    unsupported: str | None = None
 
 
 @dataclass
 class Program:
-    """A program's text, its language, its targets in order of appearance, and the TCP (4×4,
-    flange frame, mm) its tool data declare, if any."""
+    """A program's language, files, targets in order of appearance, the frames it declares (TCPs
+    in the flange frame, user frames in the controller's world; 4×4 mm) and what it does not
+    say of frames it names (``missing``: name → why), and what was said on reading it."""
 
-    text: str
     language: str
     source: str
+    files: list[ProgramFile]
     targets: list[Target]
-    tool: np.ndarray | None = None
+    tools: dict[str, np.ndarray] = field(default_factory=dict)
+    users: dict[str, np.ndarray] = field(default_factory=dict)
+    missing: dict[str, str] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
-    #: the frame the targets are stated in, in the robot's base frame (KRL $BASE, RAPID wobj)
-    base: np.ndarray | None = None
-    #: KRL: the .dat's text, and the index of its first target in ``targets``
-    dat: str | None = None
-    split: int | None = None
+
+    @property
+    def text(self) -> str:
+        return self.files[0].text
 
 
 def rewrite(text: str, changes: list[tuple[Field, str]]) -> str:
@@ -115,22 +149,59 @@ def blank_comments(text: str, marker: str) -> str:
     return "".join(out)
 
 
-def first_of(used: set[str], declared: dict, default: str, what: str, source: str, notes: list[str],
-             missing: str) -> tuple[object | None, bool]:
-    """The declared value of the first (sorted) name in ``used`` other than ``default``, saying
-    when it is not declared (``missing``: what happens then) or when there are several; and
-    whether ``default`` alone is used."""
-    named = sorted(used - {default})
-    if not named:
-        return None, default in used
-    if len(named) > 1:
-        notes.append(f"the motions use several {what}s ({', '.join(named)}); {named[0]} is taken for every target")
-    if named[0] in declared:
-        return declared[named[0]], False
-    notes.append(f"the motions use {what} {named[0]}, which {source} does not declare: {missing}")
-    return None, False
+def split_top(text: str) -> list[str]:
+    """``text`` split at the commas outside parentheses and brackets."""
+    parts, depth, last = [], 0, 0
+    for i, c in enumerate(text):
+        if c in "([":
+            depth += 1
+        elif c in ")]":
+            depth -= 1
+        elif c == "," and depth == 0:
+            parts.append(text[last:i])
+            last = i + 1
+    parts.append(text[last:])
+    return parts
 
 
 def line_of(text: str, index: int) -> int:
     """1-based line number of a character index."""
     return text.count("\n", 0, index) + 1
+
+
+#: byte order marks, longest first (UTF-32's LE mark begins with UTF-16's)
+_BOMS = ((b"\xff\xfe\x00\x00", "utf-32-le"), (b"\x00\x00\xfe\xff", "utf-32-be"), (b"\xef\xbb\xbf", "utf-8"),
+         (b"\xff\xfe", "utf-16-le"), (b"\xfe\xff", "utf-16-be"))
+
+
+def decode(raw: bytes, source) -> tuple[str, str]:
+    """A file's text and its encoding: by its byte order mark (UTF-8/16/32), else UTF-8, else
+    Windows-1252 (KUKA and ABB files often are), else Latin-1.  The encoding's name records the
+    mark (``utf-16-le+bom``) so that :func:`encode` writes the same bytes back."""
+    for bom, codec in _BOMS:
+        if raw.startswith(bom):
+            try:
+                return raw[len(bom):].decode(codec), f"{codec}+bom"
+            except UnicodeDecodeError:
+                raise InputError(f"is marked {codec.upper()} but does not decode as such", source=source) from None
+    for codec in ("utf-8", "cp1252"):
+        try:
+            return raw.decode(codec), codec
+        except UnicodeDecodeError:
+            continue
+    return raw.decode("latin-1"), "latin-1"
+
+
+def encode(text: str, encoding: str) -> bytes:
+    """The bytes of a text in the encoding :func:`decode` found (its byte order mark included)."""
+    codec, _, bom = encoding.partition("+")
+    if not bom:
+        return text.encode(codec)
+    mark = next(b for b, c in _BOMS if c == codec)
+    return mark + text.encode(codec)
+
+
+def read_file(path: Path, what: str = "program file") -> tuple[str, str]:
+    if not path.is_file():
+        raise InputError(f"no such {what}", source=path)
+    return decode(path.read_bytes(), path)

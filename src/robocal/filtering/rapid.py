@@ -1,105 +1,227 @@
-"""ABB RAPID: robtarget and jointtarget data in a module (.mod, .prg).
+"""ABB RAPID: robtarget and jointtarget data in a module (.mod, .modx, .prg, .sys).
 
-A robtarget ``[[x,y,z],[q1,q2,q3,q4],[cf1,cf4,cf6,cfx],[eax_a,…,eax_f]]`` is a TCP pose (mm; the
-quaternion scalar first) in the work object of the motion; a jointtarget
-``[[j1,…,j6],[eax_a,…]]`` the joints (deg).  They are targets where declared
-(``CONST|PERS|VAR robtarget NAME:=…``) and where a motion takes them inline.  cf1, cf4, cf6
-are the quadrants of joints 1, 4 and 6 (⌊q/90°⌋); cfx, the arm's configuration, is kept.
-``tooldata`` gives the TCP ([robhold,[[x,y,z],[q]],…]) of the tool the motions name, and a
-``wobjdata`` the work object (user frame · object frame) they are in; ``!`` starts a comment.
+A robtarget ``[[x,y,z],[q1,q2,q3,q4],[cf1,cf4,cf6,cfx],[eax_a,…,eax_f]]`` is a TCP pose (mm; a unit
+quaternion, scalar first) in the work object of the motion; a jointtarget ``[[j1,…,j6],[eax_a,…]]``
+the joints (deg).  They are targets where declared (``CONST|PERS|VAR robtarget NAME:=…``) and where
+a motion takes them inline.  ``!`` starts a comment.
+
+Frames: each motion names its tool (its last positional argument) and work object (``\\WObj:=``,
+default ``wobj0``): the targets it reaches are in them.  ``tooldata`` gives a TCP
+(``[robhold,[[x,y,z],[q]],…]``), ``wobjdata`` a work object (``uframe · oframe``); ``tool0`` is the
+flange and ``wobj0`` the world.  A stationary tool (tooldata robhold FALSE), a work object the
+robot holds or a mechanical unit moves (robhold TRUE, ufprog FALSE), a target computed by a
+function (``Offs``, ``RelTool``) and a target the motions reach in two frames are flagged.
+
+Configuration: cf1, cf4, cf6 are the quadrants ⌊q/90°⌋ of axes 1, 4 and 6; cfx is 4 × (wrist
+centre behind axis 1) + 2 × (wrist centre behind the lower arm) + (axis 5 negative).
 """
 
 from __future__ import annotations
 
+import math
 import re
+from pathlib import Path
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ..exceptions import InputError
+from ..inverse.configuration import TOLERANCE_RAD
+from ..inverse.solve import Request
 from ..math.se3 import homogeneous
-from .program import Program, Target, blank_comments, fields_in, first_of, line_of
+from .language import DECIMALS, Language, keep_on_boundary, quaternion, set_number, set_text
+from .program import (
+    NUMBER,
+    Field,
+    Program,
+    ProgramFile,
+    Target,
+    blank_comments,
+    fields_in,
+    line_of,
+    read_file,
+    split_top,
+)
 
-_N = r"\s*[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?\s*"
+_N = r"\s*" + NUMBER + r"\s*"
 _LIST = lambda k: r"\[" + ",".join([_N] * k) + r"\]"  # noqa: E731
 ROBTARGET = re.compile(r"\[\s*" + _LIST(3) + r"\s*,\s*" + _LIST(4) + r"\s*,\s*" + _LIST(4) + r"\s*,\s*" + _LIST(6)
                        + r"\s*\]")
 JOINTTARGET = re.compile(r"\[\s*" + _LIST(6) + r"\s*,\s*" + _LIST(6) + r"\s*\]")
 _DECL = re.compile(r"\b(?:CONST|PERS|VAR|LOCAL\s+\w+)?\s*(robtarget|jointtarget)\s+(\w+)\s*:=\s*$", re.I)
-_TOOL = re.compile(r"\btooldata\s+(\w+)\s*:=\s*\[\s*\w+\s*,\s*\[\s*(" + _LIST(3) + r")\s*,\s*(" + _LIST(4) + r")", re.I)
-_WOBJ = re.compile(r"\bwobjdata\s+(\w+)\s*:=\s*\[\s*\w+\s*,\s*\w+\s*,\s*,\s*\[\s*(" + _LIST(3)
+_TOOL = re.compile(r"\btooldata\s+(\w+)\s*:=\s*\[\s*(TRUE|FALSE)\s*,\s*\[\s*(" + _LIST(3) + r")\s*,\s*(" + _LIST(4)
+                   + r")", re.I)
+_WOBJ = re.compile(r"\bwobjdata\s+(\w+)\s*:=\s*\[\s*(TRUE|FALSE)\s*,\s*(TRUE|FALSE)\s*,[^,\[]*,\s*\[\s*(" + _LIST(3)
                    + r")\s*,\s*(" + _LIST(4) + r")\s*\]\s*,\s*\[\s*(" + _LIST(3) + r")\s*,\s*(" + _LIST(4) + r")",
                    re.I)
-_MOVE = re.compile(r"\bMove(?:L|J|C|AbsJ|LDO|JDO|LSync|JSync|Ext)?\b([^;]*);", re.I)
+_MOVE = re.compile(r"\b(Move(?:L|J|C|AbsJ|LDO|JDO|CDO|LSync|JSync|CSync|Ext)?)\b([^;]*);", re.I)
+#: what an aggregate argument of a motion reads as once its brackets are taken out
+AGGREGATE = "\u00a7"
 KEYS_POSE = ("x", "y", "z", "q1", "q2", "q3", "q4", "cf1", "cf4", "cf6", "cfx")
+#: a quaternion's norm may miss 1 by this much (its printed decimals' rounding)
+QUATERNION_NORM = 1e-6
 
 
 def _numbers(text: str) -> np.ndarray:
     return np.array([f.value for f in fields_in(text)])
 
 
-def _frame(xyz: str, quat: str) -> np.ndarray:
-    q = _numbers(quat)
-    return homogeneous(Rotation.from_quat([q[1], q[2], q[3], q[0]]).as_matrix(), _numbers(xyz))
+def _rotation(q: np.ndarray, source: str, line: int) -> np.ndarray:
+    norm = float(np.linalg.norm(q))
+    if abs(norm - 1.0) > QUATERNION_NORM:
+        raise InputError(f"the quaternion [{', '.join(f'{v:g}' for v in q)}] has norm {norm:.9g}, not 1 "
+                         f"(within {QUATERNION_NORM:g})", source=source, where=f"line {line}")
+    return Rotation.from_quat([q[1], q[2], q[3], q[0]]).as_matrix()
 
 
-def _code(text: str) -> str:
-    """The text with comments (``!`` to the end of the line) and strings blanked, same length."""
-    return blank_comments(text, "!")
+def _frame(xyz: str, quat: str, source: str, line: int) -> np.ndarray:
+    return homogeneous(_rotation(_numbers(quat), source, line), _numbers(xyz))
 
 
-def _tool_and_wobj(arguments: str) -> tuple[str | None, str | None]:
-    """The tool (the last positional argument) and the work object (``\\WObj:=``) of a motion."""
+def _arguments(arguments: str) -> tuple[list[str], str | None, str | None]:
+    """The positional arguments of a motion (aggregates as AGGREGATE), its tool (the last positional
+    one) and its work object (``\\WObj:=``)."""
     flat = arguments
     while "[" in flat:  # aggregates out, innermost first
-        flat = re.sub(r"\[[^\[\]]*\]", "0", flat)
+        flat = re.sub(r"\[[^\[\]]*\]", AGGREGATE, flat)
     wobj = re.search(r"\\WObj\s*:=\s*(\w+)", flat, re.I)
-    flat = re.sub(r"\\\w+(?:\s*:=\s*\w+)?", "", flat)  # switches and optional arguments
-    positional = [a.strip() for a in flat.split(",") if a.strip()]
+    flat = re.sub(r"\\\w+(?:\s*:=\s*[\w\[\]]+)?", "", flat)  # switches and optional arguments
+    positional = [a.strip() for a in split_top(flat) if a.strip()]
     tool = positional[-1] if positional and re.fullmatch(r"[A-Za-z_]\w*", positional[-1]) else None
-    return tool, wobj.group(1) if wobj else None
+    return positional, tool, wobj.group(1) if wobj else "wobj0"
 
 
-def load_rapid(text: str, source: str) -> Program:
-    code = _code(text)
-    targets: list[Target] = []
-    notes: list[str] = []
-    for m in ROBTARGET.finditer(code):
-        f = fields_in(text[m.start():m.end()], m.start())
-        items = dict(zip(KEYS_POSE, f[:11]))
-        decl = _DECL.search(code[max(0, m.start() - 200):m.start()])
+def read(path: Path, frames_file: Path | None = None) -> Program:
+    if frames_file is not None:
+        raise InputError("RAPID declares its tools and work objects in the module: --controller-frames is for KRL",
+                         option="controller_frames")
+    text, enc = read_file(path)
+    source = str(path)
+    code = blank_comments(text, "!")
+    program = Program("rapid", source, [ProgramFile(source, text, enc)], [])
+    program.tools["tool0"], program.users["wobj0"] = np.eye(4), np.eye(4)
+    for m in _TOOL.finditer(code):
+        program.tools[m.group(1)] = _frame(m.group(3), m.group(4), source, line_of(text, m.start()))
+        if m.group(2).upper() == "FALSE":
+            program.missing[m.group(1)] = "a stationary tool (robhold FALSE): the robot holds the work object"
+            del program.tools[m.group(1)]
+    for m in _WOBJ.finditer(code):
         line = line_of(text, m.start())
-        name = decl.group(2) if decl and decl.group(1).lower() == "robtarget" else f"line {line}"
-        q = np.array([items[k].value for k in ("q1", "q2", "q3", "q4")])
-        R = Rotation.from_quat([q[1], q[2], q[3], q[0]]).as_matrix()
-        config = {k: int(items[k].value) for k in ("cf1", "cf4", "cf6", "cfx")}
-        targets.append(Target(name, line, "pose", items, np.array([items[k].value for k in "xyz"]), R,
-                              config=config))
-    for m in JOINTTARGET.finditer(code):
-        f = fields_in(text[m.start():m.end()], m.start())
-        items = {f"q{i + 1}": f[i] for i in range(6)}
-        decl = _DECL.search(code[max(0, m.start() - 200):m.start()])
+        program.users[m.group(1)] = _frame(m.group(4), m.group(5), source, line) @ \
+            _frame(m.group(6), m.group(7), source, line)
+        if m.group(2).upper() == "TRUE" or m.group(3).upper() == "FALSE":
+            program.missing[m.group(1)] = "a work object the robot holds or a mechanical unit moves"
+            del program.users[m.group(1)]
+    uses: dict[str, list] = {}
+    spans = []
+    for m in _MOVE.finditer(code):
+        positional, tool, wobj = _arguments(m.group(2))
         line = line_of(text, m.start())
-        name = decl.group(2) if decl and decl.group(1).lower() == "jointtarget" else f"line {line}"
-        targets.append(Target(name, line, "joints", items, q=np.radians([items[f"q{i + 1}"].value for i in range(6)])))
-    targets.sort(key=lambda t: min(x.start for x in t.fields.values()))
-    read = {t.name for t in targets}
+        reach = positional[:2] if m.group(1).lower().startswith("movec") else positional[:1]
+        for a in reach:
+            if re.fullmatch(r"[A-Za-z_]\w*", a):
+                uses.setdefault(a.lower(), []).append((tool, wobj, line))
+            elif a != AGGREGATE:
+                program.targets.append(Target(f"line {line}", line, "pose", {},
+                                              unsupported=f"the target {a.strip()} is computed as the program runs"))
+        spans.append((m.start(2), m.end(2), tool, wobj, line))
+    _targets(text, code, program, spans, uses)
+    if not program.targets:
+        raise InputError("no targets found (robtarget or jointtarget data)", source=source)
+    program.targets.sort(key=lambda t: (t.line, min((x.start for x in t.fields.values()), default=0)))
+    return program
+
+
+def _targets(text: str, code: str, program: Program, spans: list, uses: dict) -> None:
+    source = program.source
+    everything = {(u[0], u[1]) for us in uses.values() for u in us}
+    for kind, pattern in (("pose", ROBTARGET), ("joints", JOINTTARGET)):
+        for m in pattern.finditer(code):
+            f = fields_in(text[m.start():m.end()], m.start())
+            decl = _DECL.search(code[max(0, m.start() - 200):m.start()])
+            line = line_of(text, m.start())
+            declared = decl and decl.group(1).lower() == ("robtarget" if kind == "pose" else "jointtarget")
+            name = decl.group(2) if declared else f"line {line}"
+            if kind == "pose":
+                items = dict(zip(KEYS_POSE, f[:11]))
+                q = np.array([items[k].value for k in ("q1", "q2", "q3", "q4")])
+                t = Target(name, line, "pose", items, np.array([items[k].value for k in "xyz"]),
+                           _rotation(q, source, line), config={k: int(items[k].value) for k in KEYS_POSE[7:]})
+            else:
+                items = {f"q{i + 1}": f[i] for i in range(6)}
+                t = Target(name, line, "joints", items, q=np.radians([items[f"q{i + 1}"].value for i in range(6)]))
+            inline = [s for s in spans if s[0] <= m.start() < s[1]]
+            used = [(s[2], s[3], s[4]) for s in inline] if not declared else uses.get(name.lower(), [])
+            frames = {(u[0], u[1]) for u in used}
+            if len(frames) == 1:
+                t.tool, t.user = next(iter(frames))
+            elif len(frames) > 1:
+                listed = ", ".join(f"{a} in {b}" for a, b in sorted(frames, key=str))
+                t.unsupported = f"the motions reach it with different tools or work objects ({listed})"
+            elif len(everything) == 1:
+                t.tool, t.user = next(iter(everything))
+            elif everything:
+                t.unsupported = "no motion of the module reaches it, and its motions use several tools or work objects"
+            program.targets.append(t)
+    read_names = {t.name for t in program.targets}
     for m in re.finditer(r"\b(robtarget|jointtarget)\s+(\w+)\s*:=", code, re.I):
-        if m.group(2) not in read:
+        if m.group(2) not in read_names:
             raise InputError(f"{m.group(1)} {m.group(2)}: its value is not [[x,y,z],[q1,q2,q3,q4],[cf1,cf4,cf6,cfx],"
                              "[eax…]] (robtarget) or [[j1,…,j6],[eax…]] (jointtarget) of numbers", source=source,
                              where=f"line {line_of(text, m.start())}")
-    if not targets:
-        raise InputError("no targets found (robtarget or jointtarget data)", source=source)
-    tools = {m.group(1): _frame(m.group(2), m.group(3)) for m in _TOOL.finditer(code)}
-    wobjs = {m.group(1): _frame(m.group(2), m.group(3)) @ _frame(m.group(4), m.group(5)) for m in _WOBJ.finditer(code)}
-    # the unit name string of a wobjdata is blanked with the comments: its comma stays
-    used = [_tool_and_wobj(m.group(1)) for m in _MOVE.finditer(code)]
-    used_tools = {t for t, _ in used if t}
-    used_wobjs = {w for _, w in used if w}
-    tool, flange = first_of(used_tools, tools, "tool0", "tool", source, notes,
-                            "the TCP is --tool's or the robot file's")
-    tool = np.eye(4) if flange else tool
-    base, _ = first_of(used_wobjs, wobjs, "wobj0", "work object", source, notes,
-                       "targets are taken in the robot's base frame")
-    return Program(text, "rapid", source, targets, tool, notes, base)
+
+
+def _quadrant(angle: float, original: int | None) -> int:
+    """⌊angle/90°⌋, the target's own quadrant where the angle lies on a boundary."""
+    quarter = angle / (math.pi / 2)
+    nearest = round(quarter)
+    if abs(quarter - nearest) * (math.pi / 2) <= TOLERANCE_RAD and original in (nearest - 1, nearest):
+        return original
+    return int(math.floor(quarter))
+
+
+def request(t: Target) -> Request | None:
+    c = t.config
+    if t.kind != "pose" or "cf1" not in c:
+        return None
+    quarter = math.pi / 2
+    joints: list = [None] * 6
+    for j, k in ((0, "cf1"), (3, "cf4"), (5, "cf6")):
+        joints[j] = (c[k] * quarter, (c[k] + 1) * quarter)
+    cfx = c["cfx"]
+    joints[4] = (-np.inf, 0.0) if cfx & 1 else (0.0, np.inf)
+    return Request(front=-1 if cfx & 4 else 1, lower=-1 if cfx & 2 else 1, joints=tuple(joints))
+
+
+def encode(q: np.ndarray, facts: dict | None, config: dict) -> dict:
+    if "cf1" not in config:
+        return {}
+    out = {k: _quadrant(float(q[j]), config.get(k)) for j, k in ((0, "cf1"), (3, "cf4"), (5, "cf6"))}
+    x0 = config.get("cfx", 0)
+    behind = keep_on_boundary(int(facts["front"] < 0), facts["front"], x0 >> 2 & 1) if facts else x0 >> 2 & 1
+    lower = keep_on_boundary(int(facts["lower"] < 0), facts["lower"], x0 >> 1 & 1) if facts else x0 >> 1 & 1
+    wrist = (x0 & 1) if abs(q[4]) <= TOLERANCE_RAD else int(q[4] < 0)
+    out["cfx"] = behind << 2 | lower << 1 | wrist
+    return out
+
+
+def write(t: Target, pose: np.ndarray | None, q: np.ndarray | None, config: dict) -> list[tuple[Field, str]]:
+    f, out = t.fields, []
+    if t.kind == "joints":
+        for i in range(len(q)):
+            set_number(out, f[f"q{i + 1}"], math.degrees(q[i]), DECIMALS["deg"])
+        return out
+    for k, v in zip("xyz", pose[:3, 3]):
+        set_number(out, f[k], float(v), DECIMALS["mm"])
+    quat = quaternion(pose[:3, :3], np.array([f[k].value for k in ("q1", "q2", "q3", "q4")]))
+    for k, v in zip(("q1", "q2", "q3", "q4"), quat):
+        set_number(out, f[k], float(v), DECIMALS["quat"])
+    for k, v in config.items():
+        set_text(out, f[k], str(v))
+    return out
+
+
+LANGUAGE = Language(
+    name="rapid", title="ABB RAPID", suffixes=(".mod", ".modx", ".prg", ".sys"), read=read, write=write,
+    request=request, encode=encode, units="mm, deg", orientation="unit quaternion [q1 q2 q3 q4], scalar first",
+    frames="tooldata and wobjdata (uframe · oframe) the motions name; tool0, wobj0")

@@ -1,143 +1,237 @@
 """Universal Robots URScript: poses ``p[x, y, z, rx, ry, rz]`` (m; a rotation vector, rad) and
 joint lists ``[j1, …, j6]`` (rad).
 
-They are targets where a motion (movej, movel, movep, movec, servoj) takes them inline, or where
-a variable is assigned one and a motion (or the get_inverse_kin inside one) names that
-variable.  PolyScope's waypoints come as NAME_p (the pose) and NAME_q (the joints it was
-taught at); the joints give the pose's configuration.  ``set_tcp(p[…])`` gives the TCP; offsets
-(pose_trans operands), payloads and references are not targets; ``#`` starts a comment.
+They are targets where a motion (movej, movel, movep, movec, servoj) takes them inline or names a
+variable assigned one (once: a variable the program assigns again or element by element is
+flagged).  ``movej(get_inverse_kin(X, qnear=Q))`` goes to the pose X on the solution nearest the
+joints Q: Q is the branch hint of X, never a target itself.  PolyScope exports a waypoint as
+``NAME_p`` (the pose) and ``NAME_q`` (the joints it was taught at): ``NAME_q`` is the hint of
+``NAME_p`` whether or not a motion names it (``movel(NAME_p)`` uses the pose alone).  A pose with
+no hint is solved nearest the previous target.  ``#`` starts a comment.
+
+Frames: ``set_tcp(p[…])`` sets the TCP of the motions after it; ``pose_trans(F, X)`` with ``F`` a
+pose variable (a PolyScope feature) puts the target X in the user frame F.  A target the motions
+reach through any other computation is flagged.
 """
 
 from __future__ import annotations
 
 import re
+from pathlib import Path
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ..exceptions import InputError
 from ..math.se3 import homogeneous
-from .program import Program, Target, blank_comments, fields_in, line_of
+from .language import DECIMALS, Language, rotation_vector, set_number
+from .program import (
+    NUMBER,
+    Field,
+    Program,
+    ProgramFile,
+    Target,
+    blank_comments,
+    fields_in,
+    line_of,
+    read_file,
+    split_top,
+)
 
-_N = r"\s*[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?\s*"
+_N = r"\s*" + NUMBER + r"\s*"
 POSE = re.compile(r"\bp\[(" + ",".join([_N] * 6) + r")\]")
 JOINTS = re.compile(r"(?<![\w\]])\[(" + ",".join([_N] * 6) + r")\]")
-_ASSIGN = re.compile(r"(?:\bglobal\s+|\blocal\s+)?\b(\w+)\s*=\s*$")
+_ASSIGN = re.compile(r"(?:\bglobal\s+|\blocal\s+)?\b([A-Za-z_]\w*)\s*=(?!=)\s*")
 _MOVE = re.compile(r"\b(movej|movel|movep|movec|servoj)\s*\(")
 _TCP = re.compile(r"\bset_tcp\s*\(\s*p\[(" + ",".join([_N] * 6) + r")\]")
+_NAME = re.compile(r"[A-Za-z_]\w*")
 POSE_KEYS = ("x", "y", "z", "rx", "ry", "rz")
 
 
-def _code(text: str) -> str:
-    """Comments (``#`` on) and strings blanked, lengths kept."""
-    return blank_comments(text, "#")
-
-
-def _statement(code: str, index: int) -> tuple[int, int]:
-    """The line around a character index."""
-    start = code.rfind("\n", 0, index) + 1
-    end = code.find("\n", index)
-    return start, len(code) if end < 0 else end
-
-
-def _in_motion(code: str, start: int) -> bool:
-    """Whether the character at ``start`` is inside the parentheses of a motion call."""
-    s, _ = _statement(code, start)
-    for m in _MOVE.finditer(code, s, start):
-        depth = code.count("(", m.end() - 1, start) - code.count(")", m.end() - 1, start)
-        if depth > 0:
-            return True
-    return False
-
-
-def _arguments(code: str, open_paren: int) -> tuple[list[str], int]:
-    """The top-level arguments of the call whose ``(`` is at ``open_paren``, and its end."""
-    depth, i, parts, last = 1, open_paren + 1, [], open_paren + 1
+def _call_arguments(code: str, open_paren: int) -> tuple[list[str], list[int]]:
+    """The top-level arguments of the call whose ``(`` is at ``open_paren`` and where each starts."""
+    depth, i = 1, open_paren + 1
     while i < len(code) and depth:
-        c = code[i]
-        if c in "([":
-            depth += 1
-        elif c in ")]":
-            depth -= 1
-        elif c == "," and depth == 1:
-            parts.append(code[last:i])
-            last = i + 1
+        depth += {"(": 1, "[": 1, ")": -1, "]": -1}.get(code[i], 0)
         i += 1
-    parts.append(code[last:i - 1])
-    return [p.strip() for p in parts], i
+    body = code[open_paren + 1:i - 1]
+    parts = split_top(body)
+    starts, at = [], open_paren + 1
+    for p in parts:
+        starts.append(at + len(p) - len(p.lstrip()))
+        at += len(p) + 1
+    return [p.strip() for p in parts], starts
 
 
-def _names_in_motions(code: str) -> tuple[set[str], set[str]]:
-    """Variables a motion goes to: a bare argument, or get_inverse_kin's first argument (and its
-    qnear, the joints it was taught at); and those it only reaches through another call
-    (pose_trans operands: relative, left alone)."""
-    names, indirect = set(), set()
-    for m in _MOVE.finditer(code):
-        args, _ = _arguments(code, m.end() - 1)
-        for a in args[:2 if m.group(1) == "movec" else 1]:
-            if re.fullmatch(r"[A-Za-z_]\w*", a):
-                names.add(a)
-            elif (k := re.match(r"get_inverse_kin\s*\(", a)):
-                inner, _ = _arguments(a, k.end() - 1)
-                names |= {x for x in (inner[0], *(v.split("=", 1)[1].strip() for v in inner[1:] if "=" in v))
-                          if re.fullmatch(r"[A-Za-z_]\w*", x)}
-            else:
-                indirect |= set(re.findall(r"\b([A-Za-z_]\w*)\b", a))
-    return names, indirect - names
+def _pose_of(values: list[float]) -> tuple[np.ndarray, np.ndarray]:
+    v = np.array(values)
+    return v[:3] * 1000.0, Rotation.from_rotvec(v[3:]).as_matrix()
 
 
-def _changed_at_run_time(code: str, name: str) -> bool:
-    assignments = len(re.findall(r"\b" + re.escape(name) + r"\s*=(?!=)", code))
-    return assignments > 1 or re.search(r"\b" + re.escape(name) + r"\s*\[[^\]]*\]\s*=(?!=)", code) is not None
+class _Reader:
+    def __init__(self, text: str, source: str):
+        self.text, self.source, self.code = text, source, blank_comments(text, "#")
+        self.program = Program("urscript", source, [ProgramFile(source, text, "")], [])
+        self.tcps = [(m.start(), homogeneous(*_pose_of([f.value for f in fields_in(m.group(1))])[::-1]))
+                     for m in _TCP.finditer(self.code)]
+        self.literals: dict[str, list] = {}  # variable → [(kind, match), …] of its literal assignments
+        self.assignments: dict[str, int] = {}
+        for m in _ASSIGN.finditer(self.code):
+            name = m.group(1)
+            self.assignments[name] = self.assignments.get(name, 0) + 1
+            rest = self.code[m.end():]
+            for kind, pattern in (("pose", POSE), ("joints", JOINTS)):
+                lit = pattern.match(rest)
+                if lit:
+                    self.literals.setdefault(name, []).append((kind, m.end() + lit.start(), m.end() + lit.end()))
+        self.uses: dict[str, list] = {}  # variable → [(tool, user, hint, line)]
 
+    def tool_at(self, index: int) -> str | None:
+        before = [i for i, (at, _) in enumerate(self.tcps) if at < index]
+        return f"set_tcp line {line_of(self.text, self.tcps[before[-1]][0])}" if before else None
 
-def load_urscript(text: str, source: str) -> Program:
-    code = _code(text)
-    moved, indirect = _names_in_motions(code)
-    targets: list[Target] = []
-    notes: list[str] = []
-    spans = []
-    for kind, pattern in (("pose", POSE), ("joints", JOINTS)):
-        for m in pattern.finditer(code):
-            s, _ = _statement(code, m.start())
-            assign = _ASSIGN.search(code[s:m.start()])
-            inline = _in_motion(code, m.start())
-            if not inline and not (assign and assign.group(1) in moved):
+    def changed(self, name: str) -> bool:
+        return self.assignments.get(name, 0) > 1 or re.search(r"\b" + re.escape(name) + r"\s*\[[^\]]*\]\s*=(?!=)",
+                                                              self.code) is not None
+
+    def target(self, kind: str, start: int, end: int, name: str, line: int) -> Target:
+        inner = self.code[start:end]
+        body = inner[inner.index("[") + 1:inner.rindex("]")]
+        f = fields_in(self.text[start:end], start)
+        if len(f) != 6:
+            raise InputError(f"{name}: expected six numbers in {body.strip()!r}", source=self.source,
+                             where=f"line {line}")
+        if kind == "pose":
+            p, R = _pose_of([x.value for x in f])
+            return Target(name, line, "pose", dict(zip(POSE_KEYS, f)), p, R)
+        return Target(name, line, "joints", {f"q{i + 1}": x for i, x in enumerate(f)}, q=np.array([x.value for x in f]))
+
+    def flag(self, what: str, index: int, why: str) -> None:
+        line = line_of(self.text, index)
+        self.program.targets.append(Target(f"line {line}", line, "pose", {}, unsupported=f"{what}: {why}"))
+
+    def motion_target(self, arg: str, at: int, tool: str | None, user: str | None = None, hint=None) -> None:
+        """One motion argument: a literal target, a variable, or a call robocal understands."""
+        line = line_of(self.text, at)
+        if _NAME.fullmatch(arg):
+            self.uses.setdefault(arg, []).append((tool, user, hint, line))
+            return
+        for kind, pattern in (("pose", POSE), ("joints", JOINTS)):
+            lit = pattern.fullmatch(arg)
+            if lit:
+                t = self.target(kind, at, at + len(arg), f"line {line}", line)
+                t.tool, t.user, t.hint = tool, user, hint
+                self.program.targets.append(t)
+                return
+        call = re.match(r"(get_inverse_kin|pose_trans)\s*\(", arg)
+        if call and call.group(1) == "get_inverse_kin" and user is None:
+            args, starts = _call_arguments(self.code, at + call.end() - 1)
+            near = next((a.split("=", 1)[1].strip() for a in args[1:] if re.match(r"qnear\s*=", a)), None)
+            near_at = next((s + a.index("=") + 1 for a, s in zip(args[1:], starts[1:]) if re.match(r"qnear\s*=", a)),
+                           None)
+            if near is None and len(args) > 1 and "=" not in args[1]:
+                near, near_at = args[1], starts[1]
+            self.motion_target(args[0], starts[0], tool, None, self.joints_of(near, near_at))
+            return
+        if call and call.group(1) == "pose_trans":
+            args, starts = _call_arguments(self.code, at + call.end() - 1)
+            if len(args) == 2 and _NAME.fullmatch(args[0]) and self.feature(args[0]):
+                self.motion_target(args[1], starts[1], tool, args[0], hint)
+                return
+        self.flag(arg.split("(")[0].strip() or arg, at, "the target is computed as the program runs")
+
+    def joints_of(self, text: str | None, at: int | None):
+        """A hint: joints written inline or a variable assigned a joint list once."""
+        if text is None:
+            return None
+        text = text.strip()
+        lit = JOINTS.fullmatch(text)
+        if lit:
+            return np.array([f.value for f in fields_in(text)])
+        if _NAME.fullmatch(text) and not self.changed(text):
+            kinds = self.literals.get(text, [])
+            if kinds and kinds[0][0] == "joints":
+                return np.array([f.value for f in fields_in(self.text[kinds[0][1]:kinds[0][2]])])
+        return None
+
+    def feature(self, name: str) -> bool:
+        """A pose variable assigned once: a user frame (PolyScope's feature)."""
+        kinds = self.literals.get(name, [])
+        if not kinds or kinds[0][0] != "pose" or self.changed(name):
+            return False
+        if name not in self.program.users:
+            p, R = _pose_of([f.value for f in fields_in(self.text[kinds[0][1]:kinds[0][2]])])
+            self.program.users[name] = homogeneous(R, p)
+        return True
+
+    def read(self) -> Program:
+        for m in _MOVE.finditer(self.code):
+            args, starts = _call_arguments(self.code, m.end() - 1)
+            for arg, at in list(zip(args, starts))[:2 if m.group(1) == "movec" else 1]:
+                self.motion_target(arg, at, self.tool_at(m.start()))
+        for name, used in self.uses.items():
+            kinds = self.literals.get(name, [])
+            if not kinds:
+                self.flag(name, self.code.index(name), "the target is computed as the program runs")
                 continue
-            if not inline and _changed_at_run_time(code, assign.group(1)):
-                notes.append(f"{assign.group(1)} is assigned again or changed element by element as the program runs: "
-                             "left unchanged")
-                continue
-            f = fields_in(text[m.start(1):m.end(1)], m.start(1))
-            line = line_of(text, m.start())
-            name = assign.group(1) if assign and not inline else f"line {line}"
-            if kind == "pose":
-                items = dict(zip(POSE_KEYS, f))
-                v = np.array([x.value for x in f])
-                targets.append(Target(name, line, "pose", items, v[:3] * 1000.0,
-                                      Rotation.from_rotvec(v[3:]).as_matrix()))
+            kind, start, end = kinds[0]
+            t = self.target(kind, start, end, name, line_of(self.text, start))
+            frames = {(u[0], u[1]) for u in used}
+            hints = [u[2] for u in used if u[2] is not None]
+            pair = self.joints_of(name[:-2] + "_q", None) if name.endswith("_p") else None
+            t.hint = hints[0] if hints else pair
+            if self.changed(name):
+                t.unsupported = f"{name} is assigned again or changed element by element as the program runs"
+            elif len(frames) > 1:
+                t.unsupported = f"the motions reach {name} with different TCPs or features"
             else:
-                items = {f"q{i + 1}": x for i, x in enumerate(f)}
-                targets.append(Target(name, line, "joints", items, q=np.array([x.value for x in f])))
-            spans.append(m.start())
-    for name in sorted(indirect):
-        if re.search(r"\b" + name + r"\s*=\s*p\[", code):
-            notes.append(f"{name} reaches the motions only through another call (e.g. pose_trans): left unchanged")
-    order = np.argsort(spans)
-    targets = [targets[i] for i in order]
-    if not targets:
-        raise InputError("no targets found (p[…] poses or joint lists of motions)", source=source)
-    tcps = [m for m in _TCP.finditer(code)]
-    tool = None
-    if tcps:
-        v = np.array([x.value for x in fields_in(tcps[0].group(1))])
-        tool = homogeneous(Rotation.from_rotvec(v[3:]).as_matrix(), v[:3] * 1000.0)
-        if any(not np.allclose([x.value for x in fields_in(t.group(1))], v) for t in tcps[1:]):
-            notes.append(f"{source} sets several TCPs; the first (line {line_of(text, tcps[0].start())}) is the TCP of "
-                         "every target")
-    # a PolyScope waypoint's pose takes the configuration of the joints it was taught at
-    joints = {t.name: t for t in targets if t.kind == "joints"}
-    for t in targets:
-        if t.kind == "pose" and t.name.endswith("_p") and t.name[:-2] + "_q" in joints:
-            t.taught = joints[t.name[:-2] + "_q"].q
-    return Program(text, "urscript", source, targets, tool, notes)
+                t.tool, t.user = next(iter(frames))
+            self.program.targets.append(t)
+        self.program.targets.sort(key=lambda t: (t.line, min((f.start for f in t.fields.values()), default=0)))
+        if not self.program.targets:
+            raise InputError("no targets found (p[…] poses or joint lists of motions)", source=self.source)
+        self.program.tools.update({f"set_tcp line {line_of(self.text, at)}": T for at, T in self.tcps})
+        return self.program
+
+
+def read(path: Path, frames_file: Path | None = None) -> Program:
+    if frames_file is not None:
+        raise InputError("a URScript program sets its TCP with set_tcp: --controller-frames is for KRL",
+                         option="controller_frames")
+    text, enc = read_file(path)
+    program = _Reader(text, str(path)).read()
+    program.files[0].encoding = enc
+    return program
+
+
+def request(t: Target):
+    return None  # URScript targets name no configuration: the hint (qnear, NAME_q, the previous target) does
+
+
+def encode(q: np.ndarray, facts: dict | None, config: dict) -> dict:
+    """The UR branch, for the report (the program holds no configuration data)."""
+    if not facts:
+        return {}
+    word = {1: "+", -1: "-", 0: "0"}
+    return {"shoulder": word[int(facts["front"])], "elbow": word[int(facts["elbow"])],
+            "wrist": word[int(np.sign(round(q[4], 12)))]}
+
+
+def write(t: Target, pose: np.ndarray | None, q: np.ndarray | None, config: dict) -> list[tuple[Field, str]]:
+    f, out = t.fields, []
+    if t.kind == "joints":
+        for i in range(len(q)):
+            set_number(out, f[f"q{i + 1}"], float(q[i]), DECIMALS["ur"])
+        return out
+    for k, v in zip(("x", "y", "z"), pose[:3, 3] / 1000.0):
+        set_number(out, f[k], float(v), DECIMALS["ur"])
+    r = rotation_vector(pose[:3, :3], np.array([f[k].value for k in ("rx", "ry", "rz")]))
+    for k, v in zip(("rx", "ry", "rz"), r):
+        set_number(out, f[k], float(v), DECIMALS["ur"])
+    return out
+
+
+LANGUAGE = Language(
+    name="urscript", title="URScript", suffixes=(".script", ".urscript"), read=read, write=write, request=request,
+    encode=encode, units="m, rad", orientation="rotation vector (axis × angle, rad)",
+    frames="set_tcp(p[…]); pose_trans(FEATURE, target) with FEATURE a pose variable")

@@ -36,7 +36,9 @@ from .atomic import atomic_write, read_text
 from .builtins import builtin_names, builtin_text
 
 TOP_KEYS = {"name", "convention", "joint", "base", "tool", "targets", "source", "gravity", "drift", "residual",
-            "region", "fallback", "uncertainty"}
+            "region", "fallback", "uncertainty", "controller"}
+CONTROLLER_KEYS = {"coupling"}
+COUPLING_KEYS = {"joint", "plus", "factor"}
 GEOMETRY_KEYS = {"a", "alpha", "d", "theta", "beta", "limits", "type", "name"}
 TERM_KEYS = {key.key for t in TERMS.values() for key in t.file_keys}
 JOINT_KEYS = GEOMETRY_KEYS | TERM_KEYS
@@ -394,10 +396,41 @@ def parse_robot(text: str, *, source: str = "<robot>", default_name: str = "robo
             raise InputError("a fallback robot has no fallback of its own", source=source, where="key 'fallback'")
         fallback = _fallback(data["fallback"], source, len(joints), directory)
     uncertainty = None if "uncertainty" not in data else _covariance(data["uncertainty"], source)
+    coupling = () if "controller" not in data else _coupling(data["controller"], len(joints), source)
     robot = Robot(conv, geom, limits, joint_names=tuple(nm or f"joint{i + 1}" for i, nm in enumerate(names))
                   if any(names) else None, base=base, tool=tool, targets=targets, name=name or default_name,
-                  source=source, terms=terms, residual=residual, region=region, uncertainty=uncertainty)
+                  source=source, terms=terms, residual=residual, region=region, uncertainty=uncertainty,
+                  coupling=coupling)
     return robot if fallback is None else robot.with_fallback(fallback)
+
+
+def _coupling(table, n: int, source: str) -> tuple[tuple[int, int, float], ...]:
+    """``[controller] coupling = [{joint = 3, plus = 2, factor = 1.0}, …]`` (1-based joints)."""
+    if not isinstance(table, dict):
+        raise InputError("expected a table", source=source, where="key 'controller'")
+    unknown = set(table) - CONTROLLER_KEYS
+    if unknown:
+        raise InputError(f"unknown key {sorted(unknown)[0]!r} (expected {', '.join(sorted(CONTROLLER_KEYS))})",
+                         source=source, where="table [controller]")
+    items = table.get("coupling", [])
+    if not isinstance(items, list) or not all(isinstance(c, dict) for c in items):
+        raise InputError("expected a list of tables {joint = J, plus = K, factor = F}", source=source,
+                         where="key 'controller.coupling'")
+    out = []
+    for k, c in enumerate(items):
+        where = f"controller.coupling[{k + 1}]"
+        if set(c) != COUPLING_KEYS:
+            raise InputError(f"expected the keys joint, plus and factor, got {', '.join(sorted(c))}", source=source,
+                             where=where)
+        j, p = (c[key] for key in ("joint", "plus"))
+        if not all(isinstance(v, int) and not isinstance(v, bool) and 1 <= v <= n for v in (j, p)) or j == p:
+            raise InputError(f"joint and plus must be two different joints 1…{n}, got {j!r} and {p!r}",
+                             source=source, where=where)
+        out.append((j - 1, p - 1, _number(c["factor"], source, where)))
+    if {j for j, _, _ in out} & {p for _, p, _ in out}:
+        raise InputError("a joint added to another is itself coupled: give the coupling of each joint from the "
+                         "controller's values", source=source, where="key 'controller.coupling'")
+    return tuple(out)
 
 
 def _covariance(table, source: str) -> ParameterCovariance:
@@ -574,6 +607,10 @@ def robot_to_toml(robot: Robot, comment: str | None = None, residual_file: str |
         lines += _frame_text(f"[targets.{_quote(name)}]", T) + [""]
     lines += _region_lines(robot)
     lines += _uncertainty_lines(robot)
+    if robot.coupling:
+        pairs = ", ".join(f"{{joint = {j + 1}, plus = {p + 1}, factor = {_num(f)}}}" for j, p, f in robot.coupling)
+        lines += ["[controller]  # the model's joint = the controller's + factor × the controller's plus joint",
+                  f"coupling = [{pairs}]", ""]
     return "\n".join(lines)
 
 

@@ -79,7 +79,7 @@ def plan_cube(robot: Robot, edge: float | None = None, centre: np.ndarray | None
 
 
 def _try(robot: Robot, q0: np.ndarray, edge: float, centre: np.ndarray | None) -> tuple[TestPlan | None, str]:
-    from ..compensation.ik import solve_ik
+    from ..inverse.local import solve_ik
 
     T0 = robot.fk(q0[None])[0]
     centre = T0[:3, 3] if centre is None else np.asarray(centre, float)

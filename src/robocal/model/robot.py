@@ -37,6 +37,10 @@ class Robot:
     it: attach one with :meth:`with_fallback`, read it whole with :attr:`fallback_robot`.
     uncertainty: the covariance of the parameters its calibration identified
     (:mod:`robocal.model.uncertainty`), for the uncertainty of its predictions.
+    coupling: how the controller's joint values map to the model's, ``(joint, plus, factor)``
+    triples (0-based): the model's ``joint`` is the controller's plus ``factor`` × the controller's
+    ``plus`` (FANUC's J3 is the forearm against the horizontal: the model's joint 3 is J2 + J3);
+    robot programs state the controller's values (:meth:`from_controller`, :meth:`to_controller`).
     """
 
     convention: str
@@ -54,6 +58,7 @@ class Robot:
     region: Region | None = None
     fallback: Robot | None = field(default=None, repr=False)
     uncertainty: ParameterCovariance | None = field(default=None, repr=False)
+    coupling: tuple[tuple[int, int, float], ...] = ()
 
     def __post_init__(self) -> None:
         check_convention(self.convention)
@@ -170,6 +175,20 @@ class Robot:
             return (f"{text}: its joint terms and residual correction are only known where they were calibrated; "
                     f"beyond {describe_margin()}")
         return f"{text}: the model is extrapolated there; expect larger errors"
+
+    def from_controller(self, J: np.ndarray) -> np.ndarray:
+        """The model's joint values (..., n) of the controller's J (rad; mm for a sliding joint)."""
+        q = np.array(J, dtype=float, copy=True)
+        for joint, plus, factor in self.coupling:
+            q[..., joint] += factor * np.asarray(J)[..., plus]
+        return q
+
+    def to_controller(self, q: np.ndarray) -> np.ndarray:
+        """The controller's joint values (..., n) of the model's q (the inverse of :meth:`from_controller`)."""
+        J = np.array(q, dtype=float, copy=True)
+        for joint, plus, factor in reversed(self.coupling):
+            J[..., joint] -= factor * J[..., plus]
+        return J
 
     def replace(self, **changes) -> Robot:
         return replace(self, **changes)

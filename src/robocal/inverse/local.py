@@ -1,4 +1,6 @@
-"""Batched inverse kinematics by damped least squares on the joints, with a status per goal."""
+"""Batched inverse kinematics by damped least squares on the joints, with a typed status per goal:
+the polish every solution goes through, and the step from the controller's joints to the
+calibrated robot's (small corrections, on the same configuration branch)."""
 
 from __future__ import annotations
 
@@ -32,11 +34,35 @@ BRANCH_TOLERANCE = math.radians(20.0)
 
 @dataclass
 class IKSolution:
+    """Per goal: the joints, what is left of the goal, the status and why, and the numbers behind
+    it (in the manner of an optimizer's result: a reached goal is ``ok``, every other status
+    says why not, with the residual, the conditioning and the margin to the joint limits)."""
+
     q: np.ndarray  # (m, n) rad
     position_error: np.ndarray  # (m,) mm
     rotation_error: np.ndarray  # (m,) rad, zeros for position-only goals
     status: list[str]
     iterations: np.ndarray
+    condition: np.ndarray | None = None  # (m,) of the weighted joint Jacobian, the worse of start and end
+    limit_margin: np.ndarray | None = None  # (m,) rad (mm for a sliding joint) to the nearest joint limit
+    moved: np.ndarray | None = None  # (m,) rad: the largest joint change from the start
+
+    def reason(self, i: int) -> str:
+        """What status i means, with its numbers."""
+        s = self.status[i]
+        if s == "ok":
+            return "reached"
+        if s == "singular":
+            return f"the joint Jacobian's condition number is {self.condition[i]:.3g} (a singularity)"
+        if s == "branch":
+            return (f"reached, but {math.degrees(self.moved[i]):.3g}° of joint from the start: another configuration "
+                    "branch")
+        if s == "limit":
+            return f"a joint held at its limit, {self.position_error[i]:.3g} mm from the goal"
+        if s == "unreachable":
+            return f"out of reach: the closest is {self.position_error[i]:.3g} mm and " \
+                   f"{math.degrees(self.rotation_error[i]):.3g}° from the goal"
+        return f"did not converge in {self.iterations[i]} steps ({self.position_error[i]:.3g} mm left)"
 
 
 class _Residual:
@@ -148,5 +174,7 @@ def solve_ik(robot: Robot, position: np.ndarray, rotation: np.ndarray | None, q0
     reached = (pe < TOL_MM * 10) & (re < TOL_RAD * 10)
     at_limit = np.any((q <= lo + 1e-9) | (q >= hi - 1e-9), axis=1) if limits else np.zeros(m, bool)
     cond = np.maximum(cond_start, condition_numbers(robot, q, full, rot_weight))
-    status = _statuses(reached, np.abs(q - start).max(axis=1), cond, at_limit, stalled)
-    return IKSolution(q, pe, re, status, iters)
+    moved = np.abs(q - start).max(axis=1)
+    status = _statuses(reached, moved, cond, at_limit, stalled)
+    margin = np.min(np.minimum(q - lo, hi - q), axis=1) if limits else np.full(m, np.inf)
+    return IKSolution(q, pe, re, status, iters, cond, margin, moved)

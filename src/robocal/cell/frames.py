@@ -1,0 +1,110 @@
+"""The one frame algebra of a robot cell: every use of a calibrated model on a robot goes through it.
+
+The chain, stated once (4×4 transforms, mm)::
+
+    world ──base──▶ robot base ──joints──▶ flange ──tool──▶ TCP
+    world ──user──▶ program frame ──target──▶ TCP
+
+- *world* is the frame a model's poses are in.  For the nominal model it is the controller's
+  world (robot root) frame: its ``base`` holds the pedestal or the axis convention (KUKA's A1
+  about −Z is a base rotation of 180° about x), so ``nominal.fk(q)`` is what the controller
+  computes for joints q.  For a calibrated model it is the measuring instrument's frame.  Both
+  models share the robot base, so a pose goes from the nominal's world to the calibrated one's as
+  ``B_cal · B_nom⁻¹`` (:meth:`Cell.to_accurate`).
+- *user* is the frame a program states its targets in, in the controller's world: KRL ``$BASE``
+  (BASE_DATA[n]), RAPID's work object (uframe · oframe), a URScript feature, FANUC UF n.  A
+  Cartesian target T_p is the goal ``user · T_p`` (:meth:`Cell.goal`); a pose P in the world is
+  written back as ``user⁻¹ · P`` (:meth:`Cell.in_user`).
+- *tool* is the controller's TCP (``--tool``, the program's tool data: KRL $TOOL (TOOL_DATA[n]),
+  RAPID tooldata, URScript set_tcp, FANUC UT n; else the nominal model's tool).  The calibrated
+  model's own tool is the point its calibration measured: kept where it refines that TCP (within
+  TOOL_MATCH_MM / TOOL_MATCH_DEG, it is the better estimate), replaced by the TCP on the
+  calibrated joints and base where it is another point (a tracker target on the flange), and said.
+
+``compensate`` and ``filter`` build their robots with :func:`make_cell`, so that the same goal with
+the same tool gives the same joints in both.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..math.se3 import invert
+from ..math.so3 import orientation_error
+from ..model.robot import Robot
+
+#: a calibrated tool further than this from the TCP (mm, deg) is another point: the target the
+#: calibration measured, not a refinement of the TCP
+TOOL_MATCH_MM, TOOL_MATCH_DEG = 5.0, 2.0
+
+
+def frame_gap(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Distance (mm) and rotation angle (deg) between frames a and b ((..., 4, 4))."""
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    mm = np.linalg.norm(a[..., :3, 3] - b[..., :3, 3], axis=-1)
+    shape = np.broadcast_shapes(a.shape, b.shape)[:-2]
+    Ra = np.broadcast_to(a[..., :3, :3], shape + (3, 3)).reshape(-1, 3, 3)
+    Rb = np.broadcast_to(b[..., :3, :3], shape + (3, 3)).reshape(-1, 3, 3)
+    deg = np.degrees(np.linalg.norm(orientation_error(Ra, Rb), axis=1)).reshape(shape)
+    return mm, deg
+
+
+@dataclass(frozen=True)
+class Cell:
+    """The nominal model (the controller's) and the calibrated one, each with the TCP the goals
+    are for, and what was said on the way (``notes``)."""
+
+    nominal: Robot
+    accurate: Robot
+    tcp: np.ndarray
+    tcp_source: str
+    #: the calibrated tool was kept as a refinement of the TCP (else the TCP is on its chain)
+    refined: bool
+    notes: tuple[str, ...] = field(default_factory=tuple)
+
+    def to_accurate(self, T: np.ndarray) -> np.ndarray:
+        """Poses (..., 4, 4) from the controller's world into the calibrated model's."""
+        return self.accurate.base @ invert(self.nominal.base) @ T
+
+    def from_accurate(self, T: np.ndarray) -> np.ndarray:
+        return self.nominal.base @ invert(self.accurate.base) @ T
+
+    @staticmethod
+    def goal(user: np.ndarray | None, target: np.ndarray) -> np.ndarray:
+        """A target (..., 4, 4) stated in a user frame, as a pose in the controller's world."""
+        return target if user is None else user @ target
+
+    @staticmethod
+    def in_user(user: np.ndarray | None, T: np.ndarray) -> np.ndarray:
+        """A pose in the controller's world (..., 4, 4), stated in the user frame."""
+        return T if user is None else invert(user) @ T
+
+    def on(self, robot: Robot) -> Robot:
+        """Another model of this robot (a simulated truth) with the TCP the calibrated one uses."""
+        return robot if self.refined else robot.with_tool(self.tcp)
+
+
+def make_cell(nominal: Robot, accurate: Robot, tcp: np.ndarray | None = None, source: str = "") -> Cell:
+    """The cell of a controller running ``nominal`` on a robot the calibrated model ``accurate``
+    describes, for the TCP ``tcp`` (flange frame, 4×4 mm; default the nominal model's tool) named
+    by ``source`` (said in the notes: ``the --tool given``, ``the program's tool tool1``)."""
+    if tcp is None:
+        tcp, source = nominal.tool, source or "the nominal model's tool"
+    tcp = np.asarray(tcp, float)
+    source = source or "the TCP given"
+    mm, deg = (float(x) for x in frame_gap(accurate.tool, tcp))
+    notes = []
+    refined = mm <= TOOL_MATCH_MM and deg <= TOOL_MATCH_DEG
+    if refined:
+        calibrated = accurate
+        if mm > 1e-9 or deg > 1e-9:
+            notes.append(f"the calibrated tool, {mm:.3g} mm and {deg:.3g}° from {source}, refines it: the calibrated "
+                         "robot reaches with the calibrated tool")
+    else:
+        calibrated = accurate.with_tool(tcp)
+        notes.append(f"the calibrated model's tool is {mm:.4g} mm and {deg:.3g}° from {source}: it is the point the "
+                     f"calibration measured, not the TCP; the goals are for {source} on the calibrated joints and base"
+                     + (" (give --tool to name another TCP)" if "nominal model" in source else ""))
+    return Cell(nominal.with_tool(tcp), calibrated, tcp, source, refined, tuple(notes))

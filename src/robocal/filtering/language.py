@@ -1,0 +1,138 @@
+"""The program languages robocal filters, as a registry: one :class:`Language` entry per format.
+
+An entry holds everything filtering needs to know of a language: its files (suffixes, the
+reader, which finds targets, frames and configuration data), its writer (the new text of a
+corrected target's numbers), the decoder of its configuration data into a
+:class:`~robocal.inverse.solve.Request` and the encoder back from joints, its units and its
+orientation convention.  :mod:`.correct` speaks to languages only through these entries, so adding
+a language is one module that defines ``LANGUAGE`` and one line in :data:`MODULES`.
+"""
+
+from __future__ import annotations
+
+import importlib
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from ..exceptions import InputError
+from ..math.so3 import matrix_to_rpy
+from .program import Field, Program, Target
+
+#: the modules that define a language, in the order they are listed
+MODULES = ("krl", "rapid", "urscript", "fanuc")
+
+
+@dataclass(frozen=True)
+class Language:
+    """One program language.
+
+    read(path, frames_file) → :class:`~.program.Program` (frames_file: a controller's file of
+    frames given on the command line, or None); write(target, pose, q, config) → the changes of
+    a corrected target's numbers (pose: 4×4 mm in its user frame, for a Cartesian target; q: the
+    controller's joints, rad, for a joint target; config: as :attr:`encode` gives it);
+    request(target) → what its configuration data say of its solution, or None; encode(q,
+    facts, config) → its configuration data at the controller's joints q (rad) with the arm's
+    facts (``front``, ``elbow``, ``lower``: ±1, 0 on a boundary, where the target's own ``config``
+    is kept)."""
+
+    name: str
+    title: str
+    suffixes: tuple[str, ...]
+    read: Callable
+    write: Callable
+    request: Callable
+    encode: Callable
+    #: units of positions and angles as the files write them
+    units: str
+    #: the rotation a Cartesian target's angles or quaternion stand for
+    orientation: str
+    #: where the language declares its TCPs and user frames
+    frames: str
+
+
+def languages() -> dict[str, Language]:
+    """name → :class:`Language`, every registered language."""
+    return {name: importlib.import_module(f"{__package__}.{name}").LANGUAGE for name in MODULES}
+
+
+def language_of(path: Path, fmt: str = "auto") -> Language:
+    """The language a program is in: ``fmt``, or told by the file's suffix."""
+    from .. import options as opt
+
+    registry = languages()
+    opt.choice(fmt, ("auto", *registry), "format", "program format")
+    if fmt != "auto":
+        return registry[fmt]
+    suffix = Path(path).suffix.lower()
+    for language in registry.values():
+        if suffix in language.suffixes:
+            return language
+    known = ", ".join(f"{'/'.join(lang.suffixes)} {lang.title}" for lang in registry.values())
+    raise InputError(f"cannot tell the language from the suffix {Path(path).suffix!r} ({known}): give --format",
+                     source=path)
+
+
+# --- writing helpers shared by the languages ----------------------------------------------------
+
+#: decimals written at least: mm 3 (µm), deg 4, a quaternion 8, URScript's m and rad 7
+DECIMALS = {"mm": 3, "deg": 4, "quat": 8, "ur": 7}
+
+
+def set_number(changes: list, f: Field, value: float, decimals: int) -> None:
+    """Change a number unless the new value would not show at the precision written."""
+    if not f.unchanged(value, decimals):
+        changes.append((f, f.formatted(value, decimals)))
+
+
+def set_text(changes: list, f: Field, text: str) -> None:
+    if f.text != text:
+        changes.append((f, text))
+
+
+def near_turn(value: float, original: float) -> float:
+    """``value`` (deg) plus the multiple of 360 that brings it nearest ``original``."""
+    return value + 360.0 * round((original - value) / 360.0)
+
+
+def fixed_xyz(R: np.ndarray, original: tuple[float, float, float]) -> tuple[float, float, float]:
+    """Angles (deg) of R = Rz(c)·Ry(b)·Rx(a) as (a, b, c) nearest ``original`` among the two
+    spellings and whole turns: KUKA's (C, B, A) and FANUC's (W, P, R) both are this rotation."""
+    rx, ry, rz = np.degrees(matrix_to_rpy(R))
+    best = None
+    for a, b, c in ((rx, ry, rz), (rx + 180.0, 180.0 - ry, rz + 180.0)):
+        abc = (near_turn(a, original[0]), near_turn(b, original[1]), near_turn(c, original[2]))
+        d = sum((x - y) ** 2 for x, y in zip(abc, original))
+        if best is None or d < best[0]:
+            best = (d, abc)
+    return best[1]
+
+
+def quaternion(R: np.ndarray, original: np.ndarray) -> np.ndarray:
+    """q1..q4 (scalar first) of R, with the sign of the original."""
+    x, y, z, w = Rotation.from_matrix(R).as_quat()
+    q = np.array([w, x, y, z])
+    return -q if q @ original < 0 else q
+
+
+def rotation_vector(R: np.ndarray, original: np.ndarray) -> np.ndarray:
+    """The rotation vector of R nearest the original's (a turn of θ or of θ − 2π the other way)."""
+    r = Rotation.from_matrix(R).as_rotvec()
+    angle = np.linalg.norm(r)
+    if angle > 1e-12:
+        other = r * (1.0 - 2.0 * math.pi / angle)
+        if np.linalg.norm(other - original) < np.linalg.norm(r - original):
+            return other
+    return r
+
+
+def keep_on_boundary(new: int, fact: int, original: int | None) -> int:
+    """A flag computed from a fact: the target's own where the fact is on its boundary (0)."""
+    return original if fact == 0 and original is not None else new
+
+
+__all__ = ["DECIMALS", "Language", "Program", "Target", "languages", "language_of"]
