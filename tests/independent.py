@@ -21,12 +21,17 @@ TABLES = {
     "irb120": [(0, -90, 0, 290), (270, 0, -90, 0), (70, -90, 0, 0), (0, 90, 0, 302), (0, -90, 0, 0), (0, 0, 180, 72)],
     "ur10": [(0, 90, 0, 127.3), (-612, 0, 0, 0), (-572.3, 0, 0, 0), (0, 90, 0, 163.941), (0, -90, 0, 115.7),
              (0, 0, 0, 92.2)],
+    # the KR5 arc in KUKA's own axis conventions (A1 about -Z, A2 and A3 about +Y, A4 and A6 about -X), read off
+    # ROS-Industrial's kuka_experimental URDF by hand: frame 0 sits at the shoulder's height, turned over (BASES)
+    "kr5-kuka": [(180, 90, 0, 0), (600, 0, 0, 0), (120, 90, -90, 0), (0, 90, 180, -620), (0, 90, 180, 0),
+                 (0, 0, 0, -115)],
 }
 LIMITS_DEG = {
     "er10l-c10": [(-180, 180)] * 6,
     "kr5-arc": [(-155, 155), (-180, 65), (-15, 158), (-350, 350), (-130, 130), (-350, 350)],
     "irb120": [(-165, 165), (-110, 110), (-110, 70), (-160, 160), (-120, 120), (-400, 400)],
     "ur10": [(-360, 360)] * 6,
+    "kr5-kuka": [(-155, 155), (-180, 65), (-15, 158), (-350, 350), (-130, 130), (-350, 350)],
 }
 
 
@@ -49,6 +54,11 @@ def _trans(x, y, z):
     T = np.eye(4)
     T[:3, 3] = (x, y, z)
     return T
+
+
+def base_of(name: str) -> np.ndarray:
+    """The robot's own base frame in its world (the KUKA-convention KR5: 400 mm up, turned over)."""
+    return _trans(0, 0, 400) @ _rx(np.pi) if name == "kr5-kuka" else np.eye(4)
 
 
 def geometry(name: str, deviations: dict[str, float] | None = None) -> dict[str, np.ndarray]:
@@ -138,11 +148,19 @@ def measurements(name: str, deviations: dict[str, float], n: int, seed: int, **k
     return Measurements(q=c["q"], position=c["position"], rotation=c["rotation"])
 
 
-def robot_toml(name: str, deviations: dict[str, float], tool=None) -> str:
+def robot_toml(name: str, deviations: dict[str, float], tool=None, base=None, coupling: str = "") -> str:
     """A robot file (standard DH, mm and deg) of a table with deviations (mm, rad), written here:
-    how a test hands a planted truth to robocal as a calibrated model.  tool: (x, y, z) mm."""
+    how a test hands a planted truth to robocal as a calibrated model.  tool: (x, y, z) mm; base:
+    4×4 (default the robot's own, :func:`base_of`); coupling: a [controller] table's TOML."""
     g = geometry(name, deviations)
     lines = [f'name = "{name} (planted)"', 'convention = "dh"']
+    B = base_of(name) if base is None else np.asarray(base, float)
+    if not np.allclose(B, np.eye(4)):
+        rpy = Rotation.from_matrix(B[:3, :3]).as_euler("xyz", degrees=True)  # fixed axes: Rz·Ry·Rx
+        lines += ["[base]", "xyz = [" + ", ".join(repr(float(v)) for v in B[:3, 3]) + "]",
+                  "rpy = [" + ", ".join(repr(float(v)) for v in rpy) + "]"]
+    if coupling:
+        lines += [coupling]
     for i in range(len(g["a"])):
         lines += ["[[joint]]", f"a = {float(g['a'][i])!r}", f"alpha = {float(np.degrees(g['alpha'][i]))!r}",
                   f"theta = {float(np.degrees(g['theta'][i]))!r}", f"d = {float(g['d'][i])!r}",
@@ -152,14 +170,16 @@ def robot_toml(name: str, deviations: dict[str, float], tool=None) -> str:
     return "\n".join(lines) + "\n"
 
 
-def inverse(g: dict[str, np.ndarray], T_goal: np.ndarray, q0: np.ndarray, tool=np.eye(4), iterations: int = 100):
-    """Joints reaching T_goal from q0 by Gauss–Newton on finite differences of :func:`pose` (rad)."""
+def inverse(g: dict[str, np.ndarray], T_goal: np.ndarray, q0: np.ndarray, tool=np.eye(4), iterations: int = 100,
+            base=np.eye(4)):
+    """Joints reaching T_goal from q0 by Gauss–Newton on finite differences of :func:`pose` (rad):
+    a controller's inverse started from the joints a target was taught at stays on their branch."""
     from scipy.spatial.transform import Rotation as Rot
 
     q = np.array(q0, float)
 
     def error(qq):
-        T = pose(g, qq, tool=tool)
+        T = pose(g, qq, base=base, tool=tool)
         return np.concatenate([T_goal[:3, 3] - T[:3, 3],
                                100.0 * Rot.from_matrix(T_goal[:3, :3] @ T[:3, :3].T).as_rotvec()])
 

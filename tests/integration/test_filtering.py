@@ -1,7 +1,13 @@
-"""Program filtering on real public programs (tests/data/programs) against a planted accurate
-robot: every corrected target, sent through the nominal inverse and the accurate forward model
-(both the independent simulator's, tests/independent.py), lands on the original target; joint
-targets likewise; everything but target numbers stays byte for byte."""
+"""Program filtering against a planted accurate robot, checked by an independent controller.
+
+Programs are written by tests/controller.py from joints the targets were taught at, in each
+language's documented form, with configuration data computed from those joints as the manuals
+define them.  After filtering, the controller reads the new numbers back with its own patterns,
+inverts its nominal model started from the taught joints (tests/independent.py), and the
+planted accurate robot at those joints must land on the original target within 0.01 mm and
+0.001°; the configuration data written must be those of the joints the controller went to.
+The public programs of tests/data/programs are run too: nothing but target numbers changes.
+"""
 
 from __future__ import annotations
 
@@ -10,164 +16,353 @@ import re
 import warnings
 from pathlib import Path
 
+import controller as ctl
 import independent as ind
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from robocal.filtering import filter_program, load_program
+from robocal.filtering import Frames, filter_program, load_program
+from robocal.math.se3 import frame_from_values
 
 PROGRAMS = Path(__file__).parents[1] / "data" / "programs"
-PLANTED = {"a2": 0.4, "d4": -0.3, "theta2": 0.002, "alpha3": -0.0015, "theta5": 0.001, "a3": 0.25}
-CASES = [("krl/demo_screenshot.src", "kr5-arc"), ("krl/Program.src", "kr5-arc"), ("rapid/Module1.mod", "irb120"),
-         ("rapid/Program.mod", "irb120"), ("urscript/timing_debug.script", "ur10"),
-         ("urscript/PickAndPlace_App_Final.script", "ur10"), ("urscript/Prog1.script", "ur10")]
-
-
-def _frame(T_pos, R):
-    T = np.eye(4)
-    T[:3, :3], T[:3, 3] = R, T_pos
-    return T
+PLANTED = {"a2": 0.4, "d4": -0.3, "theta2": 0.002, "alpha3": -0.0015, "theta5": 0.001, "a3": 0.25, "theta1": 0.001}
+CHECK_MM, CHECK_DEG = 0.01, 0.001
+#: a pedestal: the robot stands 750 mm up, turned by 30° about the vertical, 2 m from the world's origin
+PEDESTAL = ctl.frame([2000.0, -500.0, 750.0], [0.0, 0.0, 30.0])
 
 
 def _angle_deg(A, B) -> float:
     return float(np.degrees(np.linalg.norm(Rotation.from_matrix(A @ B.T).as_rotvec())))
 
 
-@pytest.fixture(scope="module")
-def accurate_files(tmp_path_factory):
-    folder = tmp_path_factory.mktemp("planted")
-    out = {}
-    for robot in ("kr5-arc", "irb120", "ur10"):
-        path = folder / f"{robot}.toml"
-        path.write_text(ind.robot_toml(robot, PLANTED))
-        out[robot] = path
-    return out
+def _lands(reached, intent):
+    assert np.linalg.norm(reached[:3, 3] - intent[:3, 3]) < CHECK_MM
+    assert _angle_deg(reached[:3, :3], intent[:3, :3]) < CHECK_DEG
+
+
+def _robots(folder: Path, name: str, base, coupling: str = "", planted=None):
+    nominal, accurate = folder / f"{name}-nominal.toml", folder / f"{name}-accurate.toml"
+    nominal.write_text(ind.robot_toml(name, {}, base=base, coupling=coupling))
+    accurate.write_text(ind.robot_toml(name, PLANTED if planted is None else planted, base=base, coupling=coupling))
+    return nominal, accurate
+
+
+def _taught(rng, box_deg, n):
+    box = np.radians(box_deg)
+    return rng.uniform(box[:, 0], box[:, 1], (n, 6))
 
 
 def _non_numbers(text: str) -> str:
     return re.sub(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?", "#", text)
 
 
-@pytest.mark.parametrize("program,robot", CASES)
-def test_filtered_targets_land_where_the_programmer_meant(program, robot, accurate_files):
+# --- KUKA: its axis conventions, on a pedestal, frames from $config.dat and FDAT ---------------
+
+KUKA_BOX = [(-120, 120), (-140, -40), (20, 140), (-300, 300), (25, 110), (-300, 300)]
+
+
+def test_krl_on_a_kuka_convention_robot_on_a_pedestal(tmp_path, run_cli):
+    rng = np.random.default_rng(7)
+    B = PEDESTAL @ ind.base_of("kr5-kuka")
+    nominal, accurate = _robots(tmp_path, "kr5-kuka", B)
+    g_nom, g_acc = ind.geometry("kr5-kuka"), ind.geometry("kr5-kuka", PLANTED)
+    tool, user = ctl.frame([12.0, -5.0, 180.0], [0.0, 35.0, 10.0]), ctl.frame([2900.0, -300.0, 760.0], [0, 0, -15.0])
+    q = _taught(rng, KUKA_BOX, 14)
+    q[::3, 4] *= -1.0  # wrists flipped too
+    q[1::4, 2] = np.radians(rng.uniform(-14.0, 5.0, len(q[1::4])))  # elbows down (A3 below the stretched 10.9°)
+    world = [ind.pose(g_nom, qi, base=B, tool=tool) for qi in q]
+    st = [ctl.kuka_status("kr5-kuka", g_nom, qi, PEDESTAL) for qi in q]
+    assert {s for s, _ in st} >= {0, 1, 2, 5, 6} and len({t for _, t in st}) > 3  # several configurations
+    joints = _taught(rng, KUKA_BOX, 3)
+    src, dat = ctl.krl_program([np.linalg.inv(user) @ T for T in world], joints, st)
+    folder = tmp_path / "KRC" / "R1"
+    (folder / "Program").mkdir(parents=True)
+    (folder / "System").mkdir()
+    (folder / "Program" / "cell.src").write_bytes(src.encode())
+    (folder / "Program" / "cell.dat").write_bytes(dat.encode())
+    (folder / "System" / "$config.dat").write_text(ctl.krl_config({2: tool}, {1: user}))
+    out = tmp_path / "out" / "cell.src"
+    out.parent.mkdir()
+    code, _, err = run_cli("filter", accurate, folder / "Program" / "cell.src", "--nominal", nominal, "--out", out,
+                           "--json", tmp_path / "s.json")
+    summary = json.loads((tmp_path / "s.json").read_text())
+    assert code == 0, err
+    assert summary["status"] == {"ok": 17}
+    assert out.read_bytes().decode().replace("\r\n", "\n") == src.replace("\r\n", "\n")  # the .src has no numbers
+    new = ctl.read_krl(out.with_suffix(".dat").read_text())
+    for i, (qi, T) in enumerate(zip(q, world)):
+        v = new[f"XP{i + 1}"]
+        T_new = B_user = user @ ctl.frame([v["X"], v["Y"], v["Z"]], [v["C"], v["B"], v["A"]])
+        q_ctrl = ind.inverse(g_nom, B_user, qi, tool=tool, base=B)
+        assert (int(v["S"]), int(v["T"])) == ctl.kuka_status("kr5-kuka", g_nom, q_ctrl, PEDESTAL)
+        _lands(ind.pose(g_acc, q_ctrl, base=B, tool=tool), T)
+        assert np.linalg.norm(T_new[:3, 3] - T[:3, 3]) > 0.05  # it was corrected
+    for i, qi in enumerate(joints):
+        v = new[f"XJ{i + 1}"]
+        _lands(ind.pose(g_acc, np.radians([v[f"A{k}"] for k in range(1, 7)]), base=B, tool=tool),
+               ind.pose(g_nom, qi, base=B, tool=tool))
+    # the same program with the nominal model of the same robot for its calibration: byte for byte unchanged
+    code, _, err = run_cli("filter", nominal, folder / "Program" / "cell.src", "--nominal", nominal, "--out",
+                           tmp_path / "out" / "same.src")
+    assert code == 0, err
+    assert (tmp_path / "out" / "same.dat").read_bytes() == dat.encode()
+
+
+def test_krl_without_its_config_dat_flags_the_targets_and_exits_3(tmp_path, run_cli):
+    rng = np.random.default_rng(8)
+    B = ind.base_of("kr5-kuka")
+    nominal, accurate = _robots(tmp_path, "kr5-kuka", B)
+    g = ind.geometry("kr5-kuka")
+    q = _taught(rng, KUKA_BOX, 3)
+    src, dat = ctl.krl_program([ind.pose(g, qi, base=B) for qi in q], [], [ctl.kuka_status("kr5-kuka", g, qi)
+                                                                          for qi in q])
+    (tmp_path / "p.src").write_text(src)
+    (tmp_path / "p.dat").write_text(dat)
+    code, _, err = run_cli("filter", accurate, tmp_path / "p.src", "--nominal", nominal, "--out", tmp_path / "o.src",
+                           "--json", tmp_path / "s.json")
+    rows = json.loads((tmp_path / "s.json").read_text())["targets"]
+    assert code == 3 and (tmp_path / "o.dat").read_bytes() == (tmp_path / "p.dat").read_bytes()  # all flagged
+    assert [r["status"] for r in rows] == ["frame"] * 3
+    assert "$config.dat, which was not found" in rows[0]["reason"] and "3 frame" in err
+    # given on the command line instead: corrected (the world is the robot's base here)
+    code, _, err = run_cli("filter", accurate, tmp_path / "p.src", "--nominal", nominal, "--out", tmp_path / "o.src",
+                           "--tool", "2=0,0,0,0,0,0", "--user-frame", "1=0,0,0,0,0,0")
+    assert code == 0, err
+
+
+# --- ABB: a pedestal, a work object and a tool of the module ----------------------------------
+
+def test_rapid_on_a_pedestal_with_work_object_and_tool(tmp_path):
+    rng = np.random.default_rng(11)
+    nominal, accurate = _robots(tmp_path, "irb120", PEDESTAL)
+    g_nom, g_acc = ind.geometry("irb120"), ind.geometry("irb120", PLANTED)
+    tool = ctl.frame([0.0, 25.0, 140.0], [0.0, -30.0, 0.0])
+    wobj = PEDESTAL @ ctl.frame([450.0, -100.0, 120.0], [0.0, 0.0, 90.0])
+    box = [(-150, 150), (-60, 70), (-80, 50), (-150, 150), (20, 110), (-350, 350)]
+    q = _taught(rng, box, 16)
+    q[1::2, 4] *= -1.0
+    world = [ind.pose(g_nom, qi, base=PEDESTAL, tool=tool) for qi in q]
+    cfs = [ctl.abb_config("irb120", g_nom, qi, PEDESTAL) for qi in q]
+    joints = _taught(rng, box, 2)
+    text = ctl.rapid_program([np.linalg.inv(wobj) @ T for T in world], cfs, joints, tool, wobj)
+    (tmp_path / "cell.mod").write_text(text)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        result = filter_program(accurate_files[robot], PROGRAMS / program, robot)
-    original = (PROGRAMS / program).read_bytes().decode("utf-8")
-    # nothing but numbers changed, and only numbers of targets
-    assert _non_numbers(result.text) == _non_numbers(original)
-    assert result.text.count("\r\n") == original.count("\r\n")
-    filtered, _ = _reload(result, program)
-    g_nom, g_acc = ind.geometry(robot), ind.geometry(robot, PLANTED)
-    tool = result.program.tool if result.program.tool is not None else np.eye(4)
-    base = result.program.base if result.program.base is not None else np.eye(4)
-    corrected = 0
-    for c, t_new in zip(result.corrections, filtered.targets):
-        t = c.target
+        result = filter_program(accurate, tmp_path / "cell.mod", nominal)
+    assert result.counts() == {"ok": 18}, [(c.target.name, c.status, c.reason) for c in result.flagged]
+    new = ctl.read_rapid(result.text)
+    for i, (qi, T) in enumerate(zip(q, world)):
+        v = new[f"p{i + 1}"]
+        T_new = wobj @ ctl.frame(v[:3], [0, 0, 0])
+        T_new[:3, :3] = wobj[:3, :3] @ Rotation.from_quat([v[4], v[5], v[6], v[3]]).as_matrix()
+        q_ctrl = ind.inverse(g_nom, T_new, qi, tool=tool, base=PEDESTAL)
+        assert [int(x) for x in v[7:11]] == ctl.abb_config("irb120", g_nom, q_ctrl, PEDESTAL)
+        _lands(ind.pose(g_acc, q_ctrl, base=PEDESTAL, tool=tool), T)
+    for i, qi in enumerate(joints):
+        v = new[f"j{i + 1}"]
+        _lands(ind.pose(g_acc, np.radians(v[:6]), base=PEDESTAL, tool=tool), ind.pose(g_nom, qi, base=PEDESTAL,
+                                                                                        tool=tool))
+    assert _non_numbers(result.text) == _non_numbers(text)
+
+
+# --- UR: qnear inline and as a variable, NAME_q for movel, set_tcp, a feature -----------------
+
+def test_urscript_takes_the_branch_of_qnear_and_never_corrects_it(tmp_path):
+    rng = np.random.default_rng(5)
+    nominal, accurate = _robots(tmp_path, "ur10", np.eye(4))
+    g_nom, g_acc = ind.geometry("ur10"), ind.geometry("ur10", PLANTED)
+    tcp = ctl.frame([0.0, 0.0, 120.0], [0.0, 0.0, 0.0])
+    plane = ctl.frame([300.0, -400.0, 50.0], [0.0, 0.0, 40.0])
+    box = [(-170, 170), (-150, -30), (30, 150), (-170, -10), (-150, -30), (-170, 170)]
+    q = _taught(rng, box, 4)
+    q[1, 4] *= -1.0  # the wrist on its other branch
+    q[3] = q[2] + np.radians([5.0, -4.0, 6.0, 3.0, -5.0, 8.0])  # movel with no qnear: near where the robot is
+
+    def p(T):
+        r = Rotation.from_matrix(T[:3, :3]).as_rotvec()
+        return "p[" + ", ".join(f"{v:.9f}" for v in (*(T[:3, 3] / 1000.0), *r)) + "]"
+
+    def qs(x):
+        return "[" + ", ".join(f"{v:.9f}" for v in x) + "]"
+
+    world = [ind.pose(g_nom, qi, tool=tcp) for qi in q]
+    text = "\n".join([
+        "def cell():", f"  set_tcp({p(tcp)})", f"  global Plane_1={p(plane)}",
+        f"  global Wp_1_p={p(world[0])}", f"  global Wp_1_q={qs(q[0])}",
+        f"  global Wp_2_p={p(world[1])}", f"  global Wp_2_q={qs(q[1])}",
+        "  movej(get_inverse_kin(Wp_1_p, qnear=Wp_1_q), a=1.4, v=1.05)",
+        "  movel(Wp_2_p, a=1.2, v=0.25)",
+        f"  movej(get_inverse_kin({p(world[2])}, qnear={qs(q[2])}), a=1.4, v=1.05)",
+        f"  movel(pose_trans(Plane_1, {p(np.linalg.inv(plane) @ world[3])}), a=1.2, v=0.25)", "end", ""])
+    (tmp_path / "cell.script").write_text(text)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        result = filter_program(accurate, tmp_path / "cell.script", nominal)
+    assert result.counts() == {"ok": 4}
+    out = result.text
+    # the hints are not targets: both joint lists stay as they were
+    assert qs(q[0]) in out and qs(q[1]) in out and qs(q[2]) in out
+    poses = [[float(v) for v in m.split(",")] for m in re.findall(r"p\[([^\]]*)\]", out)]
+    new = [poses[2], poses[3], poses[4], poses[5]]  # after set_tcp and Plane_1
+    for i, (qi, T, v) in enumerate(zip(q, world, new)):
+        T_new = ctl.frame(np.array(v[:3]) * 1000.0, [0, 0, 0])
+        T_new[:3, :3] = Rotation.from_rotvec(v[3:]).as_matrix()
+        if i == 3:
+            T_new = plane @ T_new
+        # UR's controller: the solution nearest qnear, or, for movel without one, nearest where the robot is
+        q_ctrl = ind.inverse(g_nom, T_new, qi if i < 3 else q[2], tool=tcp)
+        assert np.abs(q_ctrl - qi).max() < np.radians(5.0)
+        _lands(ind.pose(g_acc, q_ctrl, tool=tcp), T)
+
+
+# --- FANUC: UF/UT given, CONFIG strings, the J2/J3 coupling, PR[] and Offset flagged ------------
+
+COUPLING = "[controller]\ncoupling = [{joint = 3, plus = 2, factor = 1.0}]"
+
+
+def test_fanuc_positions_in_user_frame_and_tool_with_coupled_joints(tmp_path, run_cli):
+    rng = np.random.default_rng(21)
+    nominal, accurate = _robots(tmp_path, "irb120", np.eye(4), COUPLING)
+    g_nom, g_acc = ind.geometry("irb120"), ind.geometry("irb120", PLANTED)
+    tool, uf = ctl.frame([0.0, 0.0, 210.0], [0.0, 0.0, 0.0]), ctl.frame([500.0, 200.0, 100.0], [0.0, 0.0, 20.0])
+    box = [(-150, 150), (-60, 70), (-80, 50), (-150, 150), (20, 110), (-350, 350)]
+    q = _taught(rng, box, 10)  # the model's joints
+    q[::2, 4] *= -1.0
+    world = [ind.pose(g_nom, qi, tool=tool) for qi in q]
+    configs = [ctl.fanuc_config("irb120", g_nom, qi) for qi in q]
+    controller = lambda m: np.array([m[0], m[1], m[2] - m[1], m[3], m[4], m[5]])  # noqa: E731  J3 = q3 − J2
+    joints = [controller(qi) for qi in _taught(rng, box, 2)]
+    text = ctl.fanuc_program([np.linalg.inv(uf) @ T for T in world], configs, joints)
+    (tmp_path / "CELL.LS").write_bytes(text.encode())
+    out = tmp_path / "OUT.LS"
+    args = ("filter", accurate, tmp_path / "CELL.LS", "--nominal", nominal, "--out", out, "--json", tmp_path / "s.json")
+    code, _, err = run_cli(*args)
+    rows = json.loads((tmp_path / "s.json").read_text())["targets"]
+    status = {r["target"]: r["status"] for r in rows}
+    assert code == 3 and status.pop("P[1]") == "unsupported" and status.pop("PR[3]") == "unsupported"
+    reason = {r["target"]: r["reason"] for r in rows}
+    assert set(status.values()) == {"frame"} and "give --tool 2=" in reason["P[2]"]
+    code, _, err = run_cli(*args, "--tool", "2=0,0,210,0,0,0", "--user-frame", "1=500,200,100,0,0,20")
+    rows = json.loads((tmp_path / "s.json").read_text())["targets"]
+    assert code == 3, err  # PR[3] and the offset motion's P[1]
+    status = {r["target"]: r["status"] for r in rows}
+    assert status.pop("PR[3]") == "unsupported" and status.pop("P[1]") == "unsupported"
+    assert set(status.values()) == {"ok"} and len(status) == 11
+    new = ctl.read_fanuc(out.read_text())
+    assert new[1]["X"] == ctl.read_fanuc(text)[1]["X"]  # P[1] left as it was
+    for i in range(1, len(q)):
+        v = new[i + 1]
+        T_new = uf @ ctl.frame([v["X"], v["Y"], v["Z"]], [v["W"], v["P"], v["R"]])
+        q_ctrl = ind.inverse(g_nom, T_new, q[i], tool=tool)
+        assert v["config"] == ctl.fanuc_config("irb120", g_nom, q_ctrl)
+        _lands(ind.pose(g_acc, q_ctrl, tool=tool), world[i])
+    for i, J in enumerate(joints):
+        v = new[len(q) + i + 1]
+        J_new = np.radians([v[f"J{k}"] for k in range(1, 7)])
+        model = lambda c: np.array([c[0], c[1], c[2] + c[1], c[3], c[4], c[5]])  # noqa: E731
+        _lands(ind.pose(g_acc, model(J_new), tool=tool), ind.pose(g_nom, model(J), tool=tool))
+    assert _non_numbers(out.read_bytes().decode()) == _non_numbers(text)
+
+
+# --- the public programs ---------------------------------------------------------------------
+
+TOOL = frame_from_values([0.0, 0.0, 150.0])
+BASE2 = frame_from_values([400.0, 0.0, 0.0])
+PUBLIC = [("krl/demo_screenshot.src", "kr5-arc", Frames(tools={"1": TOOL}, users={"2": BASE2})),
+          ("krl/Program.src", "kr5-arc", Frames()),
+          ("rapid/Module1.mod", "irb120", Frames(tools={"smc_gripper": TOOL})),
+          ("rapid/Program.mod", "irb120", Frames()), ("urscript/timing_debug.script", "ur10", Frames()),
+          ("urscript/PickAndPlace_App_Final.script", "ur10", Frames()), ("urscript/Prog1.script", "ur10", Frames())]
+
+
+@pytest.fixture(scope="module")
+def planted(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("planted")
+    out = {}
+    for robot in ("kr5-arc", "irb120", "ur10"):
+        out[robot] = folder / f"{robot}.toml"
+        out[robot].write_text(ind.robot_toml(robot, PLANTED))
+    return out
+
+
+@pytest.mark.parametrize("program,robot,frames", PUBLIC)
+def test_public_programs_change_target_numbers_only(program, robot, frames, planted):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        result = filter_program(planted[robot], PROGRAMS / program, robot, frames=frames)
+        same = filter_program(robot, PROGRAMS / program, robot, frames=frames)
+    files = [PROGRAMS / program] + ([(PROGRAMS / program).with_suffix(".dat")] if len(result.texts) > 1 else [])
+    for path, new, identical in zip(files, result.texts, same.texts):
+        original = path.read_bytes().decode("utf-8")
+        assert _non_numbers(new) == _non_numbers(original)
+        assert new.count("\r\n") == original.count("\r\n")
+        assert identical == original  # the nominal model for the calibrated one: nothing changes
+    assert sum(c.corrected for c in result.corrections) >= 1
+    for c in result.corrections:  # the numbers of other targets and of everything else stay
         if not c.corrected:
-            assert _same_numbers(t, t_new), t.name  # left as it was
             continue
-        corrected += 1
-        if t.kind == "pose":
-            new_goal = base @ _frame(t_new.position, t_new.rotation)
-            # the controller: its nominal inverse on the solution's branch (started from robocal's joints)
-            q = ind.inverse(g_nom, new_goal, c.q, tool)
-            intent = base @ _frame(t.position, t.rotation)
-        else:
-            q = t_new.q
-            intent = ind.pose(g_nom, t.q, tool=tool)
-        reached = ind.pose(g_acc, q, tool=tool)
-        assert np.linalg.norm(reached[:3, 3] - intent[:3, 3]) < 0.01, t.name
-        assert _angle_deg(reached[:3, :3], intent[:3, :3]) < 0.001, t.name
-    assert corrected >= 2
+        assert c.check_mm < CHECK_MM and c.check_deg < CHECK_DEG
+    for c in result.flagged:
+        assert c.reason and c.status != "ok"
 
 
-def _reload(result, program):
-    """The filtered files read back as programs (what a controller would get)."""
-    folder = Path(re.sub(r"[^/]+$", "", str(PROGRAMS / program)))
-    return load_program_text(result, folder, program)
-
-
-def load_program_text(result, folder, program):
-    import tempfile
-
-    with tempfile.TemporaryDirectory() as d:
-        path = Path(d) / Path(program).name
-        path.write_bytes(result.text.encode("utf-8"))
-        if result.dat is not None:
-            path.with_suffix(".dat").write_bytes(result.dat.encode("utf-8"))
-        return load_program(path)
-
-
-def _same_numbers(a, b) -> bool:
-    return all(a.fields[k].text == b.fields[k].text for k in a.fields)
-
-
-def test_an_unreachable_target_is_flagged_and_left_as_it_was(tmp_path, accurate_files, run_cli):
-    text = (PROGRAMS / "urscript/Prog1.script").read_text()
-    # a target 9 m away: no UR10 reaches it
-    far = re.sub(r"movel\(p\[[^\]]*\]", "movel(p[9.000000, 0.000000, 0.500000, 0.000000, 3.141593, 0.000000]", text,
-                 count=1)
-    src = tmp_path / "far.script"
-    src.write_text(far)
-    code, out, err = run_cli("filter", accurate_files["ur10"], src, "--nominal", "ur10", "--out", tmp_path / "f.script",
-                             "--json", tmp_path / "s.json")
-    assert code == 0, err
-    summary = json.loads((tmp_path / "s.json").read_text())
-    flagged = [t for t in summary["targets"] if t["status"] != "ok"]
-    assert flagged and flagged[0]["status"].startswith("unreachable") and "left unchanged and flagged" in err
-    assert "9.000000, 0.000000, 0.500000" in (tmp_path / "f.script").read_text()
-
-
-def test_numbers_outside_the_corrected_targets_are_untouched(accurate_files):
-    from robocal.filtering.program import fields_in
-
-    for program, robot in CASES:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            result = filter_program(accurate_files[robot], PROGRAMS / program, robot)
-        for text, new, first, last in ((result.program.text, result.text, 0, result.program.split),
-                                       (result.program.dat, result.dat, result.program.split, None)):
-            if text is None:
-                continue
-            spans = {f.start for c in result.corrections[first:last] if c.corrected for f in c.target.fields.values()}
-            before, after = fields_in(text), fields_in(new)
-            assert len(before) == len(after)
-            assert all(a.text == b.text for a, b in zip(before, after) if a.start not in spans), program
-
-
-def test_bad_programs_are_input_errors_naming_the_file(tmp_path, accurate_files, run_cli):
+def test_bad_programs_are_input_errors_naming_the_file(tmp_path, planted, run_cli):
     src = tmp_path / "empty.mod"
     src.write_text("MODULE M\nENDMODULE\n")
-    code, _, err = run_cli("filter", accurate_files["irb120"], src, "--nominal", "irb120", "--out", tmp_path / "o.mod")
+    code, _, err = run_cli("filter", planted["irb120"], src, "--nominal", "irb120", "--out", tmp_path / "o.mod")
     assert code == 2 and "no targets found" in err and "empty.mod" in err and not (tmp_path / "o.mod").exists()
-    code, _, err = run_cli("filter", accurate_files["irb120"], tmp_path / "x.txt", "--nominal", "irb120",
+    code, _, err = run_cli("filter", planted["irb120"], tmp_path / "x.txt", "--nominal", "irb120",
                            "--out", tmp_path / "o.txt")
     assert code == 2 and "give --format" in err
     bad = tmp_path / "bad.mod"
     bad.write_text("MODULE M\n  CONST robtarget p1:=[[1,2,3],[1,0,0,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\n"
                    "  CONST robtarget p2:=[[1,2,x],[1,0,0,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\nENDMODULE\n")
-    code, _, err = run_cli("filter", accurate_files["irb120"], bad, "--nominal", "irb120", "--out", tmp_path / "o.mod")
+    code, _, err = run_cli("filter", planted["irb120"], bad, "--nominal", "irb120", "--out", tmp_path / "o.mod")
     assert code == 2 and "bad.mod: line 3: robtarget p2" in err
     src = tmp_path / "bad.src"
     src.write_text("DEF bad()\nDECL E6POS P1={X 1.0,Y 2.0,Z ,A 0,B 0,C 0}\nPTP P1\nEND\n")
-    code, _, err = run_cli("filter", accurate_files["kr5-arc"], src, "--nominal", "kr5-arc",
-                           "--out", tmp_path / "o.src")
+    code, _, err = run_cli("filter", planted["kr5-arc"], src, "--nominal", "kr5-arc", "--out", tmp_path / "o.src")
     assert code == 2 and "line 2" in err and "no number for Z" in err
+    fanuc = tmp_path / "bad.ls"
+    fanuc.write_text("/PROG B\n/MN\n   1:J P[2] 100% FINE ;\n/POS\nP[1]{\n   GP1:\n\tUF : 0, UT : 0,\n"
+                     "\tX = 1 mm, Y = 2 mm, Z = 3 mm,\n\tW = 0 deg, P = 0 deg, R = 0 deg\n};\n/END\n")
+    code, _, err = run_cli("filter", planted["irb120"], fanuc, "--nominal", "irb120", "--out", tmp_path / "o.ls")
+    assert code == 2 and "P[2] is used by a motion but has no position" in err
 
 
-def test_a_calibrated_model_of_another_robot_is_said(tmp_path, accurate_files):
+def test_an_unreachable_target_is_flagged_with_its_numbers_and_the_run_exits_3(tmp_path, planted, run_cli):
+    text = (PROGRAMS / "urscript/Prog1.script").read_text()
+    far = re.sub(r"movel\(p\[[^\]]*\]", "movel(p[9.000000, 0.000000, 0.500000, 0.000000, 3.141593, 0.000000]", text,
+                 count=1)
+    src = tmp_path / "far.script"
+    src.write_text(far)
+    code, out, err = run_cli("filter", planted["ur10"], src, "--nominal", "ur10", "--out", tmp_path / "f.script",
+                             "--json", tmp_path / "s.json")
+    assert code == 3, err
+    summary = json.loads((tmp_path / "s.json").read_text())
+    flagged = [t for t in summary["targets"] if t["status"] != "ok"]
+    assert [t["status"] for t in flagged] == ["unreachable (nominal)"] and flagged[0]["reason"]
+    assert "not corrected: line" in err and "unreachable (nominal)" in err
+    assert "9.000000, 0.000000, 0.500000" in (tmp_path / "f.script").read_text()
+    assert all(t["check"]["mm"] is not None for t in summary["targets"] if t["status"] == "ok")
+
+
+def test_a_calibrated_model_of_another_robot_is_said(tmp_path, planted):
     # an IRB 120's model against a KR5's program and nominal reaches none of it; a KR5 whose upper arm
     # is 30 mm longer than the controller's model corrects by centimetres: both said
     far = tmp_path / "long.toml"
     far.write_text(ind.robot_toml("kr5-arc", {"a2": 30.0}))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        other = filter_program(accurate_files["irb120"], PROGRAMS / "krl/Program.src", "kr5-arc")
+        other = filter_program(planted["irb120"], PROGRAMS / "krl/Program.src", "kr5-arc")
         long = filter_program(far, PROGRAMS / "krl/Program.src", "kr5-arc")
-        fine = filter_program(accurate_files["kr5-arc"], PROGRAMS / "krl/Program.src", "kr5-arc")
+        fine = filter_program(planted["kr5-arc"], PROGRAMS / "krl/Program.src", "kr5-arc")
     assert any(n.startswith("no target could be corrected: check that --nominal") for n in other.notes)
     assert any("mm: a calibration corrects by a few millimetres; check that --nominal" in n for n in long.notes)
     assert not any("check that --nominal" in n for n in fine.notes)
 
+
+def test_load_program_reads_every_language():
+    for program, _, _ in PUBLIC:
+        assert load_program(PROGRAMS / program).targets

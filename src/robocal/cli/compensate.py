@@ -30,15 +30,17 @@ def compensate_cmd(
     tip_link: str | None = tip_link_option(),
     quiet: bool = typer.Option(False, "--quiet", "-q"),
 ) -> None:
-    """Corrected joint commands and Cartesian goals that make the calibrated robot reach its goals."""
+    """Corrected joint commands and Cartesian goals that make the calibrated robot reach its goals.
+    Exit status 3: the commands were written but some goals were not reached (each said, with why)."""
     import json
+    import sys
 
     from .. import options as opt
     from ..compensation import compensate
     from ..io.atomic import atomic_write, together
     from ..io.goals import load_goals
     from ..io.robotfile import load_robot
-    from .common import check_outputs, console, metrics_table, print_warnings
+    from .common import check_outputs, console, metrics_table, one_line, print_warnings
 
     check_outputs((nominal, calibrated, goals, truth), out=out, json=as_json)
     opt.frame_values(tool, "tool")  # checked before any work
@@ -60,6 +62,13 @@ def compensate_cmd(
         if as_json is not None:
             atomic_write(as_json, json.dumps(summary, indent=2) + "\n")
     print_warnings(result.warnings)
+    missed = [i for i, s in enumerate(result.status) if s != "ok"]
+    for i in missed[:10]:
+        print(f"robocal: not reached: goal {g.ids[i]}: {result.status[i]}: {one_line(result.reasons[i])}",
+              file=sys.stderr)
+    if len(missed) > 10:
+        print(f"robocal: … and {len(missed) - 10} more goals not reached (the status column of {out})",
+              file=sys.stderr)
     if not quiet:
         c = console()
         c.print(f"{g.n} goals: " + ", ".join(f"{v} {k}" for k, v in summary["status"].items()) + f"; wrote {out}")
@@ -68,6 +77,8 @@ def compensate_cmd(
             c.print(metrics_table("true robot at the goals (rows with status ok)",
                                   {"nominal commands": val["nominal_commands"],
                                    "compensated commands": val["compensated_commands"]}))
+    if missed:  # written, but not every goal reached: a script must not take it for a full success
+        raise typer.Exit(3)
 
 
 def register(app: typer.Typer) -> None:

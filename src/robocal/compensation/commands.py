@@ -214,9 +214,12 @@ def compensate(nominal: Robot, calibrated: Robot, goals: Goals, *, truth: Robot 
                           drift_note(calibrated.terms, inputs, goals.source), calibrated.outside_note(sol.q)) if w]
     # a jump at a goal where the controller's own model is singular is the singularity's doing
     nominal_cond = condition_numbers(nominal, q_nom, full, rot_weight)
+    reasons = [sol.reason(i) if not (s == "branch" and c > SINGULAR_CONDITION) else
+               f"the nominal model's joint Jacobian has condition number {c:.3g} there (a singularity): the "
+               f"correction moves the joints by {np.degrees(sol.moved[i]):.3g}°" for i, (s, c) in
+               enumerate(zip(sol.status, nominal_cond))]
     sol.status = ["singular" if s == "branch" and c > SINGULAR_CONDITION else s
                   for s, c in zip(sol.status, nominal_cond)]
-    reasons = [sol.reason(i) for i in range(goals.n)]
     if nominal_status is not None:  # a goal the controller's own model cannot solve is said as such
         for i, (st, why) in enumerate(zip(*nominal_status)):
             if st != "ok":

@@ -5,19 +5,21 @@ FANUC's CONFIG string, the UR branch): encodings of a few geometric facts and of
 turns.  The facts are measured here once, on the robot's own chain, whatever its convention:
 
 - ``front``: the wrist centre lies in front of axis 1 (+1) or behind it (−1), front being the
-  side the arm points to at its zero joints, turned with joint 1 (KUKA S bit 0, ABB cfx, FANUC
-  T/B, the UR shoulder);
-- ``elbow``: the elbow bends up (+1) or down (−1): the side of the shoulder–wrist line the elbow
-  lies on, turning about axis 2, "up" being where the elbow is when an arm reaching forward has
-  it above that line (KUKA S bit 1, FANUC U/D, the UR elbow);
-- ``lower``: the wrist centre lies in front of (+1) or behind (−1) the lower arm, the line from
-  axis 2 to axis 3 (ABB cfx);
+  side it takes at zero joints (where KUKA, ABB and FANUC arms face forward), across axes 1 and 2,
+  turned with joint 1 (KUKA S bit 0, ABB cfx, FANUC T/B, the UR shoulder);
+- ``elbow``: the elbow (axis 3) lies above (+1) or below (−1) the line from the shoulder (axis 2)
+  to the wrist centre, "above" being the side a forward-reaching arm has up, the turn counted
+  about axis 2 so that it keeps its sign when the arm reaches back over the top (KUKA S bit 1,
+  "A3 ≥ φ", FANUC U/D, the UR elbow);
+- ``lower``: the wrist centre in front of (+1) or behind (−1) the lower arm, the line from axis 2
+  to axis 3, counted the same way (ABB cfx);
 - the joint values themselves, for signs (A5, KUKA's T), quadrants (ABB) and turns (FANUC).
 
-Each fact is 0 where the joints lie on its boundary within :data:`TOLERANCE_RAD` (an angle that
-comes back as −2·10⁻¹⁴° is 0°): there either value holds, and a target keeps its own.
-The wrist centre is the point of axis 5 nearest axis 4 (their crossing on a spherical wrist);
-the arm's "up" is the side of axis 1 its shoulder (axis 2) stands on, seen from the base frame.
+"Up" is the side of axis 1 away from the robot's foot: where the shoulder stands above the
+model's base origin, else where the wrist centre rises at zero joints, else the measuring frame's
+z.  Each fact is 0 where the joints lie on its boundary within :data:`TOLERANCE_RAD` (an angle
+that comes back as −2·10⁻¹⁴° is 0°): there either value holds, and a target keeps its own.
+The wrist centre is the point of axis 5 nearest axis 4 (their crossing on a spherical wrist).
 """
 
 from __future__ import annotations
@@ -85,22 +87,23 @@ def arm_configuration(robot: Robot, q: np.ndarray) -> Arm | None:
     normal = np.cross(u1, u[:, 1])
     normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-300)
     side0 = np.sign(normal[0] @ across(wc[0])) or 1.0
-    forward = side0 * normal[1:]  # (m, 3)
+    forward = side0 * normal[1:]
+    front = _sign(np.einsum("mi,mi->m", across(wc[1:]), forward), TOLERANCE_MM)
     shoulder = _nearest_points(p1, u1, p[0, 1], u[0, 1])
-    height = u1 @ (shoulder - robot.base[:3, 3])
-    up = u1 * (np.sign(height) if abs(height) > 1.0 else np.sign(u1 @ robot.base[:3, 2]) or 1.0)
-    wcq, u2, c2, c3 = wc[1:], u[1:, 1], p[1:, 1], p[1:, 2]
-    front = _sign(np.einsum("mi,mi->m", across(wcq), forward), TOLERANCE_MM)
-    v, e = wcq - c2, c3 - c2
-    reference = np.sign(np.einsum("mi,mi->m", np.cross(forward, up), u2))
+    rises = [u1 @ (shoulder - robot.base[:3, 3]), u1 @ (wc[0] - shoulder)]  # mm
+    up = next((np.sign(r) for r in rises if abs(r) > 1.0), np.sign(u1[2]) or 1.0)
+    u2, c2, c3 = u[1:, 1], p[1:, 1], p[1:, 2]
+    reference = np.sign(np.einsum("mi,mi->m", np.cross(forward, np.broadcast_to(up * u1, forward.shape)), u2))
+    elbow = _turn(wc[1:] - c2, c3 - c2, u2) * reference  # from the shoulder–wrist line to the elbow
+    lower = -_turn(c3 - c2, wc[1:] - c2, u2) * reference  # from the lower arm to the wrist centre
+    return Arm(front, elbow.astype(int), lower.astype(int), q)
 
-    def side(a, b):  # sign of the turn from a to b about axis 2, relative to up-from-forward
-        cross = np.einsum("mi,mi->m", np.cross(a, b), u2)
-        scale = np.linalg.norm(a, axis=1) * np.linalg.norm(b, axis=1)
-        return (_sign(cross / np.maximum(scale, 1e-300), TOLERANCE_RAD) * reference).astype(int)
 
-    # the lower arm turns from up toward forward onto the wrist centre in front of it: −side(e, v)
-    return Arm(front, side(v, e), -side(e, v), q)
+def _turn(a: np.ndarray, b: np.ndarray, axis: np.ndarray) -> np.ndarray:
+    """Sign of the turn from a to b about axis (rows), 0 within the tolerance."""
+    cross = np.einsum("mi,mi->m", np.cross(a, b), axis)
+    scale = np.linalg.norm(a, axis=1) * np.linalg.norm(b, axis=1)
+    return _sign(cross / np.maximum(scale, 1e-300), TOLERANCE_RAD)
 
 
 def joint_sign(q: np.ndarray) -> np.ndarray:

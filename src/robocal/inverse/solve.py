@@ -224,8 +224,14 @@ def _facts(robot: Robot, q: np.ndarray) -> dict[str, np.ndarray] | None:
     return None if arm is None else {f: getattr(arm, f).reshape(m, k) for f in ("front", "elbow", "lower")}
 
 
-def _score(robot, q, valid, facts, lo, hi, wants, hint):
-    """Turned solutions, their mismatch count and distance to the hint, and the index of the best."""
+#: where a goal's own data leave the choice free, a solution this close to a joint limit (rad) is taken
+#: only if no other is: a correction would push it over
+MARGIN_RAD = np.radians(5.0)
+
+
+def _score(robot, q, valid, facts, lo, hi, wants, hint, roomy=None):
+    """Turned solutions, their mismatch count and distance to the hint, and their score (lower is
+    better; inf: outside the limits); ``roomy`` (m,): rows that prefer a margin to the limits."""
     chosen, missed, limits_ok = _turned(robot, q, lo, hi, hint)
     mismatch = missed.astype(float)
     if facts is not None:
@@ -237,16 +243,20 @@ def _score(robot, q, valid, facts, lo, hi, wants, hint):
     else:
         dist = np.sqrt(np.nansum((chosen - hint[:, None]) ** 2, axis=2))
     score = np.where(valid & limits_ok, mismatch * 1e3 + np.minimum(dist, 999.0), np.inf)
+    if roomy is not None and roomy.any():
+        margin = np.min(np.minimum(chosen - robot.limits[:, 0], robot.limits[:, 1] - chosen), axis=2)
+        score = score + np.where(roomy[:, None] & (margin < MARGIN_RAD), 100.0, 0.0)
     return chosen, mismatch, dist, score
 
 
 def choose(robot: Robot, solutions: Solutions, requests=None, hint: np.ndarray | None = None,
-           follow: bool = False) -> Choice:
+           follow: bool = False, roomy: np.ndarray | None = None) -> Choice:
     """The solution each goal's target names (see the module docstring): inside the joint
     limits; fewest configuration data missed; then nearest ``hint`` (m, n) rad, else the first.
     requests: a :class:`Request` or None per goal.  follow: a goal whose hint row is NaN (or
     every goal, without a hint) takes the previous goal's choice as its hint, as a robot moving
-    through them in order (the first: the first solution)."""
+    through them in order (the first: the first solution).  roomy (m,): goals whose choice is
+    robocal's own (no hint of theirs), which keep clear of the joint limits where they can."""
     q, valid = np.nan_to_num(solutions.q), solutions.valid
     m, k, n = q.shape
     requests = [None] * m if requests is None else list(requests)
@@ -255,7 +265,8 @@ def choose(robot: Robot, solutions: Solutions, requests=None, hint: np.ndarray |
     wants = {f: np.array([0 if r is None else getattr(r, f) for r in requests]) for f in ("front", "elbow", "lower")}
     if hint is None and follow:
         hint = np.full((m, n), np.nan)
-    chosen, mismatch, dist, score = _score(robot, q, valid, facts, lo, hi, wants, hint)
+    roomy = np.zeros(m, bool) if roomy is None else np.asarray(roomy, bool)
+    chosen, mismatch, dist, score = _score(robot, q, valid, facts, lo, hi, wants, hint, roomy)
     index = np.argmin(score, axis=1)
     if follow:  # in order: each goal without its own hint follows the one before
         for i in np.flatnonzero(np.isnan(hint).all(axis=1)):
@@ -265,7 +276,7 @@ def choose(robot: Robot, solutions: Solutions, requests=None, hint: np.ndarray |
             sub = slice(i, i + 1)
             c, mm, d, sc = _score(robot, q[sub], valid[sub], None if facts is None else
                                   {f: v[sub] for f, v in facts.items()}, lo[sub], hi[sub],
-                                  {f: v[sub] for f, v in wants.items()}, h)
+                                  {f: v[sub] for f, v in wants.items()}, h, roomy[sub])
             chosen[i], mismatch[i], dist[i], score[i] = c[0], mm[0], d[0], sc[0]
             index[i] = np.argmin(sc[0])
     rows = np.arange(m)
@@ -280,11 +291,17 @@ def controller_joints(nominal: Robot, T: np.ndarray, hint: np.ndarray | None = N
                    seed: int = 0) -> tuple[np.ndarray, list[str], list[str], str]:
     """The joints a controller running ``nominal`` goes to for goal poses T (m, 4, 4) in its world:
     every solution of its model, the one each request names, nearest ``hint`` (m, n) rad, else
-    the previous goal's (the first goal: the first solution).  Returns the joints (NaN where no
+    the previous goal's (the first goal: the best-conditioned ready configuration's).  Returns the joints (NaN where no
     solution), a status (``ok``, ``unreachable``, ``limit``, ``configuration``) and a reason per
     goal, and how they were solved."""
     sols = all_solutions(nominal, T, hint=hint, seed=seed)
-    pick = choose(nominal, sols, requests, hint, follow=True)
+    m, n = len(T), nominal.n_joints
+    hint = np.full((m, n), np.nan) if hint is None else np.array(hint, float)
+    own = np.isnan(hint).all(axis=1)
+    if m and own[0]:  # the first goal with nothing to go by: nearest a ready, upright arm
+        hint[0] = ready_configurations(nominal)[0]
+    free = own & np.array([r is None or r.empty for r in (requests or [None] * m)])
+    pick = choose(nominal, sols, requests, hint, follow=True, roomy=free)
     status, reasons = [], []
     for i in range(len(T)):
         if sols.count[i] == 0:
