@@ -15,11 +15,13 @@ The chain, stated once (4×4 transforms, mm)::
   (BASE_DATA[n]), RAPID's work object (uframe · oframe), a URScript feature, FANUC UF n.  A
   Cartesian target T_p is the goal ``user · T_p`` (:meth:`Cell.goal`); a pose P in the world is
   written back as ``user⁻¹ · P`` (:meth:`Cell.in_user`).
-- *tool* is the controller's TCP (``--tool``, the program's tool data: KRL $TOOL (TOOL_DATA[n]),
-  RAPID tooldata, URScript set_tcp, FANUC UT n; else the nominal model's tool).  The calibrated
-  model's own tool is the point its calibration measured: kept where it refines that TCP (within
-  TOOL_MATCH_MM / TOOL_MATCH_DEG, it is the better estimate), replaced by the TCP on the
-  calibrated joints and base where it is another point (a tracker target on the flange), and said.
+- *flange* is the nominal model's tool frame: the frame the controller's tool data are stated in
+  (KUKA's $FLANGE, ABB's tool0, UR's tool flange, FANUC's faceplate; a URDF's tool0).  The TCP is
+  ``flange · tool data`` (``--tool``, the program's: KRL $TOOL (TOOL_DATA[n]), RAPID tooldata,
+  URScript set_tcp, FANUC UT n), or the flange itself where none is given.  The calibrated model's
+  own tool is the point its calibration measured: kept where it refines that TCP (within
+  TOOL_MATCH_MM / TOOL_MATCH_DEG, it is the better estimate), replaced by the TCP on the calibrated
+  joints and base where it is another point (a tracker target on the flange), and said.
 
 ``compensate`` and ``filter`` build their robots with :func:`make_cell`, so that the same goal with
 the same tool gives the same joints in both.
@@ -58,6 +60,7 @@ class Cell:
 
     nominal: Robot
     accurate: Robot
+    #: the TCP in the frame after the last joint (the nominal flange's frame · the tool data)
     tcp: np.ndarray
     tcp_source: str
     #: the calibrated tool was kept as a refinement of the TCP (else the TCP is on its chain)
@@ -72,28 +75,38 @@ class Cell:
         return self.nominal.base @ invert(self.accurate.base) @ T
 
     @staticmethod
-    def goal(user: np.ndarray | None, target: np.ndarray) -> np.ndarray:
-        """A target (..., 4, 4) stated in a user frame, as a pose in the controller's world."""
-        return target if user is None else user @ target
+    def goal(user, target: np.ndarray) -> np.ndarray:
+        """Targets (..., 4, 4) stated in user frames (4×4, or one per target, None for the world) as
+        poses in the controller's world."""
+        return target if user is None else users_of(user, target) @ target
 
     @staticmethod
-    def in_user(user: np.ndarray | None, T: np.ndarray) -> np.ndarray:
-        """A pose in the controller's world (..., 4, 4), stated in the user frame."""
-        return T if user is None else invert(user) @ T
+    def in_user(user, T: np.ndarray) -> np.ndarray:
+        """Poses in the controller's world (..., 4, 4) stated in user frames (as :meth:`goal`)."""
+        return T if user is None else invert(users_of(user, T)) @ T
 
     def on(self, robot: Robot) -> Robot:
         """Another model of this robot (a simulated truth) with the TCP the calibrated one uses."""
         return robot if self.refined else robot.with_tool(self.tcp)
 
 
-def make_cell(nominal: Robot, accurate: Robot, tcp: np.ndarray | None = None, source: str = "") -> Cell:
+def users_of(user, T: np.ndarray) -> np.ndarray:
+    """User frames as an array for poses T: one 4×4 for all, or a list with None for the world."""
+    if isinstance(user, np.ndarray):
+        return user
+    eye = np.eye(4)
+    return np.stack([eye if u is None else u for u in user]).reshape(T.shape)
+
+
+def make_cell(nominal: Robot, accurate: Robot, tool: np.ndarray | None = None, source: str = "") -> Cell:
     """The cell of a controller running ``nominal`` on a robot the calibrated model ``accurate``
-    describes, for the TCP ``tcp`` (flange frame, 4×4 mm; default the nominal model's tool) named
-    by ``source`` (said in the notes: ``the --tool given``, ``the program's tool tool1``)."""
-    if tcp is None:
+    describes, for the tool data ``tool`` (4×4 mm in the flange frame, the nominal model's tool;
+    default none: the TCP is the flange) named by ``source`` (said in the notes: ``the --tool
+    given``, ``the program's tool tool1``)."""
+    if tool is None:
         tcp, source = nominal.tool, source or "the nominal model's tool"
-    tcp = np.asarray(tcp, float)
-    source = source or "the TCP given"
+    else:
+        tcp, source = nominal.tool @ np.asarray(tool, float), source or "the TCP given"
     mm, deg = (float(x) for x in frame_gap(accurate.tool, tcp))
     notes = []
     refined = mm <= TOOL_MATCH_MM and deg <= TOOL_MATCH_DEG

@@ -22,8 +22,8 @@ def compensate_cmd(
     ),
     payload: float | None = typer.Option(None, "--payload", help="payload mass, kg, at goals without a payload "
                                          "column"),
-    tool: str | None = typer.Option(None, "--tool", help="the TCP the commands are for, flange → TCP: x,y,z[,rx,ry,rz] "
-                                    "mm, deg (default: the nominal robot's tool)"),
+    tool: str | None = typer.Option(None, "--tool", help="the TCP the commands are for, in the nominal model's "
+                                    "tool frame (its flange): x,y,z[,rx,ry,rz] mm, deg (default: that frame)"),
     as_json: Path | None = typer.Option(None, "--json", help="write the summary as JSON too"),
     column: list[str] | None = typer.Option(None, "--column", help="map file columns: FILE=ROBOCAL[,FILE=ROBOCAL…]"),
     base_link: str | None = base_link_option(),

@@ -19,7 +19,8 @@ def filter_cmd(
     nominal: str = typer.Option(..., "--nominal", help="the nominal model the controller runs (built-in name or "
                                 "file)"),
     out: Path = typer.Option(..., "--out", help="the filtered program to write (KRL: its .dat beside it)"),
-    tool: list[str] | None = typer.Option(None, "--tool", help="a TCP, flange frame: x,y,z,rx,ry,rz (mm, deg, "
+    tool: list[str] | None = typer.Option(None, "--tool", help="a TCP in the nominal model's tool frame (the "
+                                          "controller's flange): x,y,z,rx,ry,rz (mm, deg, "
                                           "R = Rz(rz)·Ry(ry)·Rx(rx): FANUC's w,p,r, KUKA's C,B,A) for every target, "
                                           "or NAME=x,y,z,rx,ry,rz for the program's tool NAME (KRL TOOL_DATA[n] "
                                           "and FANUC UT n: n; RAPID: the tooldata's name); repeatable"),

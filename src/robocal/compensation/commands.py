@@ -172,8 +172,9 @@ def compensate(nominal: Robot, calibrated: Robot, goals: Goals, *, truth: Robot 
     position_only: solve for the position alone (default: for pose goals without
     orientation columns; joint goals use the full nominal pose).  truth: a simulated true
     robot; its errors at the nominal and the compensated commands are returned.  payload:
-    kg at every goal, where the goals file has no ``payload`` column.  tool: the TCP (4×4,
-    flange frame, mm) the commands are for; default the nominal model's (see :func:`robocal.cell.frames.make_cell`).
+    kg at every goal, where the goals file has no ``payload`` column.  tool: the TCP the
+    commands are for, 4×4 mm in the nominal model's tool frame (its flange); default that frame (see
+    :func:`robocal.cell.frames.make_cell`).
     Goals with a ``target`` column place that reflector of the calibrated model instead.
     """
     if nominal.n_joints != calibrated.n_joints or (truth is not None and truth.n_joints != nominal.n_joints):
@@ -189,7 +190,7 @@ def compensate(nominal: Robot, calibrated: Robot, goals: Goals, *, truth: Robot 
         reflectors = {t: calibrated.targets[t] for t in set(targets) if t}
         nominal = nominal.replace(targets={**nominal.targets, **reflectors})
         truth = None if truth is None else truth.replace(targets={**reflectors, **truth.targets})
-        cell = make_cell(nominal, calibrated, nominal.tool)
+        cell = make_cell(nominal, calibrated)
     T_des, q_nom, full, nominal_status = _nominal_commands(nominal, goals, position_only, rot_weight, targets)
     full = full and not position_only
     solvable = np.isfinite(q_nom).all(axis=1)

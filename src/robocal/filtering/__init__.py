@@ -104,7 +104,8 @@ def filter_program(calibrated, program: str | Path | Program, nominal, *, frames
         if len(again.targets) != len(prog.targets):
             raise RuntimeError("the filtered program reads back with another number of targets")
         check(prog, again, language, corrections, nom, accurate, frames, seed)
-        texts = filtered_texts(prog, language, corrections)  # failed checks left as they were
+        if any(c.status == "check failed" for c in corrections):
+            texts = filtered_texts(prog, language, corrections)  # failed checks left as they were
     return FilterResult(prog, language, texts, corrections, summary_notes(corrections, notes))
 
 

@@ -113,7 +113,7 @@ def _resolve(program: Program, frames: Frames, t: Target, nominal: Robot):
     if frames.tcp is not None:
         tool = ("--tool", frames.tcp, "the --tool given")
     elif t.tool is None:
-        tool = ("", nominal.tool, "the nominal model's tool")
+        tool = ("", None, "the nominal model's tool")
     elif t.tool in frames.tools:
         tool = (t.tool, frames.tools[t.tool], f"tool {t.tool} (given)")
     elif t.tool in program.tools:
@@ -192,7 +192,7 @@ def _poses(program: Program, language: Language, cell: Cell, members, hints, see
     targets = [program.targets[i] for i in idx]
     users = [u for _, u in members]
     T_prog = homogeneous(np.stack([t.rotation for t in targets]), np.stack([t.position for t in targets]))
-    goals = np.stack([cell.goal(u, T) for u, T in zip(users, T_prog)])
+    goals = cell.goal(users, T_prog)
     requests = [language.request(t) for t in targets]
     q_nom, status, reasons, _ = controller_joints(nominal, goals, hints[idx], requests, seed)
     out: dict[int, Correction] = {}
@@ -208,6 +208,8 @@ def _poses(program: Program, language: Language, cell: Cell, members, hints, see
     singular = condition_numbers(nominal, q_nom[ok], True, 1000.0) > SINGULAR_CONDITION
     q_acc = sol.q
     new_world = nominal.fk(q_acc)
+    new_prog = cell.in_user([users[k] for k in ok], new_world)
+    moved_mm, turned_deg = frame_gap(new_prog, T_prog[ok])
     arm_nom, arm_acc = arm_configuration(nominal, q_nom[ok]), arm_configuration(nominal, q_acc)
     for j, k in enumerate(ok):
         t, i = targets[k], idx[k]
@@ -218,10 +220,9 @@ def _poses(program: Program, language: Language, cell: Cell, members, hints, see
             why = sol.reason(j) if st == sol.status[j] else "the nominal model is singular at its joints"
             out[i] = Correction(t, st, why, **common)
             continue
-        pose = cell.in_user(users[k], new_world[j])
-        mm, deg = frame_gap(pose, T_prog[k])
         J = nominal.to_controller(q_acc[j])
-        out[i] = Correction(t, "ok", "corrected", pose=pose, q=J, moved_mm=float(mm), turned_deg=float(deg),
+        out[i] = Correction(t, "ok", "corrected", pose=new_prog[j], q=J, moved_mm=float(moved_mm[j]),
+                            turned_deg=float(turned_deg[j]),
                             joints_deg=float(np.degrees(np.max(np.abs(q_acc[j] - q_nom[k])))),
                             config_after=language.encode(J, _facts(arm_acc, j), t.config), **common)
     return out
@@ -273,13 +274,13 @@ def check(program: Program, reread: Program, language: Language, corrections: li
             T_new = homogeneous(np.stack([t.rotation for t in new]), np.stack([t.position for t in new]))
             T_old = homogeneous(np.stack([corrections[i].target.rotation for i in idx]),
                                 np.stack([corrections[i].target.position for i in idx]))
-            goals = np.stack([cell.goal(u, T) for (_, u), T in zip(poses, T_new)])
+            goals = cell.goal([u for _, u in poses], T_new)
             start = np.where(np.isnan(hints[idx]), np.stack([nominal.from_controller(corrections[i].q_nominal)
                                                               for i in idx]), hints[idx])
             q, status, _, _ = controller_joints(cell.nominal, goals, start, [language.request(t) for t in new], seed)
             q = np.where(np.isfinite(q), q, 0.0)
             reached.append((idx, cell.accurate.fk(q), np.array([s == "ok" for s in status])))
-            intent.append(cell.to_accurate(np.stack([cell.goal(u, T) for (_, u), T in zip(poses, T_old)])))
+            intent.append(cell.to_accurate(cell.goal([u for _, u in poses], T_old)))
         if joints:
             q_new = nominal.from_controller(np.stack([reread.targets[i].q for i in joints]))
             q_old = nominal.from_controller(np.stack([corrections[i].target.q for i in joints]))

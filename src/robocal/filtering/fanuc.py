@@ -31,7 +31,7 @@ from ..inverse.configuration import TOLERANCE_RAD
 from ..inverse.solve import Request
 from ..math.so3 import rpy_to_matrix
 from .language import DECIMALS, Language, fixed_xyz, set_number, set_text
-from .program import NUMBER, Field, Program, ProgramFile, Target, line_of, read_file
+from .program import NUMBER, Field, Lines, Program, ProgramFile, Target, read_file
 
 _POSITION = re.compile(r"^P\[(\d+)(?::\s*\"?([^\]\"]*)\"?)?\]\s*\{(.*?)\};", re.S | re.M)
 _GROUP = re.compile(r"\bGP(\d+)\s*:")
@@ -66,7 +66,7 @@ def _config_fields(body: str, offset: int) -> tuple[dict[str, Field], dict]:
     return fields, config
 
 
-def _motions(text: str) -> dict[str, list[tuple[str | None, int]]]:
+def _motions(text: str, lines: Lines) -> dict[str, list[tuple[str | None, int]]]:
     """Position number → [(why its motion changes it at run time or None, line), …]; PR motions
     are listed under ``PR n``."""
     main = text.split("/POS", 1)[0]
@@ -76,7 +76,7 @@ def _motions(text: str) -> dict[str, list[tuple[str | None, int]]]:
             kind, number, rest = (m.group(2), m.group(3), m.group(4)) if pattern is _MOTION else m.groups()
             change = _CHANGING.search(rest)
             key = number if kind == "P" else f"PR {number}"
-            out.setdefault(key, []).append((change.group(1) if change else None, line_of(text, m.start())))
+            out.setdefault(key, []).append((change.group(1) if change else None, lines.of(m.start())))
     return out
 
 
@@ -87,11 +87,12 @@ def read(path: Path, frames_file: Path | None = None) -> Program:
     source = str(path)
     program = Program("fanuc", source, [ProgramFile(source, text, enc)], [])
     program.tools["0"], program.users["0"] = np.eye(4), np.eye(4)
-    motions = _motions(text)
+    lines = Lines(text)
+    motions = _motions(text, lines)
     pos = text.find("/POS")
     for m in _POSITION.finditer(text, max(pos, 0)):
         number, body, offset = m.group(1), m.group(3), m.start(3)
-        line = line_of(text, m.start())
+        line = lines.of(m.start())
         groups = list(_GROUP.finditer(body))
         first = groups[0] if groups else None
         end = groups[1].start() if len(groups) > 1 else len(body)

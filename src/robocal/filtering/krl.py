@@ -114,9 +114,8 @@ def _fdat(body: str, state: _State) -> None:
 def _parse(text: str, file: int, source: str, program: Program, fdats: dict, uses: dict, state: _State) -> None:
     """Targets of one file appended to the program; the frames each motion of it uses in ``uses``."""
     start = 0
-    for raw in text.splitlines(keepends=True):
+    for line, raw in enumerate(text.splitlines(keepends=True), 1):
         code = raw.split(";", 1)[0]  # KRL comments and folds run from ';' to the end of the line
-        line = line_of(text, start)
         for m in _SELECT.finditer(code):  # $TOOL = TOOL_DATA[n] | $NULLFRAME | {…}
             kind = m.group(1).lower()
             if m.group(4):

@@ -20,7 +20,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ..exceptions import InputError
-from ..math.so3 import matrix_to_rpy
+from ..math.so3 import matrix_quaternion, matrix_to_rpy
 from .program import Field, Program, Target
 
 #: the modules that define a language, in the order they are listed
@@ -114,8 +114,7 @@ def fixed_xyz(R: np.ndarray, original: tuple[float, float, float]) -> tuple[floa
 
 def quaternion(R: np.ndarray, original: np.ndarray) -> np.ndarray:
     """q1..q4 (scalar first) of R, with the sign of the original."""
-    x, y, z, w = Rotation.from_matrix(R).as_quat()
-    q = np.array([w, x, y, z])
+    q = matrix_quaternion(R)
     return -q if q @ original < 0 else q
 
 

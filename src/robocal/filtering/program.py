@@ -8,9 +8,11 @@ zones, other declarations, line endings, the encoding and the layout stay byte f
 
 from __future__ import annotations
 
+import bisect
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
@@ -21,9 +23,9 @@ NUMBER = r"(?<![\w.])[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?(?![\w.])"
 _NUMBER = re.compile(NUMBER)
 
 
-@dataclass(frozen=True)
-class Field:
-    """One number of a target: its span [start, end) in its file's text and the text there."""
+class Field(NamedTuple):
+    """One number of a target: its span [start, end) in its file's text and the text there (a
+    tuple: a large program has hundreds of thousands)."""
 
     start: int
     end: int
@@ -34,23 +36,23 @@ class Field:
         return float(self.text)
 
     def decimals(self) -> int:
-        mantissa = self.text.lower().split("e")[0]
-        return len(mantissa.split(".")[1]) if "." in mantissa else 0
+        mantissa = self.text.lower().partition("e")[0]
+        return len(mantissa) - mantissa.index(".") - 1 if "." in mantissa else 0
 
     def formatted(self, value: float, minimum_decimals: int) -> str:
         """``value`` written in this field's style: as many decimals as it had, at least
         ``minimum_decimals`` (enough for the correction), an explicit sign if it had one, no
         leading zero if it had none (FANUC's ``-.500``)."""
         decimals = max(self.decimals(), minimum_decimals)
-        if "e" in self.text.lower():
+        if "e" in self.text or "E" in self.text:
             return f"{value:.{decimals}e}"
         text = f"{value:.{decimals}f}"
         if text.startswith("-") and float(text) == 0.0:
             text = text[1:]  # no "-0.000"
         if self.text.startswith("+") and not text.startswith("-"):
             text = "+" + text
-        if re.match(r"[-+]?\.", self.text):  # written without the leading zero (-.12): so again
-            text = re.sub(r"^([-+]?)0\.", r"\1.", text)
+        if self.text.lstrip("+-").startswith("."):  # written without the leading zero (-.12): so again
+            text = text.replace("0.", ".", 1) if text.lstrip("+-").startswith("0.") else text
         return text
 
     def unchanged(self, value: float, minimum_decimals: int) -> bool:
@@ -164,8 +166,19 @@ def split_top(text: str) -> list[str]:
     return parts
 
 
+class Lines:
+    """Line numbers of a text's character indices, its line breaks found once."""
+
+    def __init__(self, text: str):
+        self.breaks = [m.start() for m in re.finditer("\n", text)]
+
+    def of(self, index: int) -> int:
+        """1-based line number of a character index."""
+        return bisect.bisect_left(self.breaks, index) + 1
+
+
 def line_of(text: str, index: int) -> int:
-    """1-based line number of a character index."""
+    """1-based line number of a character index (once; a reader that asks often keeps a :class:`Lines`)."""
     return text.count("\n", 0, index) + 1
 
 

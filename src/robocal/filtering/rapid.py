@@ -18,27 +18,28 @@ centre behind axis 1) + 2 × (wrist centre behind the lower arm) + (axis 5 negat
 
 from __future__ import annotations
 
+import bisect
 import math
 import re
 from pathlib import Path
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from ..exceptions import InputError
 from ..inverse.configuration import TOLERANCE_RAD
 from ..inverse.solve import Request
 from ..math.se3 import homogeneous
+from ..math.so3 import quaternion_matrix
 from .language import DECIMALS, Language, keep_on_boundary, quaternion, set_number, set_text
 from .program import (
     NUMBER,
     Field,
+    Lines,
     Program,
     ProgramFile,
     Target,
     blank_comments,
     fields_in,
-    line_of,
     read_file,
     split_top,
 )
@@ -71,7 +72,7 @@ def _rotation(q: np.ndarray, source: str, line: int) -> np.ndarray:
     if abs(norm - 1.0) > QUATERNION_NORM:
         raise InputError(f"the quaternion [{', '.join(f'{v:g}' for v in q)}] has norm {norm:.9g}, not 1 "
                          f"(within {QUATERNION_NORM:g})", source=source, where=f"line {line}")
-    return Rotation.from_quat([q[1], q[2], q[3], q[0]]).as_matrix()
+    return quaternion_matrix(q / norm)
 
 
 def _frame(xyz: str, quat: str, source: str, line: int) -> np.ndarray:
@@ -98,15 +99,16 @@ def read(path: Path, frames_file: Path | None = None) -> Program:
     text, enc = read_file(path)
     source = str(path)
     code = blank_comments(text, "!")
+    lines = Lines(text)
     program = Program("rapid", source, [ProgramFile(source, text, enc)], [])
     program.tools["tool0"], program.users["wobj0"] = np.eye(4), np.eye(4)
     for m in _TOOL.finditer(code):
-        program.tools[m.group(1)] = _frame(m.group(3), m.group(4), source, line_of(text, m.start()))
+        program.tools[m.group(1)] = _frame(m.group(3), m.group(4), source, lines.of(m.start()))
         if m.group(2).upper() == "FALSE":
             program.missing[m.group(1)] = "a stationary tool (robhold FALSE): the robot holds the work object"
             del program.tools[m.group(1)]
     for m in _WOBJ.finditer(code):
-        line = line_of(text, m.start())
+        line = lines.of(m.start())
         program.users[m.group(1)] = _frame(m.group(4), m.group(5), source, line) @ \
             _frame(m.group(6), m.group(7), source, line)
         if m.group(2).upper() == "TRUE" or m.group(3).upper() == "FALSE":
@@ -116,7 +118,7 @@ def read(path: Path, frames_file: Path | None = None) -> Program:
     spans = []
     for m in _MOVE.finditer(code):
         positional, tool, wobj = _arguments(m.group(2))
-        line = line_of(text, m.start())
+        line = lines.of(m.start())
         reach = positional[:2] if m.group(1).lower().startswith("movec") else positional[:1]
         for a in reach:
             if re.fullmatch(r"[A-Za-z_]\w*", a):
@@ -125,21 +127,22 @@ def read(path: Path, frames_file: Path | None = None) -> Program:
                 program.targets.append(Target(f"line {line}", line, "pose", {},
                                               unsupported=f"the target {a.strip()} is computed as the program runs"))
         spans.append((m.start(2), m.end(2), tool, wobj, line))
-    _targets(text, code, program, spans, uses)
+    _targets(text, code, program, spans, uses, lines)
     if not program.targets:
         raise InputError("no targets found (robtarget or jointtarget data)", source=source)
     program.targets.sort(key=lambda t: (t.line, min((x.start for x in t.fields.values()), default=0)))
     return program
 
 
-def _targets(text: str, code: str, program: Program, spans: list, uses: dict) -> None:
+def _targets(text: str, code: str, program: Program, spans: list, uses: dict, lines: Lines) -> None:
     source = program.source
     everything = {(u[0], u[1]) for us in uses.values() for u in us}
+    starts = [sp[0] for sp in spans]  # motions in order of the text
     for kind, pattern in (("pose", ROBTARGET), ("joints", JOINTTARGET)):
         for m in pattern.finditer(code):
             f = fields_in(text[m.start():m.end()], m.start())
             decl = _DECL.search(code[max(0, m.start() - 200):m.start()])
-            line = line_of(text, m.start())
+            line = lines.of(m.start())
             declared = decl and decl.group(1).lower() == ("robtarget" if kind == "pose" else "jointtarget")
             name = decl.group(2) if declared else f"line {line}"
             if kind == "pose":
@@ -150,7 +153,8 @@ def _targets(text: str, code: str, program: Program, spans: list, uses: dict) ->
             else:
                 items = {f"q{i + 1}": f[i] for i in range(6)}
                 t = Target(name, line, "joints", items, q=np.radians([items[f"q{i + 1}"].value for i in range(6)]))
-            inline = [s for s in spans if s[0] <= m.start() < s[1]]
+            k = bisect.bisect_right(starts, m.start()) - 1
+            inline = [spans[k]] if k >= 0 and m.start() < spans[k][1] else []
             used = [(s[2], s[3], s[4]) for s in inline] if not declared else uses.get(name.lower(), [])
             frames = {(u[0], u[1]) for u in used}
             if len(frames) == 1:
@@ -168,7 +172,7 @@ def _targets(text: str, code: str, program: Program, spans: list, uses: dict) ->
         if m.group(2) not in read_names:
             raise InputError(f"{m.group(1)} {m.group(2)}: its value is not [[x,y,z],[q1,q2,q3,q4],[cf1,cf4,cf6,cfx],"
                              "[eax…]] (robtarget) or [[j1,…,j6],[eax…]] (jointtarget) of numbers", source=source,
-                             where=f"line {line_of(text, m.start())}")
+                             where=f"line {lines.of(m.start())}")
 
 
 def _quadrant(angle: float, original: int | None) -> int:

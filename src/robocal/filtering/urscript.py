@@ -28,12 +28,12 @@ from .language import DECIMALS, Language, rotation_vector, set_number
 from .program import (
     NUMBER,
     Field,
+    Lines,
     Program,
     ProgramFile,
     Target,
     blank_comments,
     fields_in,
-    line_of,
     read_file,
     split_top,
 )
@@ -71,6 +71,7 @@ def _pose_of(values: list[float]) -> tuple[np.ndarray, np.ndarray]:
 class _Reader:
     def __init__(self, text: str, source: str):
         self.text, self.source, self.code = text, source, blank_comments(text, "#")
+        self.lines = Lines(text)
         self.program = Program("urscript", source, [ProgramFile(source, text, "")], [])
         self.tcps = [(m.start(), homogeneous(*_pose_of([f.value for f in fields_in(m.group(1))])[::-1]))
                      for m in _TCP.finditer(self.code)]
@@ -88,7 +89,7 @@ class _Reader:
 
     def tool_at(self, index: int) -> str | None:
         before = [i for i, (at, _) in enumerate(self.tcps) if at < index]
-        return f"set_tcp line {line_of(self.text, self.tcps[before[-1]][0])}" if before else None
+        return f"set_tcp line {self.lines.of(self.tcps[before[-1]][0])}" if before else None
 
     def changed(self, name: str) -> bool:
         return self.assignments.get(name, 0) > 1 or re.search(r"\b" + re.escape(name) + r"\s*\[[^\]]*\]\s*=(?!=)",
@@ -107,12 +108,12 @@ class _Reader:
         return Target(name, line, "joints", {f"q{i + 1}": x for i, x in enumerate(f)}, q=np.array([x.value for x in f]))
 
     def flag(self, what: str, index: int, why: str) -> None:
-        line = line_of(self.text, index)
+        line = self.lines.of(index)
         self.program.targets.append(Target(f"line {line}", line, "pose", {}, unsupported=f"{what}: {why}"))
 
     def motion_target(self, arg: str, at: int, tool: str | None, user: str | None = None, hint=None) -> None:
         """One motion argument: a literal target, a variable, or a call robocal understands."""
-        line = line_of(self.text, at)
+        line = self.lines.of(at)
         if _NAME.fullmatch(arg):
             self.uses.setdefault(arg, []).append((tool, user, hint, line))
             return
@@ -175,7 +176,7 @@ class _Reader:
                 self.flag(name, self.code.index(name), "the target is computed as the program runs")
                 continue
             kind, start, end = kinds[0]
-            t = self.target(kind, start, end, name, line_of(self.text, start))
+            t = self.target(kind, start, end, name, self.lines.of(start))
             frames = {(u[0], u[1]) for u in used}
             hints = [u[2] for u in used if u[2] is not None]
             pair = self.joints_of(name[:-2] + "_q", None) if name.endswith("_p") else None
@@ -190,7 +191,7 @@ class _Reader:
         self.program.targets.sort(key=lambda t: (t.line, min((f.start for f in t.fields.values()), default=0)))
         if not self.program.targets:
             raise InputError("no targets found (p[…] poses or joint lists of motions)", source=self.source)
-        self.program.tools.update({f"set_tcp line {line_of(self.text, at)}": T for at, T in self.tcps})
+        self.program.tools.update({f"set_tcp line {self.lines.of(at)}": T for at, T in self.tcps})
         return self.program
 
 

@@ -36,6 +36,8 @@ DISTINCT_RAD = 1e-4
 RANDOM_STARTS, RESTARTS = 16, 2
 #: whole turns tried per joint
 TURNS = np.arange(-2, 3)
+#: goals chosen among at once (the candidates' arrays are goals × solutions × joints × turns)
+BLOCK = 2048
 
 
 @dataclass
@@ -214,7 +216,9 @@ def _turned(robot: Robot, q: np.ndarray, lo: np.ndarray, hi: np.ndarray, hint: n
     best = np.take_along_axis(cost, pick[..., None], axis=-1)[..., 0]
     limits_ok = np.isfinite(best).all(axis=-1)
     missed = (np.where(np.isfinite(best), best, 0.0) >= 1e6).sum(axis=-1)
-    return chosen, missed, limits_ok
+    # whether any joint has another turn the limits and the target allow (then the hint decides)
+    choice = ((in_limits & in_interval).sum(axis=-1) > 1).any(axis=-1)
+    return chosen, missed, limits_ok, choice
 
 
 def _facts(robot: Robot, q: np.ndarray) -> dict[str, np.ndarray] | None:
@@ -232,7 +236,7 @@ MARGIN_RAD = np.radians(5.0)
 def _score(robot, q, valid, facts, lo, hi, wants, hint, roomy=None):
     """Turned solutions, their mismatch count and distance to the hint, and their score (lower is
     better; inf: outside the limits); ``roomy`` (m,): rows that prefer a margin to the limits."""
-    chosen, missed, limits_ok = _turned(robot, q, lo, hi, hint)
+    chosen, missed, limits_ok, choice = _turned(robot, q, lo, hi, hint)
     mismatch = missed.astype(float)
     if facts is not None:
         for name, want in wants.items():
@@ -246,7 +250,7 @@ def _score(robot, q, valid, facts, lo, hi, wants, hint, roomy=None):
     if roomy is not None and roomy.any():
         margin = np.min(np.minimum(chosen - robot.limits[:, 0], robot.limits[:, 1] - chosen), axis=2)
         score = score + np.where(roomy[:, None] & (margin < MARGIN_RAD), 100.0, 0.0)
-    return chosen, mismatch, dist, score
+    return chosen, mismatch, dist, score, choice
 
 
 def choose(robot: Robot, solutions: Solutions, requests=None, hint: np.ndarray | None = None,
@@ -266,17 +270,20 @@ def choose(robot: Robot, solutions: Solutions, requests=None, hint: np.ndarray |
     if hint is None and follow:
         hint = np.full((m, n), np.nan)
     roomy = np.zeros(m, bool) if roomy is None else np.asarray(roomy, bool)
-    chosen, mismatch, dist, score = _score(robot, q, valid, facts, lo, hi, wants, hint, roomy)
+    chosen, mismatch, dist, score, choice = _score(robot, q, valid, facts, lo, hi, wants, hint, roomy)
     index = np.argmin(score, axis=1)
-    if follow:  # in order: each goal without its own hint follows the one before
-        for i in np.flatnonzero(np.isnan(hint).all(axis=1)):
+    if follow:  # in order: each goal without its own hint follows the one before, where that decides
+        level = np.floor(np.min(score, axis=1, keepdims=True) / 1e3)
+        tied = ((np.floor(score / 1e3) == level) & np.isfinite(score)).sum(axis=1) > 1
+        decides = tied | choice[np.arange(m), index]
+        for i in np.flatnonzero(np.isnan(hint).all(axis=1) & decides):
             if i == 0 or not np.isfinite(score[i - 1, index[i - 1]]):
                 continue
             h = chosen[i - 1, index[i - 1]][None]
             sub = slice(i, i + 1)
-            c, mm, d, sc = _score(robot, q[sub], valid[sub], None if facts is None else
-                                  {f: v[sub] for f, v in facts.items()}, lo[sub], hi[sub],
-                                  {f: v[sub] for f, v in wants.items()}, h, roomy[sub])
+            c, mm, d, sc, _ = _score(robot, q[sub], valid[sub], None if facts is None else
+                                     {f: v[sub] for f, v in facts.items()}, lo[sub], hi[sub],
+                                     {f: v[sub] for f, v in wants.items()}, h, roomy[sub])
             chosen[i], mismatch[i], dist[i], score[i] = c[0], mm[0], d[0], sc[0]
             index[i] = np.argmin(sc[0])
     rows = np.arange(m)
@@ -294,22 +301,36 @@ def controller_joints(nominal: Robot, T: np.ndarray, hint: np.ndarray | None = N
     the previous goal's (the first goal: the best-conditioned ready configuration's).  Returns the joints (NaN where no
     solution), a status (``ok``, ``unreachable``, ``limit``, ``configuration``) and a reason per
     goal, and how they were solved."""
-    sols = all_solutions(nominal, T, hint=hint, seed=seed)
     m, n = len(T), nominal.n_joints
+    if m == 0:
+        return np.zeros((0, n)), [], [], "no goals"
+    sols = all_solutions(nominal, T, hint=hint, seed=seed)
     hint = np.full((m, n), np.nan) if hint is None else np.array(hint, float)
     own = np.isnan(hint).all(axis=1)
     if m and own[0]:  # the first goal with nothing to go by: nearest a ready, upright arm
         hint[0] = ready_configurations(nominal)[0]
-    free = own & np.array([r is None or r.empty for r in (requests or [None] * m)])
-    pick = choose(nominal, sols, requests, hint, follow=True, roomy=free)
+    requests = list(requests or [None] * m)
+    free = own & np.array([r is None or r.empty for r in requests])
+    picks = []
+    for start in range(0, m, BLOCK):  # in blocks, so that the candidates' arrays stay small
+        rows = slice(start, start + BLOCK)
+        h = hint[rows].copy()
+        if picks and np.isnan(h[0]).all() and picks[-1].found[-1]:
+            h[0] = picks[-1].q[-1]  # a block's first goal follows the previous block's last
+        block = Solutions(sols.q[rows], sols.valid[rows], sols.method, sols.searches)
+        picks.append(choose(nominal, block, requests[rows], h, follow=True, roomy=free[rows]))
+    pick = Choice(*(np.concatenate([getattr(p, f) for p in picks]) for f in ("q", "index", "mismatch", "distance")),
+                  None if picks[0].arm is None else Arm(*(np.concatenate([getattr(p.arm, f) for p in picks])
+                                                         for f in ("front", "elbow", "lower", "q"))))
     status, reasons = [], []
+    count, found = sols.count, pick.found
     for i in range(len(T)):
-        if sols.count[i] == 0:
+        if count[i] == 0:
             status.append("unreachable")
             reasons.append(f"the nominal model reaches no solution ({sols.method}, {sols.searches} starts)")
-        elif not pick.found[i]:
+        elif not found[i]:
             status.append("limit")
-            reasons.append(f"the nominal model's {sols.count[i]} solution(s) all lie beyond a joint limit")
+            reasons.append(f"the nominal model's {count[i]} solution(s) all lie beyond a joint limit")
         elif pick.mismatch[i] > 0:
             status.append("configuration")
             reasons.append("no solution of the nominal model in the configuration the target names "

@@ -155,3 +155,30 @@ def project_to_so3(M: np.ndarray) -> np.ndarray:
     D = np.ones(M.shape[:-1])
     D[..., 2] = np.sign(np.linalg.det(U @ Vt))
     return (U * D[..., None, :]) @ Vt
+
+
+def quaternion_matrix(q: np.ndarray) -> np.ndarray:
+    """R (3, 3) of a unit quaternion (w, x, y, z), scalar first."""
+    w, x, y, z = q
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+
+
+def matrix_quaternion(R: np.ndarray) -> np.ndarray:
+    """The unit quaternion (w, x, y, z) of R (3, 3), w ≥ 0, from its largest diagonal term (Shepperd)."""
+    trace = R[0, 0] + R[1, 1] + R[2, 2]
+    k = int(np.argmax([trace, R[0, 0], R[1, 1], R[2, 2]]))
+    if k == 0:
+        s = 2.0 * np.sqrt(1.0 + trace)
+        q = np.array([s / 4, (R[2, 1] - R[1, 2]) / s, (R[0, 2] - R[2, 0]) / s, (R[1, 0] - R[0, 1]) / s])
+    else:
+        i, j, m = k - 1, k % 3, (k + 1) % 3
+        s = 2.0 * np.sqrt(1.0 + R[i, i] - R[j, j] - R[m, m])
+        q = np.empty(4)
+        q[0] = (R[m, j] - R[j, m]) / s
+        q[1 + i] = s / 4
+        q[1 + j] = (R[j, i] + R[i, j]) / s
+        q[1 + m] = (R[m, i] + R[i, m]) / s
+    q /= np.linalg.norm(q)
+    return -q if q[0] < 0 else q

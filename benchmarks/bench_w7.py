@@ -1,0 +1,13 @@
+"""W7: filtering a 10 000-robtarget RAPID module for an IRB 120, beside one batched FK of as many
+poses, quiet and with one busy process per core (peak memory of a fresh interpreter).
+
+Run from the source tree: python benchmarks/bench_w7.py
+"""
+
+from robocal.bench.timing import print_rows
+from robocal.bench.workloads import busy_cores, w7_filter
+
+rows = w7_filter(3)
+with busy_cores() as busy:
+    rows += w7_filter(3, label=f" ({busy.n} busy)")
+print_rows(rows)
