@@ -366,3 +366,29 @@ def test_a_calibrated_model_of_another_robot_is_said(tmp_path, planted):
 def test_load_program_reads_every_language():
     for program, _, _ in PUBLIC:
         assert load_program(PROGRAMS / program).targets
+
+
+def test_filter_and_compensate_give_the_same_joints_for_the_same_goal_and_tool(tmp_path):
+    """A RAPID target and the same pose as a goal of compensate, with the same tool: one frame
+    algebra, one inverse: the same joints."""
+    from robocal.compensation import compensate
+    from robocal.io.goals import Goals
+    from robocal.io.robotfile import load_robot
+
+    rng = np.random.default_rng(3)
+    nominal, accurate = _robots(tmp_path, "irb120", PEDESTAL)
+    g = ind.geometry("irb120")
+    tool = ctl.frame([10.0, 0.0, 120.0], [0.0, 20.0, 0.0])
+    q = _taught(rng, [(-150, 150), (-60, 70), (-80, 50), (-150, 150), (20, 110), (-350, 350)], 5)
+    world = [ind.pose(g, qi, base=PEDESTAL, tool=tool) for qi in q]
+    (tmp_path / "m.mod").write_text(ctl.rapid_program(world, [ctl.abb_config("irb120", g, qi, PEDESTAL)
+                                                              for qi in q], [], tool, np.eye(4)))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        filtered = filter_program(accurate, tmp_path / "m.mod", nominal)
+        T = np.stack([ctl.frame(t.position, [0, 0, 0]) for t in filtered.program.targets])  # as written
+        T[:, :3, :3] = np.stack([t.rotation for t in filtered.program.targets])
+        res = compensate(load_robot(nominal), load_robot(accurate),
+                         Goals(q=q, position=T[:, :3, 3], rotation=T[:, :3, :3], ids=list("abcde")), tool=tool)
+    assert res.status == ["ok"] * 5 and filtered.counts() == {"ok": 5}
+    np.testing.assert_allclose(np.stack([c.q for c in filtered.corrections]), res.q, atol=1e-9)

@@ -44,7 +44,8 @@ BLOCK = 2048
 class Solutions:
     """Every solution of m goals: ``q`` (m, k, n) rad, NaN where a goal has fewer than k;
     ``valid`` (m, k); ``method`` (``closed form (spherical)``, ``… polished``, ``multi-start``)
-    and the starts tried per goal (``searches``)."""
+    and the starts tried per goal (``searches``).  :meth:`facts` gives each solution's
+    configuration facts, which a language's ``encode`` turns into its configuration data."""
 
     q: np.ndarray
     valid: np.ndarray
@@ -54,6 +55,13 @@ class Solutions:
     @property
     def count(self) -> np.ndarray:
         return self.valid.sum(axis=1)
+
+    def facts(self, robot: Robot) -> dict[str, np.ndarray] | None:
+        """``front``, ``elbow``, ``lower`` (m, k) of every solution (see :mod:`.configuration`)."""
+        return _facts(robot, np.nan_to_num(self.q))
+
+    def rows(self, rows) -> Solutions:
+        return Solutions(self.q[rows], self.valid[rows], self.method, self.searches)
 
 
 def _goal_parts(T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -317,7 +325,7 @@ def controller_joints(nominal: Robot, T: np.ndarray, hint: np.ndarray | None = N
         h = hint[rows].copy()
         if picks and np.isnan(h[0]).all() and picks[-1].found[-1]:
             h[0] = picks[-1].q[-1]  # a block's first goal follows the previous block's last
-        block = Solutions(sols.q[rows], sols.valid[rows], sols.method, sols.searches)
+        block = sols.rows(rows)
         picks.append(choose(nominal, block, requests[rows], h, follow=True, roomy=free[rows]))
     pick = Choice(*(np.concatenate([getattr(p, f) for p in picks]) for f in ("q", "index", "mismatch", "distance")),
                   None if picks[0].arm is None else Arm(*(np.concatenate([getattr(p.arm, f) for p in picks])
