@@ -392,3 +392,18 @@ def test_filter_and_compensate_give_the_same_joints_for_the_same_goal_and_tool(t
                          Goals(q=q, position=T[:, :3, 3], rotation=T[:, :3, :3], ids=list("abcde")), tool=tool)
     assert res.status == ["ok"] * 5 and filtered.counts() == {"ok": 5}
     np.testing.assert_allclose(np.stack([c.q for c in filtered.corrections]), res.q, atol=1e-9)
+
+
+def test_an_unnamed_tool_for_a_program_of_several_tools_is_refused(tmp_path, run_cli):
+    nominal, accurate = _robots(tmp_path, "irb120", np.eye(4), COUPLING)
+    g = ind.geometry("irb120")
+    q = np.radians([[10.0, 20.0, -10.0, 30.0, 50.0, 20.0], [-20.0, 10.0, 5.0, -30.0, -40.0, 10.0],
+                    [30.0, 0.0, -20.0, 10.0, 60.0, 0.0]])  # P[1] is also reached with an offset: not counted
+    text = ctl.fanuc_program([ind.pose(g, qi) for qi in q], [ctl.fanuc_config("irb120", g, qi) for qi in q], [])
+    head, _, tail = text.rpartition("UF : 1, UT : 2")
+    text = head + "UF : 0, UT : 1" + tail  # the last position in another tool and frame
+    (tmp_path / "two.ls").write_text(text)
+    code, _, err = run_cli("filter", accurate, tmp_path / "two.ls", "--nominal", nominal, "--out", tmp_path / "o.ls",
+                           "--tool", "0,0,100,0,0,0")
+    assert code == 2 and "taught in 2 tools (1, 2)" in err and "--tool NAME=" in err
+    assert not (tmp_path / "o.ls").exists()

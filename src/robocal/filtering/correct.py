@@ -133,11 +133,25 @@ def _resolve(program: Program, frames: Frames, t: Target, nominal: Robot):
         t.user, f"the program does not declare it (give --user-frame {t.user}=x,y,z,rx,ry,rz)")
 
 
+def _check_unnamed(program: Program, frames: Frames) -> None:
+    """An unnamed --tool or --user-frame stands for every target's: refused where the program's
+    targets name several (which one is it?)."""
+    from ..exceptions import InputError
+
+    for given, attr, option in ((frames.tcp, "tool", "tool"), (frames.user, "user", "user_frame")):
+        named = sorted({str(getattr(t, attr)) for t in program.targets if not t.unsupported}, key=str)
+        if given is not None and len(named) > 1:
+            flag = "--" + option.replace("_", "-")
+            raise InputError(f"the program's targets are taught in {len(named)} {attr}s ({', '.join(named)}): "
+                             f"name the one given ({flag} NAME=x,y,z,rx,ry,rz)", option=option)
+
+
 def plan(program: Program, language: Language, nominal: Robot, accurate: Robot, frames: Frames,
          seed: int = 0) -> tuple[list[Correction], list[str]]:
     """The correction of every target of ``program`` (see the module docstring), before the
     check; the notes."""
     notes = list(program.notes)
+    _check_unnamed(program, frames)
     out: dict[int, Correction] = {}
     groups: dict[str, list] = defaultdict(list)
     cells: dict[str, Cell] = {}
@@ -211,20 +225,20 @@ def _poses(program: Program, language: Language, cell: Cell, members, hints, see
     new_prog = cell.in_user([users[k] for k in ok], new_world)
     moved_mm, turned_deg = frame_gap(new_prog, T_prog[ok])
     arm_nom, arm_acc = arm_configuration(nominal, q_nom[ok]), arm_configuration(nominal, q_acc)
+    J_nom, J_acc = nominal.to_controller(q_nom[ok]), nominal.to_controller(q_acc)
+    moved_deg = np.degrees(np.max(np.abs(q_acc - q_nom[ok]), axis=1))
     for j, k in enumerate(ok):
         t, i = targets[k], idx[k]
-        before = t.config or language.encode(nominal.to_controller(q_nom[k]), _facts(arm_nom, j), {})
-        common = dict(q_nominal=nominal.to_controller(q_nom[k]), config_before=before, tool=t.tool, user=t.user)
+        before = t.config or language.encode(J_nom[j], _facts(arm_nom, j), {})
+        common = dict(q_nominal=J_nom[j], config_before=before, tool=t.tool, user=t.user)
         st = "singular" if singular[j] and sol.status[j] in ("ok", "branch") else sol.status[j]
         if st != "ok":
             why = sol.reason(j) if st == sol.status[j] else "the nominal model is singular at its joints"
             out[i] = Correction(t, st, why, **common)
             continue
-        J = nominal.to_controller(q_acc[j])
-        out[i] = Correction(t, "ok", "corrected", pose=new_prog[j], q=J, moved_mm=float(moved_mm[j]),
-                            turned_deg=float(turned_deg[j]),
-                            joints_deg=float(np.degrees(np.max(np.abs(q_acc[j] - q_nom[k])))),
-                            config_after=language.encode(J, _facts(arm_acc, j), t.config), **common)
+        out[i] = Correction(t, "ok", "corrected", pose=new_prog[j], q=J_acc[j], moved_mm=float(moved_mm[j]),
+                            turned_deg=float(turned_deg[j]), joints_deg=float(moved_deg[j]),
+                            config_after=language.encode(J_acc[j], _facts(arm_acc, j), t.config), **common)
     return out
 
 
