@@ -81,8 +81,11 @@ def evaluate(robot: str | Path | Robot, data: str | Path | Measurements, *, colu
         check_units(r, meas, frames)
     if payload is not None and meas.payload is None:
         meas = replace(meas, payload=np.full(meas.n_poses, opt.number(payload, "payload", minimum=0.0)))
+    from .model.uncertainty import known_targets, predicted_sigma, region_note
+
     notes: list[str] = [w for w in (missing_torques(r.terms, meas.torques, meas.source),
-                                    drift_note(r.terms, meas.inputs, meas.source), r.outside_note(meas.q)) if w]
+                                    drift_note(r.terms, meas.inputs, meas.source),
+                                    region_note(r, meas.q, known_targets(r, meas), meas.inputs)) if w]
     mode = frames
     missing = [t for t in meas.target_names if t and t not in r.targets]
     if missing and frames == "none":
@@ -110,12 +113,7 @@ def evaluate(robot: str | Path | Robot, data: str | Path | Measurements, *, colu
                   for t in meas.target_names} if meas.targets is not None else {}
     sigma = None
     if uncertainty:
-        from .model.uncertainty import point_sigma
-
-        known = meas.targets if meas.targets is not None and all(t in r.target_names for t in meas.targets) else None
-        sigma = point_sigma(r, r.uncertainty, meas.q, known, meas.inputs)
-        if r.residual is not None:
-            notes.append("uncertainty: of the parametric model; its residual correction's own is not counted")
+        sigma = predicted_sigma(r, meas.q, known_targets(r, meas), meas.inputs)
     from .model.metrics import per_pose
 
     rows = per_pose(r, meas, "evaluated")

@@ -142,7 +142,7 @@ def test_the_exported_model_with_its_residual_file_evaluates_to_the_validation_f
     res, _ = _calibrate("kr5-arc", meas, frames="none", model="compliance+harmonics+residual", validate=fresh)
     assert res.robot.residual is not None and res.robot.terms is not None
     written = res.export(tmp_path / "cal.toml")
-    assert [p.name for p in written] == ["cal.toml", "cal.residual.json", "cal.geometric.toml"]
+    assert [p.name for p in written] == ["cal.toml", "cal.residual.json"]
     assert 'residual = "cal.residual.json"' in (tmp_path / "cal.toml").read_text()
     figure = res.metrics["validation_after"].position["rms"]
     assert evaluate(tmp_path / "cal.toml", fresh).metrics.position["rms"] == pytest.approx(figure, rel=1e-9)

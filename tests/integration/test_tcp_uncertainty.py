@@ -68,3 +68,48 @@ def test_the_covariance_travels_with_the_robot_file_and_evaluate_gives_it_per_po
     assert [p["sigma_mm"] for p in per_pose] == pytest.approx(expected, rel=1e-6)
     code, out, err = run_cli("evaluate", "kr5-arc", tmp_path / "d.csv", "--uncertainty")
     assert code == 2 and "no parameter covariance" in err
+
+
+@pytest.mark.slow
+def test_predicted_uncertainty_is_calibrated_inside_and_outside_the_sampled_joint_box():
+    """A compliant KR5 calibrated on poses from the middle 60 % of its joint ranges and judged on
+    fresh poses inside that box and beyond it (up to the limits): the whole model is used in both,
+    and its predicted σ matches the actual error there, z = |error| / σ with rms near 1."""
+    from robocal.model.uncertainty import predicted_sigma
+
+    g = ind.geometry("kr5-arc", DEVIATIONS)
+    masses, centres = [25.0, 18.0, 9.0, 4.0, 2.0, 0.5], [(-90, 30, 0), (-300, 0, 60), (-40, -20, 10), (0, 80, 0),
+                                                        (0, 0, 20), (0, 0, 0)]
+    compliance = np.array([0.0, 5e-6, 8e-6, 0.0, 0.0, 0.0])
+    lim = np.radians(ind.LIMITS_DEG["kr5-arc"])
+    box = lim.mean(axis=1)[:, None] + 0.3 * (lim - lim.mean(axis=1)[:, None])
+
+    def torques(q):
+        return np.array([ind.gravity_torques(ind.geometry("kr5-arc"), qi, masses, centres) for qi in q])
+
+    def truth(q, tau):
+        return np.array([ind.pose(g, qi)[:3, 3] for qi in q + tau * compliance])
+
+    rng = np.random.default_rng(3)
+    inside = rng.uniform(box[:, 0], box[:, 1], (15, 6))
+    outside = rng.uniform(lim[:, 0], lim[:, 1], (60, 6))
+    outside = outside[np.any((outside < box[:, 0] - 0.2) | (outside > box[:, 1] + 0.2), axis=1)][:15]
+    fresh = np.vstack([inside, outside])
+    tau_fresh = torques(fresh)
+    z = []
+    for draw in range(40):
+        r = np.random.default_rng(100 + draw)
+        q = r.uniform(box[:, 0], box[:, 1], (60, 6))
+        tau = torques(q)
+        meas = Measurements(q=q, position=truth(q, tau) + r.normal(0, NOISE, (60, 3)), torques=tau)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            res = calibrate("kr5-arc", meas, "lm", frames="none", model="compliance", noise=NOISE)
+        from robocal.model.terms import JointInputs
+
+        inputs = JointInputs(torques=tau_fresh)
+        error = np.linalg.norm(res.robot.positions(fresh, inputs=inputs) - truth(fresh, tau_fresh), axis=1)
+        z.append(error / predicted_sigma(res.robot, fresh, inputs=inputs))
+    z = np.array(z)
+    rms_in, rms_out = np.sqrt(np.mean(z[:, :15] ** 2)), np.sqrt(np.mean(z[:, 15:] ** 2))
+    assert 0.7 < rms_in < 1.4 and 0.7 < rms_out < 1.4, (rms_in, rms_out)

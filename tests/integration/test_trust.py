@@ -252,7 +252,10 @@ def test_the_final_guard_keeps_geometry_over_a_rich_model_that_fits_worse():
     assert not np.any(kept.fit.estimate.x) and any("nominal joint geometry is returned" in n for n in kept.notes)
 
 
-def test_outside_its_region_a_model_beyond_geometry_falls_back_to_its_geometric_fit(tmp_path, run_cli):
+def test_outside_its_region_the_whole_model_is_used_and_its_uncertainty_says_how_well(tmp_path, run_cli):
+    """Harmonics of joint 2 identified over 40° of its range, used 80° further on: the model is
+    used whole (no fallback), and its predicted uncertainty, grown as the covariance says, names
+    those poses and accounts for their errors."""
     def gears(q):  # a transmission error of joint 2, which the geometry cannot take
         dq = np.zeros_like(q)
         dq[:, 1] = 0.004 * np.cos(q[:, 1]) + 0.003 * np.sin(2 * q[:, 1])
@@ -266,32 +269,34 @@ def test_outside_its_region_a_model_beyond_geometry_falls_back_to_its_geometric_
     far[:, 1] += math.radians(80)
     g = ind.geometry("kr5-arc", {"a2": 0.2, "d4": -0.15})
 
-    def measure(q):
+    def measure(q, noise=0.01):
         return Measurements(q=q, position=np.array([ind.pose(g, qi)[:3, 3] for qi in q + gears(q)])
-                            + rng.normal(0, 0.01, (len(q), 3)))
+                            + rng.normal(0, noise, (len(q), 3)))
 
     within = np.clip(narrow[200:], narrow[:200].min(axis=0), narrow[:200].max(axis=0))
-    cal, inside, outside = measure(narrow[:200]), measure(within), measure(far[200:])
-    res, _ = _said(calibrate, "kr5-arc", cal, model="harmonics", frames="none", harmonics=3)
+    cal, inside, outside = measure(narrow[:200]), measure(within, 0.0), measure(far[200:], 0.0)
+    res, _ = _said(calibrate, "kr5-arc", cal, model="harmonics", frames="none", harmonics=3, noise=0.01)
     rich = res.robot
-    assert rich.fallback is not None and rich.fallback.geometric and rich.region is not None
+    assert rich.region is not None and rich.region.sigma_mm > 0 and rich.uncertainty is not None
     path = tmp_path / "rich.toml"
     save_robot(rich, path)
-    code, out, err = run_cli("evaluate", path, _write(tmp_path / "far.csv", outside), "--json")
-    assert code == 0 and "100 of 100 poses lie more than 2° outside" in err and "joint 2 by up to" in err
-    far_rms = json.loads(out)["position"]["rms"]
-    geometric_rms = np.sqrt(np.mean(np.sum((outside.position - rich.fallback_robot.positions(outside.q)) ** 2, axis=1)))
-    assert far_rms == pytest.approx(geometric_rms, rel=1e-9)  # beyond the margin it is the geometric fit
-    unguarded = rich.replace(fallback=None)
-    wild = np.sqrt(np.mean(np.sum((outside.position - unguarded.positions(outside.q)) ** 2, axis=1)))
-    assert wild > far_rms  # what the terms alone would have done there
+    code, out, err = run_cli("evaluate", path, _write(tmp_path / "far.csv", outside), "--json", "--uncertainty")
+    assert code == 0 and "poses have a predicted position uncertainty above 3× its median" in err
+    shown = json.loads(out)
+    error = np.linalg.norm(outside.position - rich.positions(outside.q), axis=1)
+    assert shown["position"]["rms"] == pytest.approx(np.sqrt(np.mean(error ** 2)), rel=1e-9)  # the model itself
+    sigma = np.array([p["sigma_mm"] for p in shown["uncertainty"]["per_pose"]])
+    assert np.median(sigma) > 3 * rich.region.sigma_mm  # far less known there, and it says so
+    z = error / sigma
+    assert 0.5 < np.sqrt(np.mean(z ** 2)) < 2.0, np.sqrt(np.mean(z ** 2))  # and by about as much as it errs
     code, out, err = run_cli("evaluate", path, _write(tmp_path / "in.csv", inside), "--json")
-    assert code == 0 and "outside" not in err
+    assert code == 0 and "uncertainty above" not in err
     assert json.loads(out)["position"]["rms"] == pytest.approx(
-        np.sqrt(np.mean(np.sum((inside.position - unguarded.positions(inside.q)) ** 2, axis=1))), rel=1e-9)
-    (tmp_path / "rich.geometric.toml").unlink()  # the whole model travels, or the command refuses
-    code, _, err = run_cli("evaluate", path, tmp_path / "in.csv")
-    assert code == 2 and "rich.geometric.toml" in err and err.count("\n") == 1
+        np.sqrt(np.mean(np.sum((inside.position - rich.positions(inside.q)) ** 2, axis=1))), rel=1e-9)
+    legacy = 'fallback = "rich.geometric.toml"\n' + path.read_text()
+    (tmp_path / "old.toml").write_text(legacy)  # an earlier file naming a geometric fallback: said, not used
+    code, out, err = run_cli("evaluate", tmp_path / "old.toml", tmp_path / "in.csv", "--json")
+    assert code == 0 and "key 'fallback'" in err and "is not used" in err, err
 
 
 def _write(path, meas):

@@ -31,10 +31,20 @@ def test_stored_prediction_equals_scikit_learn(rng):
     e = _smooth(q) + rng.normal(0, 0.01, (150, 3))
     model, kernels = fit_residual(q, e, seed=1)
     reference = GaussianProcessRegressor(_sklearn(kernels[0]), normalize_y=True, optimizer=None).fit(q, e)
-    fresh = rng.uniform(-2, 2, (40, 6))
-    np.testing.assert_allclose(model.predict(fresh), reference.predict(fresh), atol=1e-10)
+    fresh = np.vstack([rng.uniform(-2, 2, (40, 6)), rng.uniform(8, 12, (5, 6))])  # 5 far from every pose
+    block = model.blocks[0]
+    # the kernel part is scikit-learn's; the standardisation's mean fades away from the data
+    near = np.exp(-0.5 * np.min(np.sum(((fresh[:, None] - model.X[None]) / block.length_scales) ** 2, axis=2), axis=1))
+    np.testing.assert_allclose(model.predict(fresh) - np.outer(near, block.y_mean),
+                               reference.predict(fresh) - block.y_mean, atol=1e-10)
+    assert np.abs(model.predict(fresh[40:])).max() < 1e-9  # nothing far from its data
+    # the posterior variance is scikit-learn's, less the white noise it counts in its predictive one
+    _, std = reference.predict(fresh, return_std=True)
+    assert std.shape == (45, 3)  # one per output, each scaled by its own y_scale
+    np.testing.assert_allclose(model.position_variance(fresh),
+                               np.sum(std ** 2, axis=1) - kernels[0].noise * np.sum(block.y_scale ** 2), rtol=1e-6)
     # and it learnt the function, not the noise
-    assert np.sqrt(np.mean((model.predict(fresh) - _smooth(fresh)) ** 2)) < 0.02
+    assert np.sqrt(np.mean((model.predict(fresh[:40]) - _smooth(fresh[:40])) ** 2)) < 0.02
 
 
 def test_json_round_trip_and_orientation_block(rng):

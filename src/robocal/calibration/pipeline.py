@@ -28,12 +28,15 @@ from collections.abc import Callable, Mapping
 from dataclasses import replace
 from pathlib import Path
 
+import numpy as np
+
 from ..backend import blas_threads
 from ..exceptions import RobocalWarning
 from ..model.covariance import ParameterCovariance
 from ..model.measurements import Measurements
 from ..model.region import Region
 from ..model.robot import Robot
+from ..model.uncertainty import known_targets, predicted_sigma
 from ..optimize.result import Progress
 from .config import CalibrationConfig
 from .residual import MAX_POINTS
@@ -99,7 +102,7 @@ def order_notes(fit, meas: Measurements) -> list[str]:
 
 def _validated(table, chosen: str, metrics) -> list:
     """The ladder, with the chosen model's validation RMS as the calibrated model gives it (with
-    its region and fallback), the figure the error budget and the metrics show."""
+    its region and how well it knows its TCP there), the figure the error budget and the metrics show."""
     if "validation_after" not in metrics:
         return table
     rms = metrics["validation_after"].position["rms"]
@@ -121,10 +124,9 @@ def _calibrate(robot, data, validate, cfg: CalibrationConfig, columns, progress,
     calibrated = fit.robot.replace(name=f"{inputs.nominal.name} (calibrated)", residual=chosen.residual, region=region,
                                    uncertainty=None if fit.covariance is None else
                                    ParameterCovariance(tuple(est.problem.names), fit.covariance))
-    if not calibrated.geometric:  # outside its region it becomes its geometric fit
-        geometric = (chosen.geometric or fit).robot
-        calibrated = calibrated.with_fallback(geometric.replace(
-            name=f"{inputs.nominal.name} (calibrated, geometric fit)", region=region, residual=None))
+    if calibrated.uncertainty is not None:  # how well it knows its TCP where its data were
+        sigma = predicted_sigma(calibrated, inputs.meas.q, known_targets(calibrated, inputs.meas), inputs.meas.inputs)
+        calibrated = calibrated.replace(region=region.with_sigma(float(np.median(sigma))))
     with stage("evaluate"):
         metrics, said = evaluate(initial, calibrated, est.problem.meas, inputs.meas, inputs.validation,
                                  fit.screening)

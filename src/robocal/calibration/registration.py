@@ -162,7 +162,7 @@ def _turned_tool(base_only: Robot, both: Robot, meas: Measurements, targets) -> 
 def _fit_frames_whole(robot: Robot, meas: Measurements, mode: str, sigma_position: float,
                       sigma_orientation: float | None) -> Robot:
     """Frames of a model beyond geometry fitted through its whole forward model (joint terms,
-    residual correction, the blend into its geometric fallback outside the calibrated region),
+    residual correction),
     by least squares with finite-difference derivatives: a handful of frame parameters."""
     from scipy.optimize import least_squares
 
@@ -215,7 +215,7 @@ def fit_frames(robot: Robot, meas: Measurements, mode: str, sigma_position: floa
     initial = register_frames(robot, meas, mode)
     if mode == "none":
         return initial
-    if not robot.geometric:  # what is fitted is the whole model's pose: terms, residual, fallback
+    if not robot.geometric:  # what is fitted is the whole model's pose: terms and residual
         return _fit_frames_whole(initial, meas, mode, sigma_position, sigma_orientation)
     space = ParameterSpace.of(initial, meas.target_names if mode == "base+tool" else None)
     sigma_r = sigma_orientation if sigma_orientation is not None else sigma_position / np.sqrt(DEFAULT_K)

@@ -136,8 +136,11 @@ def _block(q, y, keep, kernel: Kernel, rng: np.random.Generator) -> Block:
     L = cholesky(K, lower=True, overwrite_a=True, check_finite=False)
     mean, scale = moments(y)
     alpha = cho_solve((L, True), (y - mean) / scale, check_finite=False)
-    return Block(alpha=alpha.reshape(len(keep), -1), length_scales=kernel.length_scales, amplitude=kernel.amplitude,
-                 y_mean=mean, y_scale=scale, dof=effective_dof(L, kernel.noise, rng) * y.shape[1])
+    block = Block(alpha=alpha.reshape(len(keep), -1), length_scales=kernel.length_scales, amplitude=kernel.amplitude,
+                  y_mean=mean, y_scale=scale, dof=effective_dof(L, kernel.noise, rng) * y.shape[1],
+                  noise=kernel.noise + JITTER)
+    block.__dict__["_chol"] = L  # the factor its variance needs (Block.factor), already at hand
+    return block
 
 
 def _blocks(errors: np.ndarray):

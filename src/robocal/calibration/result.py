@@ -36,8 +36,10 @@ from .noise import NoiseEstimate
 #: model_s, evaluate_s, total_s}, ``region`` and ``fallback``; 5 added ``instrument`` (the
 #: misfit against the instrument's own σ per point), ``noise.meaning`` and the joint terms
 #: ``backlash1..N`` (deg) and ``drift1..N`` (deg/h or deg/1000 rows), ``tcp_uncertainty`` (the
-#: predicted position's σ over the calibrated region: points, median_mm, p95_mm, max_mm)
-SCHEMA_VERSION = 5
+#: predicted position's σ over the calibrated region: points, median_mm, p95_mm, max_mm); 6 dropped
+#: ``fallback`` (the whole model is used everywhere), ``region`` gained ``sigma_mm`` and
+#: ``tcp_uncertainty`` counts the residual process's own variance
+SCHEMA_VERSION = 6
 #: a deviation smaller than this many standard uncertainties is "not significant"
 SIGNIFICANCE_SIGMAS = 2.0
 
@@ -223,7 +225,6 @@ class CalibrationResult:
             "error_budget": [r.to_dict() for r in self.error_budget],
             "residual_model": None if self.robot.residual is None else self.robot.residual.summary(),
             "region": None if self.robot.region is None else self.robot.region.to_dict(),
-            "fallback": None if self.robot.fallback is None else "the geometric fit, outside the region",
             "frames": self.frames,
             "frames_requested": cfg.frames,
             "robot": self.nominal.name,

@@ -348,7 +348,7 @@ def fit_model(inputs: Inputs, config: CalibrationConfig, progress=None, stages=N
             with worker_pool() as pool:
                 residual = residual_on_all(fit, config.seed, pool=pool)
         geometric = fit
-        if terms - {"residual"}:  # the fallback outside the calibrated region, and the error budget
+        if terms - {"residual"}:  # the guard's comparison, and the error budget
             geometric = fit_parametric(inputs, config, term_spec((), meas, config))
         return Chosen(model_name(terms), fit, residual, notes=spent_dof(fit, residual), geometric=geometric)
     groups = pose_groups(meas)

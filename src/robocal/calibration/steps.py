@@ -110,8 +110,8 @@ def load_inputs(robot, data, validate, config: CalibrationConfig, columns=None) 
         notes.append(f"the residual model of {nominal.source or nominal.name} is not used as a starting point: a "
                      "calibration fits its own (with --model residual or auto)")
         nominal = nominal.replace(residual=None)
-    if nominal.fallback is not None or nominal.region is not None:  # a new calibration finds its own
-        nominal = nominal.replace(fallback=None, region=None)
+    if nominal.region is not None:  # a new calibration finds its own
+        nominal = nominal.replace(region=None)
     meas = _measurements(data, nominal, config, columns)
     val = None if validate is None else _measurements(validate, nominal, config, columns)
     if not (meas.full_pose and config.use_orientation):

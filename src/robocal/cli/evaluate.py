@@ -73,7 +73,8 @@ def _print_uncertainty(ev) -> None:
              else f"the 10 largest of {len(order)} (mm, 1σ)")
     console().print(table(title, ("pose", "σ (mm)"), [(ev.poses[i], f"{ev.sigma[i]:.4f}") for i in sorted(shown)],
                           text_columns=(0,)))
-    console().print(f"predicted position uncertainty (1σ, rms radius, from the model's parameter covariance): "
+    console().print(f"predicted position uncertainty (1σ, rms radius: the parameters' covariance and the residual "
+                    f"process's variance): "
                     f"median {s['median_mm']:.4f} mm, 95 % of poses below {s['p95_mm']:.4f} mm, largest "
                     f"{s['max_mm']:.4f} mm" + ("" if len(order) <= LISTED else "; --json lists every pose"))
 

@@ -39,6 +39,7 @@ from ..model.measurements import move_directions
 from ..model.metrics import Metrics
 from ..model.robot import Robot
 from ..model.terms import JointInputs, drift_note, missing_torques
+from ..model.uncertainty import region_note
 
 
 @dataclass
@@ -212,7 +213,8 @@ def compensate(nominal: Robot, calibrated: Robot, goals: Goals, *, truth: Robot 
     sol = solve_ik(calibrated, T_cal[:, :3, 3], T_cal[:, :3, :3] if full else None, q_nom, rot_weight=rot_weight,
                    inputs=inputs, targets=targets)
     notes += [w for w in (missing_torques(calibrated.terms, goals.torques, goals.source),
-                          drift_note(calibrated.terms, inputs, goals.source), calibrated.outside_note(sol.q)) if w]
+                          drift_note(calibrated.terms, inputs, goals.source),
+                                              region_note(calibrated, sol.q, targets, inputs)) if w]
     # a jump at a goal where the controller's own model is singular is the singularity's doing
     nominal_cond = condition_numbers(nominal, q_nom, full, rot_weight)
     reasons = [sol.reason(i) if not (s == "branch" and c > SINGULAR_CONDITION) else

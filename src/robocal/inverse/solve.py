@@ -145,7 +145,7 @@ def all_solutions(robot: Robot, T: np.ndarray, *, hint: np.ndarray | None = None
     if kind is not None:
         ideal = eq if exact else closed_form.idealized(eq, kind)
         q, ok = closed_form.solve(ideal, kind, T)
-        if exact and robot.geometric and robot.fallback is None:
+        if exact and robot.geometric:
             return Solutions(*_pack(*_distinct(q, ok, robot.prismatic)), f"closed form ({kind})", 8)
         q, reached = _polish(robot, T, q)
         ok &= reached

@@ -332,9 +332,9 @@ def _residual(value, n: int, source: str, directory: Path | None) -> ResidualMod
 
 def _region(value, slide: np.ndarray, source: str) -> Region:
     where = "[region]"
-    if not isinstance(value, dict) or "joints" not in value or set(value) - {"joints", "poses"}:
-        raise InputError("expected a [region] table with joints = [[low, high], …] and poses", source=source,
-                         where=where)
+    if not isinstance(value, dict) or "joints" not in value or set(value) - {"joints", "poses", "sigma_mm"}:
+        raise InputError("expected a [region] table with joints = [[low, high], …], poses and sigma_mm",
+                         source=source, where=where)
     ranges = _pairs(value["joints"], 2, source, f"{where} joints")
     if len(ranges) != len(slide) or np.any(ranges[:, 0] > ranges[:, 1]):
         raise InputError(f"expected {len(slide)} [low, high] pairs with low ≤ high", source=source,
@@ -342,21 +342,15 @@ def _region(value, slide: np.ndarray, source: str) -> Region:
     poses = value.get("poses", 0)
     if isinstance(poses, bool) or not isinstance(poses, int) or poses < 0:
         raise InputError(f"expected a count of poses, got {poses!r}", source=source, where=f"{where} poses")
-    return Region.from_dict({"joints": ranges.tolist(), "poses": poses}, slide)
-
-
-def _fallback(value, robot_source: str, n: int, directory: Path | None) -> Robot:
-    path = _sibling(value, "fallback", "robot file", robot_source, directory,
-                    ": the model's geometric fit, used outside the region it was calibrated on")
-    fallback = parse_robot(read_text(path, "robot file"), source=str(path), default_name=path.stem,
-                           directory=path.parent, nested=True)
-    if fallback.n_joints != n:
-        raise InputError(f"the fallback robot has {fallback.n_joints} joints, this one {n}", source=path)
-    return fallback
+    sigma = None if "sigma_mm" not in value else _number(value["sigma_mm"], source, f"{where} sigma_mm")
+    if sigma is not None and not sigma > 0:
+        raise InputError(f"expected a positive uncertainty (mm), got {sigma!r}", source=source,
+                         where=f"{where} sigma_mm")
+    return Region.from_dict({"joints": ranges.tolist(), "poses": poses, "sigma_mm": sigma}, slide)
 
 
 def parse_robot(text: str, *, source: str = "<robot>", default_name: str = "robot",
-                directory: Path | None = None, nested: bool = False) -> Robot:
+                directory: Path | None = None) -> Robot:
     """A robot from TOML text; every problem is an InputError naming ``source`` and the key.
     directory: where a ``residual`` file named in the text is looked for (default: the
     working directory)."""
@@ -390,18 +384,17 @@ def parse_robot(text: str, *, source: str = "<robot>", default_name: str = "robo
     terms = _terms(joints, data, len(joints), source)
     residual = None if "residual" not in data else _residual(data["residual"], len(joints), source, directory)
     region = None if "region" not in data else _region(data["region"], slide, source)
-    fallback = None
-    if "fallback" in data:
-        if nested:
-            raise InputError("a fallback robot has no fallback of its own", source=source, where="key 'fallback'")
-        fallback = _fallback(data["fallback"], source, len(joints), directory)
+    if "fallback" in data:  # earlier files named a geometric fit for the poses outside the region
+        warnings.warn(f"{source}: key 'fallback' ({data['fallback']!r}) is not used: a calibrated model is used whole "
+                      "everywhere, and its predicted uncertainty says where it is less known", RobocalWarning,
+                      stacklevel=3)
     uncertainty = None if "uncertainty" not in data else _covariance(data["uncertainty"], source)
     coupling = () if "controller" not in data else _coupling(data["controller"], len(joints), source)
     robot = Robot(conv, geom, limits, joint_names=tuple(nm or f"joint{i + 1}" for i, nm in enumerate(names))
                   if any(names) else None, base=base, tool=tool, targets=targets, name=name or default_name,
                   source=source, terms=terms, residual=residual, region=region, uncertainty=uncertainty,
                   coupling=coupling)
-    return robot if fallback is None else robot.with_fallback(fallback)
+    return robot
 
 
 def _coupling(table, n: int, source: str) -> tuple[tuple[int, int, float], ...]:
@@ -560,34 +553,25 @@ def residual_path(path: str | Path) -> Path:
     return path.with_name(f"{path.stem}.residual.json")
 
 
-def fallback_path(path: str | Path) -> Path:
-    """Where a robot file's geometric fallback is written: beside it, ``NAME.geometric.toml``."""
-    path = Path(path)
-    return path.with_name(f"{path.stem}.geometric.toml")
-
-
 def _region_lines(robot: Robot) -> list[str]:
     if robot.region is None:
         return []
     d = robot.region.to_dict()
     pairs = ", ".join(f"[{_num(round(a, 9))}, {_num(round(b, 9))}]" for a, b in d["joints"])
+    sigma = [f"sigma_mm = {_num(d['sigma_mm'])}  # the median predicted position uncertainty at those poses"] \
+        if "sigma_mm" in d else []
     return ["[region]  # the joint ranges (deg; mm where a joint slides) of the poses it was calibrated on",
-            f"joints = [{pairs}]", f"poses = {d['poses']}", ""]
+            f"joints = [{pairs}]", f"poses = {d['poses']}", *sigma, ""]
 
 
-def robot_to_toml(robot: Robot, comment: str | None = None, residual_file: str | None = None,
-                  fallback_file: str | None = None) -> str:
-    """The robot file's text.  residual_file, fallback_file: the names under which the robot's
-    residual model and geometric fallback are saved beside it (see :func:`save_robot`);
-    without them these are left out, and the file says so."""
+def robot_to_toml(robot: Robot, comment: str | None = None, residual_file: str | None = None) -> str:
+    """The robot file's text.  residual_file: the name under which the robot's residual model is
+    saved beside it (see :func:`save_robot`); without it, it is left out, and the file says so."""
     lines = [f"# {c}" for c in comment.splitlines()] if comment else []
     lines += [f"name = {_quote(robot.name)}", f'convention = "{robot.convention}"']
     if robot.residual is not None:
         lines.append(f"residual = {_quote(residual_file)}  # Gaussian-process correction of the pose"
                      if residual_file else "# this robot's residual model was not saved with it")
-    if robot.fallback is not None:
-        lines.append(f"fallback = {_quote(fallback_file)}  # its geometric fit, used outside [region]"
-                     if fallback_file else "# this robot's geometric fallback was not saved with it")
     lines.append("")
     for i in range(robot.n_joints):
         lines += ["[[joint]]"] + ([f"name = {_quote(robot.joint_names[i])}"] if robot.joint_names else [])
@@ -629,18 +613,11 @@ def save_robot(robot: Robot, path: str | Path, comment: str | None = None) -> li
 
     path = Path(path)
     written = []
-    name = fallback = None
+    name = None
     if robot.residual is not None:
         side = residual_path(path)
         atomic_write(side, json.dumps(robot.residual.to_dict()) + "\n")
         written.append(side)
         name = side.name
-    if robot.fallback is not None:
-        side = fallback_path(path)
-        atomic_write(side, robot_to_toml(robot.fallback_robot, (
-            f"The geometric fit of {path.name}, which that model becomes outside the region it was "
-            "calibrated on.")))
-        written.append(side)
-        fallback = side.name
-    atomic_write(path, robot_to_toml(robot, comment, name, fallback))
+    atomic_write(path, robot_to_toml(robot, comment, name))
     return [path, *written]

@@ -62,7 +62,7 @@ def plan_cube(robot: Robot, edge: float | None = None, centre: np.ndarray | None
     the start), the orientation the tool has at the start: ``start``, or the best conditioned
     of :func:`ready_configurations` from which all five are reached.  Every pose must be reached
     within the joint limits on the start's configuration branch, else an input error names it."""
-    robot = robot.replace(base=np.eye(4), residual=None, fallback=None)
+    robot = robot.replace(base=np.eye(4), residual=None)
     if start is not None and np.shape(start) != (robot.n_joints,):
         raise InputError(f"--start needs {robot.n_joints} joint values", option="start")
     starts = ready_configurations(robot) if start is None else [np.asarray(start, float)]

@@ -81,7 +81,7 @@ def load_campaign(path: str | Path, robot=None) -> Campaign:
             raise InputError(f"{len(joints)} joint columns for a robot with {robot.n_joints} joints", source=source)
         q = joints_from_file(numbers(table, [f"q{i + 1}" for i in range(robot.n_joints)], MAX_DEG, "deg"),
                              tuple(bool(p) for p in robot.prismatic) if robot.prismatic.any() else None)
-        T = robot.replace(residual=None, fallback=None).fk(q)
+        T = robot.replace(residual=None).fk(q)
         commanded, c_abc = T[:, :3, 3], np.degrees(matrix_to_rpy(T[:, :3, :3]))
     else:
         raise InputError("no commanded poses: give cx, cy, cz [crx, cry, crz] or joints q1..qN with --robot",

@@ -12,7 +12,7 @@ from .covariance import ParameterCovariance
 from .dh import ALPHA, BETA, THETA, A, D
 from .kinematics import chain_pose, check_convention, geometry_width, prismatic_mask
 from .kinematics import reach as chain_reach
-from .region import Region, describe_margin
+from .region import Region
 from .residual import ResidualModel
 from .terms import JointInputs, JointTerms, joint_offsets
 
@@ -30,11 +30,8 @@ class Robot:
     in the measuring frame (:mod:`robocal.model.residual`).  joint_names: as a URDF or robot
     file names them; urdf: what a robot read from a URDF keeps of it for a faithful export
     (:class:`robocal.io.urdf.UrdfChain`).  region: the joint ranges of the data it was
-    calibrated on; fallback: for a model beyond geometry, its geometric fit, which its pose
-    blends into outside the region (:mod:`robocal.model.region`).  The fallback's frames are held
-    relative to the robot's (base: inv(B)·B_fallback; tools: T_fallback·inv(T), per reflector), so
-    that when the robot is measured from elsewhere or given another tool its fallback moves with
-    it: attach one with :meth:`with_fallback`, read it whole with :attr:`fallback_robot`.
+    calibrated on (:mod:`robocal.model.region`); the whole model is used everywhere, its
+    predicted uncertainty says where it is less known (:mod:`robocal.model.uncertainty`).
     uncertainty: the covariance of the parameters its calibration identified
     (:mod:`robocal.model.uncertainty`), for the uncertainty of its predictions.
     coupling: how the controller's joint values map to the model's, ``(joint, plus, factor)``
@@ -56,7 +53,6 @@ class Robot:
     joint_names: tuple[str, ...] | None = None
     urdf: object | None = field(default=None, repr=False)
     region: Region | None = None
-    fallback: Robot | None = field(default=None, repr=False)
     uncertainty: ParameterCovariance | None = field(default=None, repr=False)
     coupling: tuple[tuple[int, int, float], ...] = ()
 
@@ -135,25 +131,7 @@ class Robot:
                           self.tool_frames(targets))
         if self.residual is not None:
             R, p = self.residual.correct(q, R, p, self.base[:3, :3])
-        if self.fallback is not None and self.region is not None:
-            R, p = self._blend(q, R, p, targets, inputs)
         return homogeneous(R, p)
-
-    def _blend(self, q, R, p, targets, inputs):
-        """Outside the calibrated region the pose blends into the geometric fallback's."""
-        w = self.region.weight(q)
-        rows = np.flatnonzero(w < 1.0)
-        if not rows.size:
-            return R, p
-        from ..math.so3 import exp_so3, orientation_error
-
-        T = self.fallback_robot.fk(q[rows], None if targets is None else [targets[i] for i in rows],
-                                   None if inputs is None else inputs.subset(rows))
-        R, p = R.copy(), p.copy()
-        share = (1.0 - w[rows])[:, None]
-        p[rows] = p[rows] + share * (T[:, :3, 3] - p[rows])
-        R[rows] = exp_so3(share * orientation_error(T[:, :3, :3], R[rows])) @ R[rows]
-        return R, p
 
     def positions(self, q, targets: Sequence[str] | None = None, inputs: JointInputs | None = None) -> np.ndarray:
         """Measured-point positions (m, 3) mm in the measuring frame for commanded joints q (m, n) rad."""
@@ -163,18 +141,6 @@ class Robot:
     def geometric(self) -> bool:
         """True when the model is geometry alone (no joint terms, no residual correction)."""
         return (self.terms is None or self.terms.empty) and self.residual is None
-
-    def outside_note(self, q) -> str | None:
-        """What to say when poses q (m, n) rad lie outside the region the model was calibrated on."""
-        if self.region is None:
-            return None
-        text = self.region.describe(q)
-        if text is None:
-            return None
-        if self.fallback is not None:
-            return (f"{text}: its joint terms and residual correction are only known where they were calibrated; "
-                    f"beyond {describe_margin()}")
-        return f"{text}: the model is extrapolated there; expect larger errors"
 
     def from_controller(self, J: np.ndarray) -> np.ndarray:
         """The model's joint values (..., n) of the controller's J (rad; mm for a sliding joint)."""
@@ -194,28 +160,8 @@ class Robot:
         return replace(self, **changes)
 
     def with_tool(self, tool: np.ndarray) -> Robot:
-        """The robot with another flange → tool frame (its fallback's follows: see the class)."""
+        """The robot with another flange → tool frame."""
         return replace(self, tool=np.asarray(tool, float))
-
-    def with_fallback(self, geometric: Robot | None) -> Robot:
-        """This robot with ``geometric`` (frames as fitted, absolute) as its fallback."""
-        if geometric is None:
-            return replace(self, fallback=None)
-        inv = np.linalg.inv
-        targets = {t: T @ inv(self.targets[t]) if t in self.targets else T for t, T in geometric.targets.items()}
-        return replace(self, fallback=geometric.replace(base=inv(self.base) @ geometric.base,
-                                                         tool=geometric.tool @ inv(self.tool), targets=targets,
-                                                         fallback=None))
-
-    @property
-    def fallback_robot(self) -> Robot | None:
-        """The geometric fallback with its frames where this robot's are now."""
-        fb = self.fallback
-        if fb is None:
-            return None
-        targets = {t: T @ self.targets[t] if t in self.targets else T for t, T in fb.targets.items()}
-        targets.update({t: self.targets[t] for t in self.targets if t not in fb.targets})
-        return fb.replace(base=self.base @ fb.base, tool=fb.tool @ self.tool, targets=targets)
 
     def reach(self) -> float:
         """A length scale of the arm (mm): sum of |a| and |d| (urdf: of the origins), at least 1."""

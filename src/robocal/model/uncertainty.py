@@ -1,13 +1,14 @@
-"""How well a calibrated model knows where its TCP is: the parameter covariance carried to the
-predicted positions (MODEL §8).
+"""How well a calibrated model knows where its TCP is: its predicted position uncertainty (MODEL §8).
 
-For a pose q the predicted point p(q, x) moves with the identified parameters x by the
-Jacobian J (3, k); with their covariance C (k, k) the point's covariance is Σ = J C Jᵀ (mm²,
-in the measuring frame), and its standard uncertainty the root of its trace (the rms radius of
-the error, mm).  This is the uncertainty of the parametric model from the noise of its
-calibration: it says where the model is well determined and where the poses left it loose, not
-how far the real robot is (the residual scatter says that).  A learned residual correction adds
-its own, not counted here.
+For a pose q the predicted point p(q, x) moves with the identified parameters x, geometry and
+every joint term, by the Jacobian J (3, k); with their covariance C (k, k) the point's covariance
+is Σ = J C Jᵀ (mm², in the measuring frame).  A learned residual correction adds its posterior
+covariance, whose trace returns to the process's prior far from its data.  The standard
+uncertainty is the root of the summed traces (the rms radius of the error, mm):
+:func:`predicted_sigma`.  It grows wherever the model is less known: harmonics identified over a
+short arc of their joint, a compliance whose torques the poses never reached, a residual away
+from its poses.  It says how well the calibration determined the model, not how far the real
+robot is (the residual scatter says that).
 """
 
 from __future__ import annotations
@@ -40,9 +41,23 @@ def point_covariance(robot, covariance: ParameterCovariance, q: np.ndarray, targ
 
 def point_sigma(robot, covariance: ParameterCovariance, q: np.ndarray, targets: Sequence[str] | None = None,
                 inputs: JointInputs | None = None) -> np.ndarray:
-    """The standard uncertainty (m,) mm of each predicted position: √tr Σ, the rms radius."""
-    S = point_covariance(robot, covariance, q, targets, inputs)
+    """The standard uncertainty (m,) mm of each predicted position from the parameters alone: √tr Σ."""
+    S = point_covariance(robot.replace(residual=None), covariance, q, targets, inputs)
     return np.sqrt(np.maximum(np.einsum("mii->m", S), 0.0))
+
+
+def predicted_sigma(robot, q: np.ndarray, targets: Sequence[str] | None = None,
+                    inputs: JointInputs | None = None) -> np.ndarray:
+    """The whole model's predicted position uncertainty (m,) mm at commanded joints q (m, n) rad:
+    √(tr J C Jᵀ + tr Σ_residual), the parameters' part where the robot carries their covariance,
+    the residual process's where it has one (a process saved without its noise level adds none)."""
+    q = np.atleast_2d(np.asarray(q, float))
+    var = np.zeros(len(q))
+    if robot.uncertainty is not None:
+        var += point_sigma(robot, robot.uncertainty, q, targets, inputs) ** 2
+    if robot.residual is not None:
+        var += np.nan_to_num(robot.residual.position_variance(q))
+    return np.sqrt(var)
 
 
 @dataclass(frozen=True)
@@ -68,23 +83,39 @@ def _spread(sigma: np.ndarray) -> dict:
             "max_mm": float(np.max(sigma))}
 
 
-def uncertainty_map(robot, covariance: ParameterCovariance, q_low: np.ndarray, q_high: np.ndarray, n: int = 2000,
-                    seed: int = 0, at_poses: np.ndarray | None = None) -> UncertaintyMap:
-    """σ of the TCP at ``n`` joint sets drawn uniformly (seeded) between q_low and q_high (rad),
-    and at_poses: σ already worked out at the calibration poses, kept beside them."""
+def uncertainty_map(robot, q_low: np.ndarray, q_high: np.ndarray, n: int = 2000, seed: int = 0,
+                    at_poses: np.ndarray | None = None) -> UncertaintyMap:
+    """The whole model's σ of the TCP at ``n`` joint sets drawn uniformly (seeded) between q_low
+    and q_high (rad), and at_poses: σ already worked out at the calibration poses, kept beside them."""
     rng = np.random.default_rng(seed)
     q = rng.uniform(np.asarray(q_low, float), np.asarray(q_high, float), (n, len(q_low)))
-    p = robot.positions(q)
-    return UncertaintyMap(p, point_sigma(robot, covariance, q), at_poses)
+    return UncertaintyMap(robot.positions(q), predicted_sigma(robot, q), at_poses)
+
+
+def known_targets(robot, meas) -> list[str] | None:
+    """The measurements' reflectors where the robot knows them all, else None (its tool)."""
+    return meas.targets if meas.targets is not None and all(t in robot.target_names for t in meas.targets) else None
 
 
 def tcp_map(robot, meas, seed: int | None = 0) -> UncertaintyMap | None:
     """The predicted TCP's σ over the region ``robot`` was calibrated on and at its calibration
-    poses ``meas`` (None without a covariance or a region); its parametric part only."""
+    poses ``meas`` (None without a covariance or a region), the whole model's."""
     if robot.uncertainty is None or robot.region is None:
         return None
-    parametric = robot.replace(residual=None, fallback=None)
-    known = meas.targets if meas.targets is not None and all(t in robot.target_names for t in meas.targets) else None
-    at_poses = point_sigma(parametric, robot.uncertainty, meas.q, known, meas.inputs)
-    return uncertainty_map(parametric, robot.uncertainty, robot.region.lo, robot.region.hi, seed=seed or 0,
-                           at_poses=at_poses)
+    at_poses = predicted_sigma(robot, meas.q, known_targets(robot, meas), meas.inputs)
+    return uncertainty_map(robot, robot.region.lo, robot.region.hi, seed=seed or 0, at_poses=at_poses)
+
+
+def region_note(robot, q: np.ndarray, targets: Sequence[str] | None = None,
+                inputs: JointInputs | None = None) -> str | None:
+    """What to say of poses q (m, n) rad the model knows less well than its calibration poses:
+    those whose predicted position uncertainty exceeds
+    :data:`~robocal.model.region.SIGMA_FACTOR` times its median there (with a covariance), else
+    those beyond the joint ranges it was calibrated on; None when there are none."""
+    region = robot.region
+    if region is None:
+        return None
+    if robot.uncertainty is not None and region.sigma_mm:
+        return region.describe_sigma(predicted_sigma(robot, np.atleast_2d(q), targets, inputs))
+    text = region.describe(q)
+    return None if text is None else f"{text}: the model is extrapolated there; expect larger errors"
