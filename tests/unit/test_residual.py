@@ -33,13 +33,16 @@ def test_stored_prediction_equals_scikit_learn(rng):
     reference = GaussianProcessRegressor(_sklearn(kernels[0]), normalize_y=True, optimizer=None).fit(q, e)
     fresh = np.vstack([rng.uniform(-2, 2, (40, 6)), rng.uniform(8, 12, (5, 6))])  # 5 far from every pose
     block = model.blocks[0]
-    # the kernel part is scikit-learn's; the standardisation's mean fades away from the data
-    near = np.exp(-0.5 * np.min(np.sum(((fresh[:, None] - model.X[None]) / block.length_scales) ** 2, axis=2), axis=1))
-    np.testing.assert_allclose(model.predict(fresh) - np.outer(near, block.y_mean),
-                               reference.predict(fresh) - block.y_mean, atol=1e-10)
-    assert np.abs(model.predict(fresh[40:])).max() < 1e-9  # nothing far from its data
-    # the posterior variance is scikit-learn's, less the white noise it counts in its predictive one
+    # scikit-learn's prediction, weighed by how much of its prior variance the data explain there
     _, std = reference.predict(fresh, return_std=True)
+    explained = 1.0 - (std[:, 0] ** 2 / block.y_scale[0] ** 2 - kernels[0].noise) / kernels[0].amplitude
+    weight = np.clip(2.0 * explained - 1.0, 0.0, 1.0)
+    ours = model.predict(fresh) / reference.predict(fresh)  # one weight per pose, the same for its outputs
+    np.testing.assert_allclose(ours, np.repeat(ours[:, :1], 3, axis=1), rtol=1e-8, atol=1e-12)
+    # taken on its 32 most correlated poses, the local posterior explains no more than all of them do
+    assert np.all(ours[:, 0] <= weight + 1e-9) and np.all(ours[:40, 0] > weight[:40] - 0.01)
+    assert (ours[:40, 0] > 0.97).mean() > 0.9 and np.abs(model.predict(fresh[40:])).max() < 1e-12  # 0 far out
+    # the posterior variance is scikit-learn's, less the white noise it counts in its predictive one
     assert std.shape == (45, 3)  # one per output, each scaled by its own y_scale
     np.testing.assert_allclose(model.position_variance(fresh),
                                np.sum(std ** 2, axis=1) - kernels[0].noise * np.sum(block.y_scale ** 2), rtol=1e-6)

@@ -87,8 +87,10 @@ def _uncertainty_map(result: CalibrationResult) -> list[str]:
     if m is None:
         return []
     s = m.summary()
-    return [f"<h2>How well the model knows the TCP</h2><p>The predicted position's standard uncertainty (1σ, rms "
-            f"radius) from the parameter covariance, at {s['points']} joint sets drawn over the joint ranges the "
+    return ["<h2>How well the model knows the TCP</h2><p>The predicted position's standard uncertainty (1σ, rms "
+            "radius) from the parameter covariance" + (" and the residual process's variance" if
+                                                        result.robot.residual is not None else "")
+            + f", at {s['points']} joint sets drawn over the joint ranges the "
             f"model was calibrated on, in any combination: median {s['median_mm']:.4f} mm, 95 % below "
             f"{s['p95_mm']:.4f} mm, largest {s['max_mm']:.4f} mm"
             + (f"; at the calibration poses themselves median {s['at_calibration_poses']['median_mm']:.4f} mm, "
@@ -96,9 +98,8 @@ def _uncertainty_map(result: CalibrationResult) -> list[str]:
             + ". Combinations of joint angles the poses never took lie among them: there the model "
             "extrapolates, and the map shows it. It is the calibration's own uncertainty (how well these poses "
             "determine the parameters), not the robot's error; where it is large, more poses there would pin the "
-            "model down. "
-            + ("A residual correction's own uncertainty is not counted. " if result.robot.residual is not None
-               else "") + "<code>robocal evaluate --uncertainty</code> gives it per pose.</p>",
+            "model down. <code>robocal evaluate --uncertainty</code> gives it per pose, outside these ranges too: "
+            "the model is used whole everywhere, and its uncertainty says where it is less known.</p>",
             _img(figures.workspace_errors(_in_base(result.robot, m.position), m.sigma,
                                           "predicted TCP position uncertainty (base frame)",
                                           "σ of the predicted position (mm)"))]
