@@ -37,7 +37,11 @@ def test_calibrate_and_evaluate_write_every_pose(tmp_path, run_cli):
     v = [r for r in rows if r["set"] == "validation"]
     assert np.sqrt(np.mean([float(r["error_mm"]) ** 2 for r in v])) == pytest.approx(
         result["metrics"]["validation_after"]["position"]["rms"], rel=1e-9)
-    # the validation poses reach beyond the calibrated joint ranges: flagged with how far
+    # the validation poses reach beyond the calibrated joint ranges: flagged with how far, and the
+    # model's predicted uncertainty there is larger than at its calibration poses
     assert any(float(r["outside_region_deg"]) > 0 for r in v)
+    far = [float(r["sigma_mm"]) for r in v if float(r["outside_region_deg"]) > 20]
+    assert far and np.median(far) > 2 * np.median([float(r["sigma_mm"]) for r in cal])
+    assert "poses have a predicted position uncertainty above 3× its median" in err
     code, _, err = run_cli("calibrate", "kr5-arc", data, "--exclude", "P99")
     assert code == 2 and "excluded pose 'P99' is not in the data" in err

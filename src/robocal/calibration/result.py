@@ -124,15 +124,21 @@ class CalibrationResult:
 
     def per_pose(self) -> list[dict]:
         """Every calibration pose (outliers flagged) and validation pose, with the calibrated
-        model's errors (:func:`robocal.model.metrics.per_pose`)."""
+        model's errors (:func:`robocal.model.metrics.per_pose`) and, where the model carries its
+        covariance, its predicted position uncertainty (``sigma_mm``)."""
         from ..model.metrics import per_pose
+        from ..model.uncertainty import known_targets, predicted_sigma
 
         rows = []
         meas = self.all_rows if self.all_rows is not None else self.measurements
-        if meas is not None:
-            rows += per_pose(self.robot, meas, "calibration", frozenset(o["row"] for o in self.outliers))
-        if self.validation is not None:
-            rows += per_pose(self.robot, self.validation, "validation")
+        sets = ([(meas, "calibration", frozenset(o["row"] for o in self.outliers))] if meas is not None else []) + \
+            ([(self.validation, "validation", frozenset())] if self.validation is not None else [])
+        for m, label, outliers in sets:
+            part = per_pose(self.robot, m, label, outliers)
+            if self.robot.uncertainty is not None:
+                for row, s in zip(part, predicted_sigma(self.robot, m.q, known_targets(self.robot, m), m.inputs)):
+                    row["sigma_mm"] = float(s)
+            rows += part
         return rows
 
     @cached_property

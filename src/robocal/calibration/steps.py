@@ -500,6 +500,11 @@ def evaluate(initial: Robot, calibrated: Robot, meas: Measurements, all_rows: Me
             notes.append(f"leaving out {len(screening.outliers)} outlier poses changed the validation RMS from "
                          f"{kept.position['rms']:.4g} mm (plain fit of every pose) to "
                          f"{metrics['validation_after'].position['rms']:.4g} mm")
+        from ..model.uncertainty import known_targets, region_note
+
+        said = region_note(calibrated, validation.q, known_targets(calibrated, validation), validation.inputs)
+        if said:
+            notes.append(f"validation: {said}")
     return metrics, notes
 
 

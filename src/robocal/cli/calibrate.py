@@ -167,7 +167,9 @@ def calibrate_cmd(
             from ..io.table import rows_to_csv
             from ..model.metrics import POSE_COLUMNS
 
-            atomic_write(poses_out, rows_to_csv(result.per_pose(), POSE_COLUMNS))
+            rows = result.per_pose()
+            atomic_write(poses_out, rows_to_csv(rows, POSE_COLUMNS + (("sigma_mm",) if rows and "sigma_mm" in rows[0]
+                                                                      else ())))
     print_warnings(result.warnings)
     if not quiet:
         _print_summary(result, nominal.name, data)

@@ -281,12 +281,22 @@ def next_steps(result: CalibrationResult) -> list[str]:
         ids = ", ".join(str(o.get("pose_id") or f"row {o['row']}") for o in result.outliers[:5])
         out.append(f"{len(result.outliers)} pose(s) were left out as outliers ({html.escape(ids)}): re-check or "
                    "re-measure them; <code>--exclude</code> leaves a pose out on purpose.")
-    if result.validation is not None and result.robot.region is not None:
-        far = result.robot.region.outside(result.validation.q)
+    region = result.robot.region
+    if result.validation is not None and region is not None:
+        far = region.outside(result.validation.q)
+        if result.robot.uncertainty is not None and region.sigma_mm:  # where the model knows less, by its σ
+            from ..model.region import SIGMA_FACTOR
+            from ..model.uncertainty import known_targets, predicted_sigma
+
+            v = result.validation
+            loose = predicted_sigma(result.robot, v.q, known_targets(result.robot, v), v.inputs) > \
+                SIGMA_FACTOR * region.sigma_mm
+            far = np.where(loose[:, None], far, 0.0)
         if np.any(far > 0):
             j = int(np.argmax(far.max(axis=0)))
             out.append(f"{int(np.sum(far.max(axis=1) > 0))} validation pose(s) lie outside the joint ranges calibrated "
-                       f"on, joint {j + 1} most: measure calibration poses that cover its range.")
+                       f"on where the model knows its TCP less well, joint {j + 1} most: measure calibration poses "
+                       "that cover its range.")
     if meas is not None and meas.n_poses < 5 * len(result.names):
         out.append(f"{meas.n_poses} poses for {len(result.names)} parameters: about {5 * len(result.names)} would "
                    "pin them down better.")
