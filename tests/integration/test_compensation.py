@@ -143,7 +143,7 @@ def test_cli_compensate(tmp_path, run_cli):
     targets.write_text("pose_id,q1,q2,q3,q4,q5,q6\nA,10,20,30,40,50,60\nB,-30,45,-20,80,-60,10\nC,0,0,0,0,0,0\n")
     out = tmp_path / "cmd.csv"
     code, stdout, err = run_cli(
-        "compensate", "er10l-c10", cal, targets, "--out", out, "--truth", t, "--json", tmp_path / "s.json"
+        "compensate", "er10l-c10", cal, targets, "--out", out, "--truth", t, "--summary", tmp_path / "s.json"
     )
     assert code == 3 and "not reached: goal C: singular" in err  # written, one goal not reached
     rows = list(csv.DictReader(io.StringIO(out.read_text())))

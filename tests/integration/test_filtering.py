@@ -85,7 +85,7 @@ def test_krl_on_a_kuka_convention_robot_on_a_pedestal(tmp_path, run_cli):
     out = tmp_path / "out" / "cell.src"
     out.parent.mkdir()
     code, _, err = run_cli("filter", accurate, folder / "Program" / "cell.src", "--nominal", nominal, "--out", out,
-                           "--json", tmp_path / "s.json")
+                           "--summary", tmp_path / "s.json")
     summary = json.loads((tmp_path / "s.json").read_text())
     assert code == 0, err
     assert summary["status"] == {"ok": 17}
@@ -120,7 +120,7 @@ def test_krl_without_its_config_dat_flags_the_targets_and_exits_3(tmp_path, run_
     (tmp_path / "p.src").write_text(src)
     (tmp_path / "p.dat").write_text(dat)
     code, _, err = run_cli("filter", accurate, tmp_path / "p.src", "--nominal", nominal, "--out", tmp_path / "o.src",
-                           "--json", tmp_path / "s.json")
+                           "--summary", tmp_path / "s.json")
     rows = json.loads((tmp_path / "s.json").read_text())["targets"]
     assert code == 3 and (tmp_path / "o.dat").read_bytes() == (tmp_path / "p.dat").read_bytes()  # all flagged
     assert [r["status"] for r in rows] == ["frame"] * 3
@@ -236,7 +236,8 @@ def test_fanuc_positions_in_user_frame_and_tool_with_coupled_joints(tmp_path, ru
     text = ctl.fanuc_program([np.linalg.inv(uf) @ T for T in world], configs, joints)
     (tmp_path / "CELL.LS").write_bytes(text.encode())
     out = tmp_path / "OUT.LS"
-    args = ("filter", accurate, tmp_path / "CELL.LS", "--nominal", nominal, "--out", out, "--json", tmp_path / "s.json")
+    args = ("filter", accurate, tmp_path / "CELL.LS", "--nominal", nominal, "--out", out,
+            "--summary", tmp_path / "s.json")
     code, _, err = run_cli(*args)
     rows = json.loads((tmp_path / "s.json").read_text())["targets"]
     status = {r["target"]: r["status"] for r in rows}
@@ -338,7 +339,7 @@ def test_an_unreachable_target_is_flagged_with_its_numbers_and_the_run_exits_3(t
     src = tmp_path / "far.script"
     src.write_text(far)
     code, out, err = run_cli("filter", planted["ur10"], src, "--nominal", "ur10", "--out", tmp_path / "f.script",
-                             "--json", tmp_path / "s.json")
+                             "--summary", tmp_path / "s.json")
     assert code == 3, err
     summary = json.loads((tmp_path / "s.json").read_text())
     flagged = [t for t in summary["targets"] if t["status"] != "ok"]

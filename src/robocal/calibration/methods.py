@@ -15,6 +15,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from ..backend import resolve
 from ..model.parameters import is_angle, is_frame
 from ..optimize.lm import levenberg_marquardt
 from ..optimize.result import OptimizeResult, Progress
@@ -101,6 +102,10 @@ def run_swarm(search: Problem, config: CalibrationConfig, progress: Progress | N
 
     with stage("compile"):  # compiled (or loaded from numba's cache) before the swarm's clock starts
         objective(np.zeros((1, len(search.names))))
+        if resolve(config.backend) == "numba":
+            from ..optimize import kernels
+
+            kernels.warm_up()
         if config.spec.halton:
             from scipy.stats import qmc  # noqa: F401  (its import is not the swarm's time)
     with stage("optimize"):

@@ -39,6 +39,7 @@ from ..model.robot import Robot
 from ..model.uncertainty import known_targets, predicted_sigma
 from ..optimize.result import Progress
 from .config import CalibrationConfig
+from .problem import warm_up
 from .residual import MAX_POINTS
 from .result import CalibrationResult
 from .selection import fit_model, guard
@@ -112,6 +113,8 @@ def _validated(table, chosen: str, metrics) -> list:
 def _calibrate(robot, data, validate, cfg: CalibrationConfig, columns, progress, stages) -> CalibrationResult:
     with stage("load"):
         inputs = load_inputs(robot, data, validate, cfg, columns)
+    with stage("compile"):
+        warm_up(cfg.backend, inputs.meas.full_pose and cfg.use_orientation)
     # the largest dense matrices: the residual process's (at most MAX_POINTS a side) and k × k
     with blas_threads(min(inputs.meas.n_poses, MAX_POINTS)):
         chosen = guard(fit_model(inputs, cfg, progress, stages))
@@ -132,6 +135,8 @@ def _calibrate(robot, data, validate, cfg: CalibrationConfig, columns, progress,
                                  fit.screening)
         budget = chosen.budget(calibrated, inputs.validation)
     notes += said
+    if chosen.prediction is not None:  # what the held-out poses said: the headline without validation poses
+        metrics = {"before": metrics["before"], "predicted": chosen.prediction, **metrics}
     return CalibrationResult(
         config=cfg, robot=calibrated, initial=initial, nominal=inputs.nominal, names=est.problem.names, x=est.x,
         uncertainty=fit.uncertainty, identifiability=fit.identifiability, optimization=est.optimization,

@@ -78,17 +78,26 @@ class Setup:
     def with_noise(self, sigma_position: float, sigma_orientation: float) -> Setup:
         return replace(self, sigma_position=sigma_position, sigma_orientation=sigma_orientation)
 
-    def warm_up(self) -> None:
-        """Compile (or load from numba's cache) the kernel the full-pose Jacobian uses, so that no
-        optimizer's time includes it."""
-        if self.full_pose and resolve(self.backend) == "numba":
-            from ..model import kernels
-
-            kernels.apply_right_jacobian_inv(np.zeros((1, 3)), np.zeros((1, 1, 3)))
-
     def around(self, robot) -> Setup:
         """The same setup with the parameter space around another robot (e.g. the estimate)."""
         return replace(self, space=replace(self.space, robot=robot))
+
+
+def warm_up(backend: str, full_pose: bool) -> float:
+    """Compile (or load from numba's cache) the kernel the full-pose Jacobian uses before any
+    fit, registration included, so that no optimizer's time includes it; returns the seconds
+    spent (a first run after install compiles, about 1 s; later runs load, milliseconds).  Only
+    when the run will use it: an OpenMP kernel run here makes a later fork of this process
+    (the study's and the ladder's workers) abort."""
+    import time
+
+    if not full_pose or resolve(backend) != "numba":
+        return 0.0
+    start = time.perf_counter()
+    from ..model import kernels
+
+    kernels.apply_right_jacobian_inv(np.zeros((1, 3)), np.zeros((1, 1, 3)))
+    return time.perf_counter() - start
 
 
 class Problem:

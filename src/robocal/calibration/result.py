@@ -122,6 +122,45 @@ class CalibrationResult:
     all_rows: Measurements | None = field(default=None, repr=False)
     excluded: tuple[str, ...] = ()
 
+    def headline(self) -> tuple[str, str, Metrics]:
+        """The figure to lead with: (key, label, metrics): accuracy on the validation poses when
+        given, else the cross-validated prediction, else (a model returned unchanged) the fit."""
+        for key, label in (("validation_after", "on the validation poses"),
+                           ("predicted", "predicted on new poses (5-fold cross-validation of the calibration poses)")):
+            if key in self.metrics:
+                return key, label, self.metrics[key]
+        return "after", "the fit itself (in-sample: not a prediction)", self.metrics["after"]
+
+    def accuracy_columns(self) -> dict[str, Metrics]:
+        """The metrics a table shows, labelled as what they are: the fit in-sample, the
+        prediction from held-out folds, the validation poses."""
+        m = self.metrics
+        cols = {"before": m["before"]}
+        if "predicted" in m:
+            cols["predicted (5-fold CV)"] = m["predicted"]
+        cols["after (fit)"] = m["after"]
+        if "validation_before" in m:
+            cols["validation before"], cols["validation after"] = m["validation_before"], m["validation_after"]
+        return cols
+
+    def figures(self) -> dict[str, float]:
+        """The figures ``--require`` can hold a calibration to (mm): rms and max of the fit,
+        cv_rms of the cross-validated prediction, validation_rms and validation_max; a figure
+        the run has not got is NaN (and fails any requirement)."""
+        m, nan = self.metrics, float("nan")
+        pick = {"rms": ("after", "rms"), "max": ("after", "max"), "cv_rms": ("predicted", "rms"),
+                "validation_rms": ("validation_after", "rms"), "validation_max": ("validation_after", "max")}
+        return {k: m[key].position[f] if key in m else nan for k, (key, f) in pick.items()}
+
+    def headline_text(self) -> str:
+        """One line: the honest figure first, the fit beside it, labelled as what it is."""
+        key, label, m = self.headline()
+        fit = self.metrics["after"].position
+        text = f"position RMS {m.position['rms']:.4f} mm, max {m.position['max']:.4f} mm {label}"
+        if key != "after":
+            text += f"; the fit itself {fit['rms']:.4f} mm (in-sample)"
+        return text
+
     def per_pose(self) -> list[dict]:
         """Every calibration pose (outliers flagged) and validation pose, with the calibrated
         model's errors (:func:`robocal.model.metrics.per_pose`) and, where the model carries its
@@ -242,6 +281,8 @@ class CalibrationResult:
             "dropped": [{"name": n, "reason": ident.reasons[n].text(), **ident.reasons[n].to_dict()}
                         for n in ident.dropped],
             "identifiability": ident.to_dict(),
+            "headline": {"figure": self.headline()[0], "position_rms_mm": self.headline()[2].position["rms"],
+                         "position_max_mm": self.headline()[2].position["max"]},
             "metrics": {k: v.to_dict() for k, v in self.metrics.items()},
             "metrics_per_target": {t: {k: v.to_dict() for k, v in m.items()}
                                    for t, m in self.per_target_metrics().items()},

@@ -78,6 +78,10 @@ class Chosen:
     table: list[LadderRow] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
     geometric: Fit | None = None
+    #: held-out errors of the model (K-fold cross-validation on the calibration poses), and of
+    #: the geometric fit for the guard to fall back on; None for a model returned unchanged
+    prediction: Metrics | None = None
+    geometric_prediction: Metrics | None = None
 
     def budget(self, calibrated: Robot, validation: Measurements | None) -> list[BudgetRow]:
         """What each part of the model removes on the validation poses: position RMS (mm) of the
@@ -125,15 +129,21 @@ def folds(meas: Measurements, k: int, seed: int | None) -> list[np.ndarray]:
 
 @dataclass
 class CrossValidation:
-    """Held-out position errors (m, 3) mm, the fold index sets, and each fold's estimate."""
+    """Held-out position errors (m, 3) mm, the fold index sets, each fold's estimate, and the
+    held-out orientation errors (m, 3) rad of full-pose data."""
 
     errors: np.ndarray
     folds: list[np.ndarray]
     estimates: list[np.ndarray]
+    orientation: np.ndarray | None = None
 
     @property
     def rms(self) -> float:
         return rms(self.errors)
+
+    def metrics(self, errors: np.ndarray | None = None) -> Metrics:
+        """The held-out figures (``errors``: the position errors after a residual correction)."""
+        return Metrics.from_errors(self.errors if errors is None else errors, self.orientation)
 
 
 def _pose_rows(problem, index: np.ndarray) -> np.ndarray:
@@ -161,6 +171,7 @@ def cross_validate(fit: Fit, config: CalibrationConfig) -> CrossValidation:
     meas = problem.meas
     plain = CalibrationConfig.build(config, loss="linear")
     errors = np.zeros((meas.n_poses, 3))
+    orientation = np.zeros((meas.n_poses, 3)) if problem.uses_orientation else None
     index_sets = folds(meas, K_FOLDS, config.seed)
     J, r = problem.residual_jacobian(x0), problem.residuals(x0)
     estimates = []
@@ -176,10 +187,12 @@ def cross_validate(fit: Fit, config: CalibrationConfig) -> CrossValidation:
         reached = on_train.residuals(x)
         if not abs(float(reached @ reached) - predicted) <= LINEAR_CHI2:
             x = fit_lm(on_train, x, plain).x
-        dp, _ = problem.setup.with_measurements(meas.subset(test)).problem(problem.names).errors(x)
+        dp, dr = problem.setup.with_measurements(meas.subset(test)).problem(problem.names).errors(x)
         errors[test] = dp
+        if orientation is not None and dr is not None:
+            orientation[test] = dr
         estimates.append(x)
-    return CrossValidation(errors, index_sets, estimates)
+    return CrossValidation(errors, index_sets, estimates, orientation)
 
 
 def residual_errors(fit: Fit, x: np.ndarray, index: np.ndarray | None = None) -> tuple[Measurements, np.ndarray]:
@@ -344,13 +357,18 @@ def fit_model(inputs: Inputs, config: CalibrationConfig, progress=None, stages=N
                              "measure more, or calibrate the parametric model alone", option="model")
         fit = fit_parametric(inputs, config, term_spec(terms, meas, config), progress)
         residual = None
-        if "residual" in terms:
-            with worker_pool() as pool:
+        cv = cross_validate(fit, config)  # how it predicts poses it has not seen, with or without validation poses
+        prediction = cv.metrics()
+        with worker_pool() as pool:
+            if "residual" in terms:
                 residual = residual_on_all(fit, config.seed, pool=pool)
+                prediction = cv.metrics(cross_validate_residuals([(fit, cv)], config.seed, pool)[0][0])
         geometric = fit
         if terms - {"residual"}:  # the guard's comparison, and the error budget
             geometric = fit_parametric(inputs, config, term_spec((), meas, config))
-        return Chosen(model_name(terms), fit, residual, notes=spent_dof(fit, residual), geometric=geometric)
+        geometric_prediction = cv.metrics() if geometric is fit else cross_validate(geometric, config).metrics()
+        return Chosen(model_name(terms), fit, residual, notes=spent_dof(fit, residual), geometric=geometric,
+                      prediction=prediction, geometric_prediction=geometric_prediction)
     groups = pose_groups(meas)
     residuals = groups.max() + 1 >= MIN_RESIDUAL_POSES
     ladder: list[tuple[Candidate, CrossValidation]] = []
@@ -422,7 +440,9 @@ def fit_model(inputs: Inputs, config: CalibrationConfig, progress=None, stages=N
     notes = [f"model auto: {chosen.name} (cross-validated position RMS {chosen.cv_rms:.4g} mm; geometric "
              f"{candidates[0].cv_rms:.4g} mm; a richer model is kept only if it predicts held-out poses "
              f"better, paired test p < {SIGNIFICANCE:g})"]
-    return Chosen(chosen.name, chosen.fit, residual, rows, notes, geometric=candidates[0].fit)
+    chosen_cv = next(cv for c, cv in ladder if c.fit is chosen.fit)
+    return Chosen(chosen.name, chosen.fit, residual, rows, notes, geometric=candidates[0].fit,
+                  prediction=chosen_cv.metrics(chosen.errors), geometric_prediction=geometric_cv.metrics())
 
 
 @staged("evaluate")
@@ -455,7 +475,7 @@ def guard(chosen: Chosen) -> Chosen:
                     f"{rms_geometric:.4g} mm{'' if meas.rotation is None else ' weighed'} RMS): the geometric fit is "
                     "returned")
             chosen = replace(chosen, name="geometric", fit=geometric, residual=None,
-                             notes=chosen.notes + [note])
+                             notes=chosen.notes + [note], prediction=chosen.geometric_prediction)
             fit, rms = geometric, rms_geometric
     rms_nominal = rms_of(fit.setup.space.robot)
     if rms > rms_nominal * (1 + 1e-6) + 1e-9:
@@ -466,6 +486,7 @@ def guard(chosen: Chosen) -> Chosen:
         note = (f"the calibration fits the poses worse than the nominal model with its fitted frames ({rms:.4g} vs "
                 f"{rms_nominal:.4g} mm RMS; optimizer {est.optimization.status}): the nominal joint geometry is "
                 "returned unchanged; check the data and the robot file")
-        chosen = replace(chosen, name="geometric", fit=held, residual=None, notes=chosen.notes + [note])
+        chosen = replace(chosen, name="geometric", fit=held, residual=None, notes=chosen.notes + [note],
+                         prediction=None)
     return chosen
 

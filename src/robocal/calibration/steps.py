@@ -563,8 +563,6 @@ def fit_parametric(inputs: Inputs, config: CalibrationConfig, spec: TermSpec,
     fewer terms) when given: its registration, weights and estimate are where this one starts,
     which changes the path, not the optimum (``auto`` tries each term on the model kept so far)."""
     setup = register(inputs, config, spec, parent)
-    with stage("compile"):
-        setup.warm_up()
     candidates = choose_candidates(setup, config, inputs.frames)
     with stage("statistics"):
         ident, notes = analyse_identifiability(setup, candidates)

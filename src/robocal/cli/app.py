@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import sys
+from pathlib import Path
 
 import typer
 
@@ -80,13 +81,41 @@ def main(argv: list[str] | None = None) -> int:
     finally:
         if own_sigint:
             signal.signal(signal.SIGINT, previous)
-    if code in (0, 3):  # what was noticed on the way (3: written, in part); after an error, the error alone
+    if code in (0, 3, 4):  # what was noticed on the way (3: written in part, 4: a requirement not met);
+        # after an error, the error alone
         for text in held:
             print(text, file=sys.stderr)
     return code
 
 
+#: where a command's JSON document goes to a file: ``--json PATH`` was its old spelling
+_JSON_FILE = {"compensate": "--summary", "filter": "--summary", "plan": "--summary", "iso9283": "--summary",
+              "calibrate": "--out"}
+
+
+def _old_spelling(argv: list[str]) -> str | None:
+    """The message for ``--json PATH`` (``--json`` is a flag in every command now: it prints the
+    document; a file is ``--summary PATH``, or ``--out`` for calibrate's result), else None."""
+    command = next((a for a in argv if not a.startswith("-")), None)
+    new = _JSON_FILE.get(command or "")
+    for i, arg in enumerate(argv):
+        value = arg[len("--json="):] if arg.startswith("--json=") else None
+        following = argv[i + 1] if arg == "--json" and i + 1 < len(argv) else ""
+        if following.lower().endswith(".json") or (following and Path(following).is_dir()):
+            value = following
+        if value is not None:
+            where = new or "--summary"
+            folder = "--json: is a folder; " if value and Path(value).is_dir() else ""
+            return (f"{folder}--json is a flag now: it prints the JSON document on stdout; to write a file, "
+                    f"use {where} PATH (here {where} {value})")
+    return None
+
+
 def _run(argv: list[str] | None) -> int:
+    old = _old_spelling([str(a) for a in (sys.argv[1:] if argv is None else argv)])
+    if old is not None:
+        print(f"robocal: usage error: {old}", file=sys.stderr)
+        return 2
     try:
         result = app(args=argv, prog_name="robocal", standalone_mode=False)
     except InputError as exc:

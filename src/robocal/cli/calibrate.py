@@ -6,7 +6,16 @@ from pathlib import Path
 
 import typer
 
-from .common import base_link_option, decimal_option, delimiter_option, euler_option, tip_link_option
+from .common import (
+    base_link_option,
+    decimal_option,
+    delimiter_option,
+    euler_option,
+    json_flag,
+    print_json,
+    quiet_flag,
+    tip_link_option,
+)
 
 
 def timing_line(timings: dict) -> str:
@@ -16,13 +25,17 @@ def timing_line(timings: dict) -> str:
     parts = [f"{label} {timings[k]:.2f} s" for k, label in labels.items() if timings.get(k, 0) >= 0.005]
     return f"time {timings.get('total_s', 0.0):.2f} s: " + ", ".join(parts)
 
+#: compile time above which the first run says where the time went (loading the cached kernels
+#: takes well under this; compiling them after install, a few seconds)
+COMPILE_SAID_S = 1.5
+
 #: the config's fields an option of the same name sets (angle_noise in degrees here, rad there)
 CONFIG_FIELDS = ("method", "frames", "params", "seed", "objective", "noise", "angle_noise", "k", "loss", "f_scale",
                  "particles", "iterations", "box", "halton", "backend", "model", "harmonics", "payload", "joint_unit",
                  "length_unit", "instrument", "delimiter", "decimal", "euler", "exclude")
 #: the command's own options: its inputs and outputs, how to read them, and what it prints
 CLI_ONLY = ("robot", "data", "validate", "out", "export", "report", "column", "base_link", "tip_link", "quiet",
-            "position_only", "poses_out", "exclude_file")
+            "position_only", "poses_out", "exclude_file", "as_json", "require")
 
 
 def _print_summary(result, robot_name: str, data: Path) -> None:
@@ -38,12 +51,10 @@ def _print_summary(result, robot_name: str, data: Path) -> None:
     )
     from .common import console, metrics_table, table
 
-    m = result.metrics
-    cols = {"before": m["before"], "after": m["after"]}
-    if "validation_before" in m:
-        cols["validation before"], cols["validation after"] = m["validation_before"], m["validation_after"]
     out = console()
-    out.print(metrics_table(f"{robot_name}: {result.method} on {data} ({result.measurements.describe()})", cols))
+    out.print(f"[bold]{result.headline_text()}[/bold]")
+    out.print(metrics_table(f"{robot_name}: {result.method} on {data} ({result.measurements.describe()})",
+                            result.accuracy_columns()))
     per_target = result.per_target_metrics()
     if per_target:
         keys = [k for k in ("before", "after", "validation_after") if k in next(iter(per_target.values()))]
@@ -120,13 +131,18 @@ def calibrate_cmd(
     euler: str = euler_option(),
     base_link: str | None = base_link_option(),
     tip_link: str | None = tip_link_option(),
-    quiet: bool = typer.Option(False, "--quiet", "-q", help="no table, no progress bar"),
+    as_json: bool = json_flag("the result (what --out writes)"),
+    require: list[str] | None = typer.Option(None, "--require", help="a verdict for CI: FIGURE<=VALUE (rms, max, "
+                                             "cv_rms, validation_rms, validation_max; mm); not met: exit 4, named on "
+                                             "stderr; repeatable"),
+    quiet: bool = quiet_flag(),
 ) -> None:
     """Identify a robot's geometric parameters from measured poses."""
     # the options named like the config's fields are its fields (tests/unit/test_config.py
     # checks that every option is one or is listed as the command line's own)
     given = {k: v for k, v in locals().items() if k in CONFIG_FIELDS}
     import math
+    import sys
     import warnings
 
     from .. import options as opt
@@ -134,8 +150,15 @@ def calibrate_cmd(
     from ..calibration.methods import settings
     from ..io.atomic import together
     from ..io.robotfile import load_robot
-    from .common import check_outputs, console, print_warnings, progress_bar, stage_status
+    from ..requirements import parse_requirements
+    from .common import check_outputs, console, print_warnings, progress_bar, stage_status, verdict
 
+    checks = parse_requirements(require, "calibrate")
+    if validate is None and any(c.figure.startswith("validation") for c in checks):
+        from ..exceptions import InputError
+
+        raise InputError("validation figures need validation poses: give --validate, or require cv_rms",
+                         option="require")
     check_outputs((robot, data, validate), out=out, export=export, report=report, poses_out=poses_out)
     if exclude_file is not None:
         from ..io.atomic import read_text
@@ -171,7 +194,13 @@ def calibrate_cmd(
             atomic_write(poses_out, rows_to_csv(rows, POSE_COLUMNS + (("sigma_mm",) if rows and "sigma_mm" in rows[0]
                                                                       else ())))
     print_warnings(result.warnings)
-    if not quiet:
+    compiled = result.timings.get("compile_s", 0.0)
+    if compiled >= COMPILE_SAID_S and not quiet:
+        print(f"robocal: compiled the numba kernels once ({compiled:.1f} s, not in time_s); later runs load them from "
+              "numba's cache", file=sys.stderr)
+    if as_json:
+        print_json(result.to_dict())
+    elif not quiet:
         _print_summary(result, nominal.name, data)
     if written and written[0].suffix.lower() == ".urdf" and len(written) > 1:
         console().print(f"wrote {written[0]}; the model's joint terms and residual correction cannot live in a URDF: "
@@ -179,6 +208,7 @@ def calibrate_cmd(
     elif len(written) > 1:
         console().print(f"wrote {written[0]} and, beside it, {' and '.join(map(str, written[1:]))} (parts of the "
                         "same model: keep them together)")
+    verdict(checks, result.figures())
 
 
 def register(app: typer.Typer) -> None:

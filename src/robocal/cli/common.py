@@ -31,9 +31,10 @@ def metrics_table(title: str, columns: dict):
     table.add_column("error")
     for name in columns:
         table.add_column(name, justify="right")
-    rows = [m.rows() for m in columns.values()]
-    for i, (label, _) in enumerate(rows[0]):
-        table.add_row(label, *(f"{r[i][1]:.4f}" for r in rows))
+    from ..model.metrics import table_rows
+
+    for label, values in table_rows(columns):
+        table.add_row(label, *values)
     return table
 
 
@@ -164,3 +165,45 @@ def check_outputs(inputs=(), **paths) -> None:
             raise InputError("is also an input of this command: it would be overwritten", source=path,
                              option=option)
         seen[key] = option
+
+
+def json_flag(what: str):
+    """``--json``: the command's JSON document on stdout, the same in every command."""
+    import typer
+
+    return typer.Option(False, "--json", help=f"print {what} as JSON on stdout (instead of the tables)")
+
+
+def summary_option(what: str):
+    """``--summary PATH``: the document ``--json`` prints, written to a file."""
+    import typer
+
+    return typer.Option(None, "--summary", help=f"write {what} as JSON to this file (what --json prints)")
+
+
+def quiet_flag():
+    import typer
+
+    return typer.Option(False, "--quiet", "-q", help="no tables or progress on the terminal (warnings and errors "
+                                                    "still on stderr)")
+
+
+def print_json(document) -> None:
+    """A JSON document on stdout (a dict, or text already JSON)."""
+    import json
+
+    text = document if isinstance(document, str) else json.dumps(document, indent=2) + "\n"
+    sys.stdout.write(text if text.endswith("\n") else text + "\n")
+
+
+def verdict(requirements, figures: dict) -> None:
+    """Exit with status FAILED (naming each on stderr) when a requirement is not met."""
+    from ..requirements import FAILED, unmet
+
+    failed = unmet(requirements, figures)
+    for line in failed:
+        print(f"robocal: {line}", file=sys.stderr)
+    if failed:
+        import typer
+
+        raise typer.Exit(FAILED)

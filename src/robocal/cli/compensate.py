@@ -6,7 +6,7 @@ from pathlib import Path
 
 import typer
 
-from .common import base_link_option, tip_link_option
+from .common import base_link_option, json_flag, quiet_flag, summary_option, tip_link_option
 
 
 def compensate_cmd(
@@ -24,11 +24,12 @@ def compensate_cmd(
                                          "column"),
     tool: str | None = typer.Option(None, "--tool", help="the TCP the commands are for, in the nominal model's "
                                     "tool frame (its flange): x,y,z[,rx,ry,rz] mm, deg (default: that frame)"),
-    as_json: Path | None = typer.Option(None, "--json", help="write the summary as JSON too"),
+    as_json: bool = json_flag("the summary (counts per status, validation against --truth)"),
+    summary: Path | None = summary_option("the summary"),
     column: list[str] | None = typer.Option(None, "--column", help="map file columns: FILE=ROBOCAL[,FILE=ROBOCAL…]"),
     base_link: str | None = base_link_option(),
     tip_link: str | None = tip_link_option(),
-    quiet: bool = typer.Option(False, "--quiet", "-q"),
+    quiet: bool = quiet_flag(),
 ) -> None:
     """Corrected joint commands and Cartesian goals that make the calibrated robot reach its goals.
     Exit status 3: the commands were written but some goals were not reached (each said, with why)."""
@@ -40,9 +41,9 @@ def compensate_cmd(
     from ..io.atomic import atomic_write, together
     from ..io.goals import load_goals
     from ..io.robotfile import load_robot
-    from .common import check_outputs, console, metrics_table, one_line, print_warnings
+    from .common import check_outputs, console, metrics_table, one_line, print_json, print_warnings
 
-    check_outputs((nominal, calibrated, goals, truth), out=out, json=as_json)
+    check_outputs((nominal, calibrated, goals, truth), out=out, summary=summary)
     opt.frame_values(tool, "tool")  # checked before any work
 
     # the chain's links choose the nominal's chain (and the truth's); a calibrated URDF export
@@ -56,11 +57,11 @@ def compensate_cmd(
     tcp = opt.frame_values(tool, "tool")
     result = compensate(nom, cal, g, truth=tru, position_only=position_only or None, payload=payload,
                         tool=None if tcp is None else frame_from_values(tcp))
-    summary = result.summary()
+    document, summary_path = result.summary(), summary
     with together():
         result.save(out)
-        if as_json is not None:
-            atomic_write(as_json, json.dumps(summary, indent=2) + "\n")
+        if summary_path is not None:
+            atomic_write(summary_path, json.dumps(document, indent=2) + "\n")
     print_warnings(result.warnings)
     missed = [i for i, s in enumerate(result.status) if s != "ok"]
     for i in missed[:10]:
@@ -69,9 +70,11 @@ def compensate_cmd(
     if len(missed) > 10:
         print(f"robocal: … and {len(missed) - 10} more goals not reached (the status column of {out})",
               file=sys.stderr)
-    if not quiet:
+    if as_json:
+        print_json(document)
+    elif not quiet:
         c = console()
-        c.print(f"{g.n} goals: " + ", ".join(f"{v} {k}" for k, v in summary["status"].items()) + f"; wrote {out}")
+        c.print(f"{g.n} goals: " + ", ".join(f"{v} {k}" for k, v in document["status"].items()) + f"; wrote {out}")
         val = result.validation()
         if val is not None and "nominal_commands" in val:
             c.print(metrics_table("true robot at the goals (rows with status ok)",

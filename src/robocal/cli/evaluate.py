@@ -6,7 +6,15 @@ from pathlib import Path
 
 import typer
 
-from .common import base_link_option, decimal_option, delimiter_option, euler_option, tip_link_option
+from .common import (
+    base_link_option,
+    decimal_option,
+    delimiter_option,
+    euler_option,
+    json_flag,
+    quiet_flag,
+    tip_link_option,
+)
 
 
 def evaluate_cmd(
@@ -14,8 +22,9 @@ def evaluate_cmd(
     data: Path = typer.Argument(..., help="measurement CSV"),
     base_link: str | None = base_link_option(),
     tip_link: str | None = tip_link_option(),
-    as_json: bool = typer.Option(False, "--json", help="print the metrics as JSON"),
-    frames: str = typer.Option("none", "--frames", help="none | auto | base | base+tool: fit frames first"),
+    as_json: bool = json_flag("the metrics"),
+    frames: str = typer.Option("auto", "--frames", help="auto | none | base | base+tool: fit frames first (auto, as "
+                               "in calibrate: registered when the data are not in the model's frame, and said)"),
     column: list[str] | None = typer.Option(None, "--column", help="map file columns: FILE=ROBOCAL[,FILE=ROBOCAL…]"),
     joint_unit: str | None = typer.Option(None, "--joint-unit", help="deg | rad (default: deg, checked)"),
     length_unit: str | None = typer.Option(None, "--length-unit", help="mm | m (default: mm)"),
@@ -27,14 +36,19 @@ def evaluate_cmd(
     poses_out: Path | None = typer.Option(None, "--poses-out", help="per-pose errors CSV to write"),
     uncertainty: bool = typer.Option(False, "--uncertainty", help="also each pose's predicted position uncertainty "
                                      "(mm, from the parameter covariance a calibrated model carries)"),
+    require: list[str] | None = typer.Option(None, "--require", help="a verdict for CI: FIGURE<=VALUE (rms, mean, "
+                                             "max, std, mm); not met: exit 4, named on stderr; repeatable"),
+    quiet: bool = quiet_flag(),
 ) -> None:
     """Error metrics (MODEL §6) of a robot model on measured data."""
     import json
 
     from .. import options as opt
     from ..evaluation import evaluate
-    from .common import check_outputs, console, load, metrics_table, print_warnings
+    from ..requirements import parse_requirements
+    from .common import check_outputs, load, print_warnings, verdict
 
+    checks = parse_requirements(require, "evaluate")
     check_outputs((robot, data), poses_out=poses_out)
     ev = evaluate(load(robot, base_link, tip_link), data, columns=opt.column_map(column), frames=frames,
                   joint_unit=joint_unit, length_unit=length_unit, payload=payload, uncertainty=uncertainty,
@@ -49,7 +63,14 @@ def evaluate_cmd(
         atomic_write(poses_out, rows_to_csv(ev.pose_rows, columns))
     if as_json:
         print(json.dumps(ev.to_dict(), indent=2))
-        return
+    elif not quiet:
+        _print_tables(ev, robot, data)
+    verdict(checks, {k: ev.metrics.position[k] for k in ("rms", "mean", "std", "max")})
+
+
+def _print_tables(ev, robot, data) -> None:
+    from .common import console, metrics_table
+
     title = f"{robot} on {data} ({ev.metrics.n} poses{'' if ev.frames == 'none' else ', frames ' + ev.frames})"
     columns = {"error": ev.metrics, **(ev.per_target if len(ev.per_target) > 1 else {})}
     console().print(metrics_table(title, columns))

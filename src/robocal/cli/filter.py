@@ -6,7 +6,7 @@ from pathlib import Path
 
 import typer
 
-from .common import base_link_option, tip_link_option
+from .common import base_link_option, json_flag, quiet_flag, summary_option, tip_link_option
 
 #: exit status of a run that wrote the program but left targets uncorrected (2 is bad input)
 PARTIAL = 3
@@ -31,12 +31,12 @@ def filter_cmd(
                                                   "$config.dat with TOOL_DATA and BASE_DATA (default: found "
                                                   "beside the program or in a folder above it)"),
     fmt: str = typer.Option("auto", "--format", help="auto | krl | rapid | urscript | fanuc"),
-    summary: Path | None = typer.Option(None, "--json", help="JSON summary to write: every target's status, "
-                                        "reason, correction, check and configuration"),
+    as_json: bool = json_flag("the summary (every target's status, reason, correction, check and configuration)"),
+    summary: Path | None = summary_option("the summary"),
     seed: int = typer.Option(0, "--seed", help="random starts of a nominal inverse with no closed form"),
     base_link: str | None = base_link_option(),
     tip_link: str | None = tip_link_option(),
-    quiet: bool = typer.Option(False, "--quiet", "-q", help="no table; warnings and the counts still on stderr"),
+    quiet: bool = quiet_flag(),
 ) -> None:
     """Rewrite a program's targets so the uncalibrated controller drives the real robot where the
     programmer meant; everything else in the files stays byte for byte.  Exit status 3: the program
@@ -48,7 +48,7 @@ def filter_cmd(
     from ..io.atomic import atomic_write, together
     from ..io.robotfile import load_robot
     from ..math.se3 import frame_from_values
-    from .common import check_outputs, console, one_line, print_warnings, table
+    from .common import check_outputs, console, one_line, print_json, print_warnings, table
 
     language = language_of(program, fmt)
     tcp, tools = opt.named_frames(tool, "tool")
@@ -70,7 +70,9 @@ def filter_cmd(
         if summary is not None:
             atomic_write(summary, result.json())
     flagged = result.flagged
-    if not quiet:
+    if as_json:
+        print_json(result.json())
+    elif not quiet:
         rows = [(c.target.name, str(c.target.line), c.target.kind, c.status,
                  "" if c.moved_mm is None or not c.corrected else f"{c.moved_mm:.3f}",
                  "" if c.turned_deg is None or not c.corrected else f"{c.turned_deg:.4f}",

@@ -6,6 +6,8 @@ from pathlib import Path
 
 import typer
 
+from .common import json_flag, quiet_flag, summary_option
+
 app = typer.Typer(help="ISO 9283 pose and distance accuracy and repeatability.", no_args_is_help=True)
 
 
@@ -20,6 +22,7 @@ def plan_cmd(
                                      "tool orientation the poses keep (default: a well-conditioned one)"),
     cycles: int = typer.Option(30, "--cycles", help="cycles of P1..P5 (ISO 9283: 30)"),
     out: Path = typer.Option(..., "--out", help="command sequence CSV to write"),
+    quiet: bool = quiet_flag(),
 ) -> None:
     """The five ISO 9283 poses in the test cube, checked for reach and limits, as a command sequence."""
     import math
@@ -41,6 +44,8 @@ def plan_cmd(
     plan = plan_cube(r, cube_size, centre, q0)
     atomic_write(out, plan_csv(plan, n, r.prismatic if r.prismatic.any() else None))
     rpy = plan.rpy_deg()
+    if quiet:
+        return
     rows = [(label, *(f"{v:.2f}" for v in plan.position[k]), *(f"{math.degrees(v):.2f}" for v in plan.q[k]))
             for k, label in enumerate(plan.labels)]
     console().print(table(f"ISO 9283 test poses: cube of {plan.edge:.1f} mm, orientation rpy "
@@ -57,18 +62,21 @@ def evaluate_cmd(
     robot: str | None = typer.Option(None, "--robot", help="robot whose nominal model gives the commanded poses of "
                                       "joint commands"),
     report: Path | None = typer.Option(None, "--report", help="HTML report to write"),
-    as_json: bool = typer.Option(False, "--json", help="print the characteristics as JSON"),
+    as_json: bool = json_flag("the characteristics of every campaign"),
+    summary: Path | None = summary_option("the characteristics"),
+    quiet: bool = quiet_flag(),
 ) -> None:
     """Pose accuracy AP and repeatability RP, distance accuracy AD and repeatability RD (ISO 9283)."""
     import json
 
+    from ..io.atomic import atomic_write, together
     from ..io.robotfile import load_robot
     from ..iso9283.characteristics import characteristics
     from ..iso9283.files import load_campaign
     from ..report.iso9283 import distance_rows, pose_rows, write_iso9283_report
-    from .common import check_outputs, console, print_warnings, table
+    from .common import check_outputs, console, print_json, print_warnings, table
 
-    check_outputs(tuple(measured) + ((robot,) if robot else ()), report=report)
+    check_outputs(tuple(measured) + ((robot,) if robot else ()), report=report, summary=summary)
     r = None if robot is None else load_robot(robot)
     results = [characteristics(load_campaign(path, r)) for path in measured]
     labels = [p for p in results[0].poses]
@@ -78,11 +86,17 @@ def evaluate_cmd(
 
             raise InputError(f"poses {', '.join(p.pose for p in res.poses)} differ from the first campaign's "
                              f"({', '.join(p.pose for p in labels)})", source=str(path))
-    if report is not None:
-        write_iso9283_report(results, [str(p) for p in measured], report)
+    document = [res.to_dict() for res in results]
+    with together():
+        if report is not None:
+            write_iso9283_report(results, [str(p) for p in measured], report)
+        if summary is not None:
+            atomic_write(summary, json.dumps(document, indent=2) + "\n")
     print_warnings([n for res in results for n in res.notes])
     if as_json:
-        print(json.dumps([res.to_dict() for res in results], indent=2))
+        print_json(document)
+        return
+    if quiet:
         return
     console().print(table("ISO 9283 pose characteristics", *pose_rows(results), text_columns=(0, 1)))
     console().print(table("ISO 9283 distance characteristics", *distance_rows(results), text_columns=(0, 1)))

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import typer
 
-from .common import base_link_option, tip_link_option
+from .common import base_link_option, json_flag, quiet_flag, summary_option, tip_link_option
 
 
 def _print_plan(p, r, poses: int, candidates: int, criterion: str, measure: str, noise: float, angle_noise: float):
@@ -62,8 +62,9 @@ def plan_cmd(
     base_link: str | None = base_link_option(),
     tip_link: str | None = tip_link_option(),
     out: Path = typer.Option(..., "--out", help="measurement-file skeleton to write (pose_id, q1..qn)"),
-    report: Path | None = typer.Option(None, "--json", help="write the plan report as JSON"),
-    quiet: bool = typer.Option(False, "--quiet", "-q"),
+    as_json: bool = json_flag("the plan report"),
+    report: Path | None = summary_option("the plan report"),
+    quiet: bool = quiet_flag(),
 ) -> None:
     """Choose the joint sets worth measuring (greedy + exchange on an observability criterion)."""
     import json
@@ -76,9 +77,9 @@ def plan_cmd(
     from ..io.measurements import joints_to_file
     from ..io.robotfile import load_robot
     from ..plan import plan_poses
-    from .common import check_outputs, console
+    from .common import check_outputs, console, print_json
 
-    check_outputs((robot,), out=out, json=report)
+    check_outputs((robot,), out=out, summary=report)
 
     r = load_robot(robot, base_link=base_link, tip_link=tip_link)
     jr = opt.joint_limits(limits, r.n_joints)
@@ -101,7 +102,9 @@ def plan_cmd(
         atomic_write(out, "\n".join(lines) + "\n")
         if report is not None:
             atomic_write(report, json.dumps(p.to_dict(), indent=1) + "\n")
-    if not quiet:
+    if as_json:
+        print_json(p.to_dict())
+    elif not quiet:
         _print_plan(p, r, poses, candidates, criterion, measure, noise, angle_noise)
         console().print(f"wrote {out}")
 

@@ -6,6 +6,8 @@ from pathlib import Path
 
 import typer
 
+from .common import json_flag, quiet_flag
+
 
 def robots_cmd(
     urdf: str | None = typer.Option(None, "--urdf", metavar="ROBOT",
@@ -16,11 +18,13 @@ def robots_cmd(
     nominal: str | None = typer.Option(None, "--nominal", help="the nominal standard-DH model DH deltas apply to "
                                        "(e.g. ur10)"),
     out: Path | None = typer.Option(None, "--out", help="robot file to write (default: print it)"),
+    as_json: bool = json_flag("the list of built-in robots"),
+    quiet: bool = quiet_flag(),
 ) -> None:
     """List the built-in robots and the published source of each table, print one as URDF, or
     read a UR controller's calibration as a robot file."""
     if from_ur is not None:
-        _from_ur(from_ur, nominal, out)
+        _from_ur(from_ur, nominal, out, quiet)
         return
     if urdf is not None:
         from ..io.robotfile import load_robot
@@ -32,18 +36,23 @@ def robots_cmd(
                                        "tool"), end="")
         return
     from ..io.builtins import builtin_summaries
-    from .common import console, table
+    from .common import console, print_json, table
 
+    if as_json:
+        print_json(builtin_summaries())
+        return
+    if quiet:
+        return
     rows = [(r["name"], r["robot"], r["convention"], str(r["joints"]), r["source"]) for r in builtin_summaries()]
     console().print(table("built-in robots", ("name", "robot", "convention", "joints", "source"), rows, "left"))
 
 
-def _from_ur(path: Path, nominal: str | None, out: Path | None) -> None:
+def _from_ur(path: Path, nominal: str | None, out: Path | None, quiet: bool = False) -> None:
     from ..exceptions import InputError
     from ..io.atomic import atomic_write, read_text
     from ..io.robotfile import load_robot, robot_to_toml
     from ..io.ur import parse_ur_deltas, parse_ur_kinematics
-    from .common import check_outputs
+    from .common import check_outputs, console
 
     check_outputs((path,) + ((nominal,) if nominal else ()), out=out)
     text = read_text(path, "UR calibration file")
@@ -58,6 +67,8 @@ def _from_ur(path: Path, nominal: str | None, out: Path | None) -> None:
         print(toml, end="")
     else:
         atomic_write(out, toml)
+        if not quiet:
+            console().print(f"wrote {out}")
 
 
 def register(app: typer.Typer) -> None:

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import typer
 
-from .common import base_link_option, tip_link_option
+from .common import base_link_option, quiet_flag, tip_link_option
 
 
 def _degrees(values):
@@ -46,6 +46,7 @@ def simulate_cmd(
     tip_link: str | None = tip_link_option(),
     out: Path = typer.Option(..., "--out", help="measurement CSV to write"),
     truth: Path | None = typer.Option(None, "--truth", help="true robot TOML to write"),
+    quiet: bool = quiet_flag(),
 ) -> None:
     """Simulate measurements of a robot with planted deviations."""
     import math
@@ -78,7 +79,8 @@ def simulate_cmd(
     with together():
         for path, text in texts.items():
             atomic_write(path, text)
-    console().print(f"wrote {sim.measurements.n_poses} poses to {out}" + (f" and the true robot to {truth}"
+    if not quiet:
+        console().print(f"wrote {sim.measurements.n_poses} poses to {out}" + (f" and the true robot to {truth}"
                                                                            if truth else ""))
 
 

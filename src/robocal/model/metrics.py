@@ -74,6 +74,14 @@ class Metrics:
         return out
 
 
+def table_rows(columns: dict[str, Metrics]) -> list[tuple[str, list[str]]]:
+    """(label, one cell per column) for each figure any column has, "—" where one lacks it (a
+    position-only prediction beside full-pose figures)."""
+    values = [dict(m.rows()) for m in columns.values()]
+    labels = list(dict.fromkeys(label for m in columns.values() for label, _ in m.rows()))
+    return [(label, [f"{v[label]:.4f}" if label in v else "—" for v in values]) for label in labels]
+
+
 #: the columns of a per-pose table (mm and deg)
 POSE_COLUMNS = ("set", "pose_id", "row", "reflector", "dx_mm", "dy_mm", "dz_mm", "error_mm", "rx_deg", "ry_deg",
                 "rz_deg", "angle_deg", "outlier", "outside_region_deg")

@@ -61,3 +61,11 @@ def update_bests(x, fx, pbest, pbest_f, P, n_groups):  # pragma: no cover
         if best[g] < 0 or pbest_f[p] < pbest_f[best[g]]:
             best[g] = p
     return best
+
+
+def warm_up() -> None:
+    """Compile (or load from numba's cache) both kernels with the types a swarm calls them
+    with, so that no swarm's clock includes it."""
+    z, row = np.zeros((2, 1)), np.zeros(1)
+    step(0, z, z.copy(), z.copy(), np.zeros((1, 1)), 2, z, z, 0.5, 1.0, 1.0, row + 1.0, row - 1.0, row + 1.0)
+    update_bests(z, np.zeros(2), z.copy(), np.full(2, np.inf), 2, 1)

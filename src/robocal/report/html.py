@@ -10,7 +10,7 @@ import numpy as np
 
 from ..calibration.result import CalibrationResult
 from ..io.atomic import atomic_write
-from ..model.metrics import Metrics, pose_errors
+from ..model.metrics import Metrics, pose_errors, table_rows
 from ..model.parameters import is_angle, is_frame
 from . import figures
 from .tables import (
@@ -31,7 +31,8 @@ th{background:#f0f0f0}td:first-child,th:first-child{text-align:left}img{max-widt
 td.l,th.l{text-align:left}.warn{background:#fff4e0;border-left:4px solid #e90;padding:.4em .8em}code{background:#f4f4f4}
 .info{background:#eef3f8;border-left:4px solid #7a9cc6;padding:.4em .8em}
 .next{background:#eef8ee;border-left:4px solid #4a4;padding:.4em .8em}
-.head{font-size:90%;color:#444}
+.head{font-size:90%;color:#444;table-layout:fixed;width:100%}.head td{overflow-wrap:anywhere;word-break:break-word}
+.head td:first-child{width:9em}.lead{font-size:120%;font-weight:600}
 """
 
 
@@ -41,13 +42,15 @@ def _img(fig) -> str:
 
 
 def _metrics_table(columns: dict[str, Metrics]) -> str:
-    rows = [m.rows() for m in columns.values()]
     head = "".join(f"<th>{html.escape(c)}</th>" for c in columns)
-    body = "".join(
-        f"<tr><td>{html.escape(label)}</td>" + "".join(f"<td>{r[i][1]:.4f}</td>" for r in rows) + "</tr>"
-        for i, (label, _) in enumerate(rows[0])
-    )
+    body = "".join(f"<tr><td>{html.escape(label)}</td>" + "".join(f"<td>{v}</td>" for v in values) + "</tr>"
+                   for label, values in table_rows(columns))
     return f"<table><tr><th>error</th>{head}</tr>{body}</table>"
+
+
+def _lead(result: CalibrationResult) -> str:
+    """The honest figure first: validation, else the cross-validated prediction; the fit labelled."""
+    return f"<p class='lead'>{html.escape(result.headline_text()[0].upper() + result.headline_text()[1:])}.</p>"
 
 
 def _summary(result: CalibrationResult, d: dict) -> str:
@@ -314,14 +317,15 @@ def calibration_html(result: CalibrationResult, command: str | None = None) -> s
     d = result.to_dict()
     parts = [f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>robocal calibration</title>"
              f"<style>{_CSS}</style></head><body>", f"<h1>Calibration of {html.escape(result.nominal.name)}</h1>",
-             _run_header(result, command), _summary(result, d)]
+             _run_header(result, command), _lead(result), _summary(result, d)]
     parts += _said(result)
     parts += ["<h2>What to do next</h2>"] + [f"<p class='next'>{s}</p>" for s in next_steps(result)]
-    cols = {"before": result.metrics["before"], "after": result.metrics["after"]}
-    if "validation_before" in result.metrics:
-        cols["validation before"] = result.metrics["validation_before"]
-        cols["validation after"] = result.metrics["validation_after"]
-    parts.append("<h2>Accuracy</h2><p>“Before” is the nominal geometry with the registered frames. Measured: "
+    cols = result.accuracy_columns()
+    parts.append("<h2>Accuracy</h2><p>“Before” is the nominal geometry with the registered frames; “after (fit)” "
+                 "the calibrated model on the poses it was fitted to, which flatters it; "
+                 + ("“validation” the poses kept out of the fit. " if result.validation else
+                    "“predicted” each pose held out of a 5-fold refit, what the model does on poses it has not seen. ")
+                 + "Measured: "
                  f"{html.escape(result.measurements.describe() if result.measurements else str(result.n_poses))}"
                  + (f"; validation: {html.escape(result.validation.describe())}" if result.validation else "")
                  + ".</p>")

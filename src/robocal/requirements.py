@@ -1,0 +1,64 @@
+"""Requirements a plant's CI puts on a result: ``--require "validation_rms<=0.5"``.
+
+A requirement names a figure of the command (mm), a comparison and a value.  Parsing is strict (a
+malformed or unknown one is bad input); checking gives the requirements not met, which the
+command line turns into exit status :data:`FAILED` and one line each on stderr, as FIGAROH's
+``verify()`` gives a verdict a script can read.
+"""
+
+from __future__ import annotations
+
+import math
+import operator
+import re
+from dataclasses import dataclass
+
+from .exceptions import InputError
+
+#: the exit status of a command whose requirements were not met (2 is bad input, 3 a partial result)
+FAILED = 4
+#: the figures each command can be held to (mm)
+FIGURES = {
+    "calibrate": ("rms", "max", "cv_rms", "validation_rms", "validation_max"),
+    "evaluate": ("rms", "mean", "std", "max"),
+}
+_OPS = {"<=": operator.le, "<": operator.lt, ">=": operator.ge, ">": operator.gt}
+_PATTERN = re.compile(r"^\s*([a-z_]+)\s*(<=|>=|<|>)\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*$")
+
+
+@dataclass(frozen=True)
+class Requirement:
+    figure: str
+    op: str
+    value: float
+
+    def met(self, figures: dict) -> bool:
+        return bool(_OPS[self.op](figures[self.figure], self.value))
+
+    def __str__(self) -> str:
+        return f"{self.figure}{self.op}{self.value:g}"
+
+
+def parse_requirements(items, command: str) -> list[Requirement]:
+    """``FIGURE<=VALUE`` items (each may be a comma list) as requirements of ``command``."""
+    out = []
+    for item in items or ():
+        for text in str(item).split(","):
+            m = _PATTERN.match(text)
+            if m is None:
+                raise InputError(f"expected FIGURE<=VALUE (or <, >=, >), e.g. rms<=0.5, got {text.strip()!r}",
+                                 option="require")
+            figure, op, value = m.group(1), m.group(2), float(m.group(3))
+            if figure not in FIGURES[command]:
+                raise InputError(f"unknown figure {figure!r} (expected {' | '.join(FIGURES[command])})",
+                                 option="require")
+            if not math.isfinite(value):
+                raise InputError(f"the value of {figure} must be finite, got {m.group(3)!r}", option="require")
+            out.append(Requirement(figure, op, value))
+    return out
+
+
+def unmet(requirements: list[Requirement], figures: dict) -> list[str]:
+    """One line per requirement not met, naming it and the figure reached."""
+    return [f"requirement not met: {r} ({r.figure} = {figures[r.figure]:.4g} mm)" if math.isfinite(figures[r.figure])
+            else f"requirement not met: {r} (this run has no {r.figure})" for r in requirements if not r.met(figures)]
