@@ -408,3 +408,45 @@ def test_an_unnamed_tool_for_a_program_of_several_tools_is_refused(tmp_path, run
                            "--tool", "0,0,100,0,0,0")
     assert code == 2 and "taught in 2 tools (1, 2)" in err and "--tool NAME=" in err
     assert not (tmp_path / "o.ls").exists()
+
+
+# --- configuration bits on their boundaries: an identity filter changes nothing ----------------
+
+#: joints on the boundaries of the configuration data: 0 for KUKA's T bits and ABB's cf, ±90°
+#: and 180° quadrant and turn boundaries, taught as the pendant shows them
+BOUNDARY_DEG = {"kr5-kuka": [[0.0, -90.0, 90.0, 0.0, 45.0, 0.0], [90.0, -60.0, 60.0, -90.0, 30.0, 180.0],
+                             [-90.0, -100.0, 110.0, 180.0, 60.0, -90.0], [0.0, -45.0, 45.0, 90.0, -50.0, -180.0]],
+                "irb120": [[0.0, -30.0, 20.0, 0.0, 45.0, 0.0], [90.0, -20.0, 10.0, -90.0, 30.0, 180.0],
+                           [-90.0, 10.0, -40.0, 90.0, 60.0, -90.0], [45.0, 20.0, 30.0, 0.0, -50.0, -180.0]]}
+
+
+def test_configuration_bits_on_their_boundaries_stay_as_taught(tmp_path):
+    """Joints exactly on a boundary come back from IK a hair either side (−2e−14°): without a
+    tolerance the bit flips and an identity filter would rewrite the program."""
+    for robot, writer in (("kr5-kuka", "krl"), ("irb120", "rapid"), ("irb120", "fanuc")):
+        q = np.radians(BOUNDARY_DEG[robot])
+        B = ind.base_of(robot) if robot == "kr5-kuka" else np.eye(4)
+        nominal, _ = _robots(tmp_path, robot, B)
+        g = ind.geometry(robot)
+        poses = [ind.pose(g, qi, base=B) for qi in q]
+        if writer == "krl":
+            src, dat = ctl.krl_program(poses, [], [ctl.kuka_status(robot, g, qi) for qi in q])
+            (tmp_path / "b.src").write_bytes(src.encode())
+            (tmp_path / "b.dat").write_bytes(dat.encode())
+            program, texts = tmp_path / "b.src", [src, dat]
+        elif writer == "rapid":
+            text = ctl.rapid_program(poses, [ctl.abb_config(robot, g, qi) for qi in q], [], np.eye(4), np.eye(4))
+            (tmp_path / "b.mod").write_bytes(text.encode())
+            program, texts = tmp_path / "b.mod", [text]
+        else:
+            text = ctl.fanuc_program(poses, [ctl.fanuc_config(robot, g, qi) for qi in q], [])
+            (tmp_path / "B.LS").write_bytes(text.encode())
+            program, texts = tmp_path / "B.LS", [text]
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            result = filter_program(nominal, program, nominal,
+                                    frames=Frames(tools={"2": np.eye(4)}, users={"1": np.eye(4)}))
+        # (the FANUC program's position register and offset motion are its controller's, by design)
+        assert {c.status for c in result.flagged} <= {"unsupported"}, [(c.target.name, c.reason)
+                                                                       for c in result.flagged]
+        assert result.counts()["ok"] >= len(q) - 1 and result.texts == texts, writer

@@ -104,10 +104,9 @@ def _old_spelling(argv: list[str]) -> str | None:
         if following.lower().endswith(".json") or (following and Path(following).is_dir()):
             value = following
         if value is not None:
-            where = new or "--summary"
             folder = "--json: is a folder; " if value and Path(value).is_dir() else ""
-            return (f"{folder}--json is a flag now: it prints the JSON document on stdout; to write a file, "
-                    f"use {where} PATH (here {where} {value})")
+            how = f"use {new} PATH (here {new} {value})" if new else f"redirect it (--json > {value})"
+            return f"{folder}--json is a flag: it prints the JSON document on stdout; to write a file, {how}"
     return None
 
 

@@ -6,6 +6,8 @@ from pathlib import Path
 
 import typer
 
+from .common import quiet_flag
+
 app = typer.Typer(help="The 2TPR&2TPS parallel mechanism (Chen et al.).", no_args_is_help=True)
 
 
@@ -14,6 +16,7 @@ def ik_cmd(
     pose: str | None = typer.Option(None, "--pose", help="y,z,alpha,beta (mm, deg)"),
     poses: Path | None = typer.Option(None, "--poses", help="CSV with columns y, z, alpha, beta (mm, deg)"),
     geometry: str | None = typer.Option(None, "--geometry", help="mechanism TOML (default: built-in 2tpr2tps)"),
+    quiet: bool = quiet_flag(),
 ) -> None:
     """Rod lengths for platform poses (γ = 0, x = z tan β)."""
     import math
@@ -31,6 +34,8 @@ def ik_cmd(
     check_workspace(g, reduced_to_pose(q), source=str(poses or "--pose"))
     rows = [tuple(f"{v:.4f}" for v in (qi[0], qi[1], math.degrees(qi[2]), math.degrees(qi[3]), *Li))
             for qi, Li in zip(q, ik(g, q))]
+    if quiet:
+        return
     console().print(table("inverse kinematics (commanded rod lengths, mm)",
                           ("y", "z", "α°", "β°", "L1", "L2", "L3", "L4"), rows))
 
@@ -40,6 +45,7 @@ def fk_cmd(
     lengths: str | None = typer.Option(None, "--lengths", help="L1,L2,L3,L4 (mm)"),
     file: Path | None = typer.Option(None, "--file", help="CSV with columns L1, L2, L3, L4 (mm)"),
     geometry: str | None = typer.Option(None, "--geometry", help="mechanism TOML (default: built-in 2tpr2tps)"),
+    quiet: bool = quiet_flag(),
 ) -> None:
     """Platform pose for rod lengths (Newton iteration, tolerance 1e-10 mm)."""
     import numpy as np
@@ -50,6 +56,8 @@ def fk_cmd(
 
     p = fk(load_pkm(geometry), read_rows(lengths, file, ("L1", "L2", "L3", "L4"), "lengths"))
     rows = [tuple(f"{v:.6f}" for v in (*row[:3], *np.degrees(row[3:]))) for row in p]
+    if quiet:
+        return
     console().print(table("forward kinematics", ("x mm", "y mm", "z mm", "α°", "β°", "γ°"), rows))
 
 
@@ -59,6 +67,7 @@ def sensitivity_cmd(
     poses: int = typer.Option(30, "--poses"),
     seed: int = typer.Option(0, "--seed"),
     geometry: str | None = typer.Option(None, "--geometry"),
+    quiet: bool = quiet_flag(),
 ) -> None:
     """Chen et al. Fig. 4–9: pose errors for 1 mm of error per parameter over workspace poses."""
     import json
@@ -78,6 +87,8 @@ def sensitivity_cmd(
     atomic_write(out, json.dumps(means, indent=1) + "\n")
     rows = [(group, name, *(f"{x:.4f}" for x in v[:3]), *(f"{math.degrees(x):.4f}" for x in v[3:5]))
             for group, entries in means.items() for name, v in entries.items()]
+    if quiet:
+        return
     console().print(table(f"mean |E| over {poses} poses, 1 mm error",
                           ("case", "parameter", "dx mm", "dy mm", "dz mm", "dα°", "dβ°"), rows, "left"))
 
@@ -89,6 +100,7 @@ def compensate_cmd(
     noise: float = typer.Option(0.0, "--noise", help="tracker noise σ, mm"),
     seed: int = typer.Option(0, "--seed"),
     out: Path | None = typer.Option(None, "--out", help="JSON summary"),
+    quiet: bool = quiet_flag(),
 ) -> None:
     """Compensate a simulated machine: the paper's eq. 18 (PSO), its iteration, and the identified model."""
     import json
@@ -103,6 +115,8 @@ def compensate_cmd(
     if out is not None:
         atomic_write(out, json.dumps({r["method"]: {"mean_mm": r["mean_mm"], "improvement_pct": r["improvement_pct"]}
                                       for r in rows}, indent=1) + "\n")
+    if quiet:
+        return
     console().print(table(f"{targets} targets, planted ±{errors} mm, tracker noise {noise} mm",
                           ("method", "mean error mm", "max mm", "improvement %"),
                           [(r["method"], f"{r['mean_mm']:.6f}", f"{r['max_mm']:.6f}", f"{r['improvement_pct']:.3f}")
@@ -115,6 +129,7 @@ def calibrate_cmd(
     geometry: str | None = typer.Option(None, "--geometry"),
     out: Path | None = typer.Option(None, "--out", help="result JSON"),
     export: Path | None = typer.Option(None, "--export", help="identified mechanism TOML"),
+    quiet: bool = quiet_flag(),
 ) -> None:
     """Identify the identifiable subset of the 28 parameters from measured platform positions."""
     import json
@@ -132,5 +147,7 @@ def calibrate_cmd(
         if export is not None:
             save_pkm(res.geometry, export, comment=f"Identified by robocal from {data}")
     dropped = ", ".join(res.identifiability.dropped) or "none"
+    if quiet:
+        return
     console().print(f"{len(res.names)} parameters identified, dropped: {dropped}"
                     f"; position RMS {res.rms_before:.4f} → {res.rms_after:.6f} mm ({res.status})")

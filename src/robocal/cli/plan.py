@@ -46,7 +46,8 @@ def plan_cmd(
     criterion: str = typer.Option("O1", "--criterion", help="O1 | O2 | O3 | O4 | D"),
     measure: str = typer.Option("pose", "--measure", help="pose | position"),
     frames: str = typer.Option("base+tool", "--frames", help="none | base | base+tool (the frames the calibration "
-                               "will fit; base+tool when the tracker's place and the tool are not known)"),
+                               "will fit; base+tool when the tracker's place and the tool are not known; no auto: "
+                               "before measuring, no data tell it)"),
     joint_range: str | None = typer.Option(None, "--range", help="LO,HI deg for every joint"),
     limits: str | None = typer.Option(None, "--limits", help="per joint lo:hi deg, comma-separated (work cell)"),
     noise: float = typer.Option(0.02, "--noise", help="position noise σ, mm"),

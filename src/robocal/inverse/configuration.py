@@ -18,7 +18,8 @@ turns.  The facts are measured here once, on the robot's own chain, whatever its
 "Up" is the side of axis 1 away from the robot's foot: where the shoulder stands above the
 model's base origin, else where the wrist centre rises at zero joints, else the measuring frame's
 z.  Each fact is 0 where the joints lie on its boundary within :data:`TOLERANCE_RAD` (an angle
-that comes back as −2·10⁻¹⁴° is 0°): there either value holds, and a target keeps its own.
+that comes back as −2·10⁻¹⁴°, or −0.0004° from a program's rounded numbers, is 0°): there either
+value holds, and a target keeps its own.
 The wrist centre is the point of axis 5 nearest axis 4 (their crossing on a spherical wrist).
 """
 
@@ -31,10 +32,13 @@ import numpy as np
 from ..model.kinematics import joint_axes
 from ..model.robot import Robot
 
-#: a joint value or an angle within this (rad, 6·10⁻⁸°) of a boundary is on it
-TOLERANCE_RAD = 1e-9
-#: a point within this (mm) of a boundary plane is on it
-TOLERANCE_MM = 1e-6
+#: a joint value or an angle within this (rad, 0.003°) of a boundary is on it.  Not round-off
+#: alone: a program stores its targets to a resolution (FANUC 0.001°, KUKA 0.0001°, 0.001 mm),
+#: and the joints of a target taught exactly on a boundary come back from its rounded numbers
+#: up to about 10⁻⁵ rad either side; within this, the target's own bit is the right one
+TOLERANCE_RAD = 5e-5
+#: a point within this (mm) of a boundary plane is on it (the same resolution, in position)
+TOLERANCE_MM = 0.01
 
 
 @dataclass(frozen=True)
