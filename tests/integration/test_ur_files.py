@@ -3,6 +3,7 @@ The chains are checked against products of 4×4 matrices written here (scipy rot
 
 from __future__ import annotations
 
+import re
 import warnings
 from pathlib import Path
 
@@ -12,6 +13,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from robocal.calibration import calibrate
+from robocal.exceptions import InputError
 from robocal.io.robotfile import load_robot
 from robocal.io.ur import joint_origins, parse_ur_deltas, parse_ur_kinematics, ur_kinematics_yaml
 from robocal.simulation import simulate
@@ -107,3 +109,35 @@ def test_the_command_line_reads_both_forms(tmp_path, run_cli):
     bad.write_text(YAML.read_text().replace("  forearm:", "  elbow:"))
     code, _, err = run_cli("evaluate", bad, tmp_path / "none.csv")
     assert code == 2 and "unknown segment 'elbow'" in err
+
+
+def test_deltas_with_cancelling_offsets_are_read_and_wrong_units_refused():
+    """A controller's deltas may hold offsets of hundreds of metres on the parallel axes 2–4 that
+    cancel (d along axes that stay parallel adds up): read as they are.  The same deltas in mm
+    or degrees move the flange by metres: refused, naming the units."""
+    nominal = load_robot("ur10")
+    deltas = {"delta_a": [0, 0.0003, -0.0002, 0, 0, 0], "delta_d": [0.0001, 300.0, -300.0004, 0.0002, -0.0001, 0],
+              "delta_alpha": [0.001, 0, 0, -0.0005, 0, 0], "delta_theta": [0.002, -0.001, 0.0005, 0, 0.001, 0]}
+
+    def text(d):
+        return "".join(f"{k} = [ {', '.join(map(str, v))} ]\n" for k, v in d.items())
+
+    robot = parse_ur_deltas(text(deltas), nominal, source="calibration.conf")
+    moved = np.linalg.norm(robot.positions(Q) - nominal.positions(Q), axis=1)
+    assert 0.05 < moved.max() < 5.0  # millimetres: the offsets cancel
+    for wrong in ({**deltas, "delta_a": [1000 * v for v in deltas["delta_a"]],
+                   "delta_d": [1000 * v for v in deltas["delta_d"]]},
+                  {**deltas, "delta_theta": list(np.degrees(deltas["delta_theta"]))}):
+        with pytest.raises(InputError, match="not a calibration of it in m and rad"):
+            parse_ur_deltas(text(wrong), nominal, source="calibration.conf")
+
+
+def test_kinematics_yaml_in_millimetres_or_degrees_is_refused(tmp_path, run_cli):
+    mm = tmp_path / "mm.yaml"
+    mm.write_text(YAML.read_text().replace("z: 0.1273", "z: 127.3").replace("x: -0.612", "x: -612"))
+    code, _, err = run_cli("robots", "--from-ur", mm, "--out", tmp_path / "x.toml")
+    assert code == 2 and "metres, not millimetres" in err and "kinematics.shoulder.z" in err
+    deg = tmp_path / "deg.yaml"
+    deg.write_text(re.sub(r"roll: 1\.570796\d*", "roll: 90", YAML.read_text(), count=1))
+    code, _, err = run_cli("robots", "--from-ur", deg, "--out", tmp_path / "x.toml")
+    assert code == 2 and "radians, not degrees" in err and not (tmp_path / "x.toml").exists()

@@ -272,7 +272,11 @@ def _exclude(value) -> tuple[str, ...]:
     items = value.split(",") if isinstance(value, str) else list(value)
     if not all(isinstance(v, str) for v in items):
         raise InputError(f"expected pose ids, got {value!r}", option="exclude")
-    return tuple(v.strip() for v in items if v.strip())
+    out = tuple(v.strip() for v in items if v.strip())
+    if not out and (isinstance(value, str) or items):
+        raise InputError(f"names no pose (expected pose ids or 'row N', comma-separated), got {value!r}",
+                         option="exclude")
+    return out
 
 
 def _model(value) -> str:

@@ -61,6 +61,8 @@ class Instrument:
                              f"k=K (U = K σ, default {DEFAULT_COVERAGE:g}), got {text!r}", option=option)
         a, b = float(m.group(1)), float(m.group(2) or 0.0)
         k = float(m.group(3)) if m.group(3) else DEFAULT_COVERAGE
+        if not all(math.isfinite(v) for v in (a, b, k)):
+            raise InputError(f"the instrument's statement must give finite numbers, got {text!r}", option=option)
         if not (a > 0 or b > 0) or k <= 0:
             raise InputError(f"the instrument's statement must give an error > 0 and k > 0, got {text!r}",
                              option=option)

@@ -150,6 +150,9 @@ def _excluded(meas: Measurements, exclude: tuple[str, ...], notes: list[str]) ->
         raise InputError(f"excluded pose {unknown[0]!r} is not in the data (no such {what})", source=meas.source,
                          option="exclude")
     keep = [i for i, x in enumerate(ids) if x not in set(exclude)]
+    if not keep:
+        raise InputError(f"leaves none of the {meas.n_poses} poses to calibrate on", source=meas.source,
+                         option="exclude")
     notes.append(f"{meas.n_poses - len(keep)} pose(s) left out as asked (--exclude): {', '.join(exclude[:10])}"
                  + (" …" if len(exclude) > 10 else ""))
     return meas.subset(keep)

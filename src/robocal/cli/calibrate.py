@@ -148,6 +148,7 @@ def calibrate_cmd(
     from .. import options as opt
     from ..calibration import CalibrationConfig, calibrate
     from ..calibration.methods import settings
+    from ..exceptions import InputError
     from ..io.atomic import together
     from ..io.robotfile import load_robot
     from ..requirements import parse_requirements
@@ -155,8 +156,6 @@ def calibrate_cmd(
 
     checks = parse_requirements(require, "calibrate")
     if validate is None and any(c.figure.startswith("validation") for c in checks):
-        from ..exceptions import InputError
-
         raise InputError("validation figures need validation poses: give --validate, or require cv_rms",
                          option="require")
     check_outputs((robot, data, validate), out=out, export=export, report=report, poses_out=poses_out)
@@ -164,7 +163,11 @@ def calibrate_cmd(
         from ..io.atomic import read_text
 
         listed = [line.split("#", 1)[0].strip() for line in read_text(exclude_file, "exclude file").splitlines()]
-        given["exclude"] = ",".join([*(exclude.split(",") if exclude else []), *filter(None, listed)])
+        listed = [x for x in listed if x]
+        if not listed:
+            raise InputError("lists no pose id (one a line; # starts a comment)", source=exclude_file,
+                             option="exclude_file")
+        given["exclude"] = ",".join([*(exclude.split(",") if exclude else []), *listed])
     cfg = CalibrationConfig(**{**given, "use_orientation": not position_only,
                                "angle_noise": None if angle_noise is None else math.radians(angle_noise)})
     nominal = load_robot(robot, base_link=base_link, tip_link=tip_link)

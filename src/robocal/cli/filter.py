@@ -86,7 +86,8 @@ def filter_cmd(
         print(f"robocal: not corrected: {c.target.name} (line {c.target.line}): {c.status}: {one_line(c.reason)}",
               file=sys.stderr)
     counts = ", ".join(f"{v} {k}" for k, v in result.counts().items())
-    print(f"robocal: {len(result.corrections)} targets: {counts}", file=sys.stderr)
+    if not quiet:
+        print(f"robocal: {len(result.corrections)} targets: {counts}", file=sys.stderr)
     if flagged:
         raise typer.Exit(PARTIAL)
 

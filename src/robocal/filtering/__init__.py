@@ -13,13 +13,15 @@ from pathlib import Path
 from ..exceptions import InputError
 from .correct import Correction, Frames, check, plan, summary_notes
 from .language import Language, language_of, languages
-from .program import Program, encode
+from .program import Program, check_finite, encode
 
 
 def load_program(path: str | Path, fmt: str = "auto", frames_file: str | Path | None = None) -> Program:
     """A program in the language ``fmt`` (or its suffix's), with its companion files."""
     path = Path(path)
-    return language_of(path, fmt).read(path, None if frames_file is None else Path(frames_file))
+    program = language_of(path, fmt).read(path, None if frames_file is None else Path(frames_file))
+    check_finite(program)
+    return program
 
 
 @dataclass

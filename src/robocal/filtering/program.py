@@ -9,6 +9,7 @@ zones, other declarations, line endings, the encoding and the layout stay byte f
 from __future__ import annotations
 
 import bisect
+import math
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -197,12 +198,48 @@ def decode(raw: bytes, source) -> tuple[str, str]:
                 return raw[len(bom):].decode(codec), f"{codec}+bom"
             except UnicodeDecodeError:
                 raise InputError(f"is marked {codec.upper()} but does not decode as such", source=source) from None
+    wide = _without_mark(raw)
+    if wide is not None:
+        return raw.decode(wide), wide
     for codec in ("utf-8", "cp1252"):
         try:
             return raw.decode(codec), codec
         except UnicodeDecodeError:
             continue
     return raw.decode("latin-1"), "latin-1"
+
+
+def _without_mark(raw: bytes) -> str | None:
+    """UTF-16 or UTF-32 written without a byte order mark, told by where the zero bytes of its
+    ASCII fall (a program is mostly ASCII; no 8-bit text has a zero byte), or None."""
+    head = raw[:4096]
+    if len(head) < 4 or b"\x00" not in head:
+        return None
+    for codec, width, where in (("utf-32-le", 4, (1, 2, 3)), ("utf-32-be", 4, (0, 1, 2)), ("utf-16-le", 2, (1,)),
+                                ("utf-16-be", 2, (0,))):
+        n = len(head) // width * width
+        units = [head[i:i + width] for i in range(0, n, width)]
+        if sum(all(u[k] == 0 for k in where) for u in units) >= 0.9 * len(units):
+            try:
+                raw.decode(codec)
+            except UnicodeDecodeError:
+                continue
+            return codec
+    return None
+
+
+def check_finite(program: Program) -> None:
+    """Every number a target or frame of the program holds must be finite: 1e999 reads as
+    infinity, and a target there would be flagged unreachable rather than refused."""
+    for t in program.targets:
+        for key, f in t.fields.items():
+            if not math.isfinite(f.value):
+                raise InputError(f"{t.name}: its {key} {f.text} is not a finite number",
+                                 source=program.files[t.file].path, where=f"line {t.line}")
+    for kind, frames in (("tool", program.tools), ("user frame", program.users)):
+        for name, T in frames.items():
+            if not np.all(np.isfinite(T)):
+                raise InputError(f"the {kind} {name} holds a number that is not finite", source=program.source)
 
 
 def encode(text: str, encoding: str) -> bytes:

@@ -217,9 +217,14 @@ def read_pose_table(text: str, *, source: str, options: ReadOptions = ReadOption
     Joints come back in degrees (prismatic ones in mm) and lengths in mm, whatever units the
     options state.
     """
+    known = set(POSITION) | set(ORIENTATION) | set(OPTIONAL) | set(POSITION_SIGMA) | set(ORIENTATION_SIGMA)
+    for old, new in (options.columns or {}).items():  # a name robocal does not read would be dropped unseen
+        if new not in known and not any(p.match(new) for p in (_JOINT, _TORQUE, _DIRECTION)):
+            raise InputError(f"{old}={new}: '{new}' is not a column robocal reads (expected q1..qn, x, y, z, rx, ry, "
+                             f"rz, sx, sy, sz, srx, sry, srz, {', '.join(OPTIONAL)}, tau1..taun, dir1..dirn)",
+                             option="column")
     table = read_csv(text, source=source, columns=options.columns, delimiter=options.delimiter,
                      decimal=options.decimal)
-    known = set(POSITION) | set(ORIENTATION) | set(OPTIONAL) | set(POSITION_SIGMA) | set(ORIENTATION_SIGMA)
     unused = [h for h in table.header if h not in known and not any(p.match(h) for p in (_JOINT, _TORQUE, _DIRECTION))]
     if unused and options.columns:  # a mapped export: what it does not map is not robocal's
         import warnings

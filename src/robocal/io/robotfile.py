@@ -394,7 +394,24 @@ def parse_robot(text: str, *, source: str = "<robot>", default_name: str = "robo
                   if any(names) else None, base=base, tool=tool, targets=targets, name=name or default_name,
                   source=source, terms=terms, residual=residual, region=region, uncertainty=uncertainty,
                   coupling=coupling)
+    if uncertainty is not None:
+        _check_covariance_names(robot, uncertainty, source)
     return robot
+
+
+def _check_covariance_names(robot: Robot, covariance: ParameterCovariance, source: str) -> None:
+    """Every parameter the covariance names must be one of the model's: a name it lacks would
+    be dropped, and the model would predict an uncertainty of zero from it."""
+    from ..model.parameters import ParameterSpace
+    from ..model.terms import TermSpec
+
+    space = ParameterSpace.of(robot, None, robot.terms.spec() if robot.terms is not None else TermSpec())
+    unknown = [n for n in covariance.names if n not in set(space.names)]
+    if unknown:
+        listed = ", ".join(unknown[:5]) + (" …" if len(unknown) > 5 else "")
+        raise InputError(f"names {len(unknown)} parameter(s) the model has not: {listed} (its parameters are its "
+                         f"joints' {', '.join(space.names[:5])}, …, the frames' base_x…tool_rz and its terms')",
+                         source=source, where="[uncertainty] parameters")
 
 
 def _coupling(table, n: int, source: str) -> tuple[tuple[int, int, float], ...]:

@@ -81,6 +81,9 @@ def read_csv(text: str, *, source: str, columns: Mapping[str, str] | None = None
         raise InputError("file has no header row (only empty cells)", source=source)
     header_line, raw = rows[0]
     header = [h.strip() for h in raw]
+    if len(header) > 1 and header[-1] == "" and all(len(r) == len(raw) and not r[-1].strip() for _, r in rows[1:]):
+        # a delimiter closing every line, as some tracker software writes: an empty last column, not data
+        header, rows = header[:-1], [(ln, r[:-1]) for ln, r in rows]
     if len(header) == 1 and any(c in header[0] for c in (";", "\t", ",")):
         found = ";" if ";" in header[0] else ("tab" if "\t" in header[0] else ",")
         raise InputError(f"header is separated by {found!r}, not {delimiter!r}: read it with --delimiter "

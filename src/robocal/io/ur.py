@@ -116,6 +116,14 @@ def parse_ur_kinematics(text: str, *, source: str = "<kinematics>") -> Robot:
             raise InputError(f"{'unknown' if bad else 'missing'} key '{key}' (expected {', '.join(KEYS)})",
                              source=source, where=f"kinematics.{seg}")
         v = [_number(values[k], source, f"kinematics.{seg}.{k}") for k in KEYS]
+        for k, x in zip(KEYS, v):  # the file's units are m and rad: say so when its numbers are not
+            if k in KEYS[:3] and abs(x) > MAX_SEGMENT_M:
+                raise InputError(f"{x:g} m is not a plausible segment of a UR arm (beyond {MAX_SEGMENT_M:g} m): the "
+                                 "kinematics YAML holds metres, not millimetres", source=source,
+                                 where=f"kinematics.{seg}.{k}")
+            if k in KEYS[3:] and abs(x) > 2 * math.pi + 1e-9:
+                raise InputError(f"{x:g} is not an angle in radians (beyond 2π): the kinematics YAML holds radians, "
+                                 "not degrees", source=source, where=f"kinematics.{seg}.{k}")
         geom[i, U.X:U.Z + 1] = np.array(v[:3]) * 1000.0
         geom[i, U.ROLL:U.YAW + 1] = v[3:]
         geom[i, U.AZ] = 1.0
@@ -148,7 +156,32 @@ def parse_ur_deltas(text: str, nominal: Robot, *, source: str = "<calibration.co
     g[:, D] += 1000.0 * found["delta_d"]
     g[:, ALPHA] += found["delta_alpha"]
     g[:, THETA] += found["delta_theta"]
-    return nominal.replace(geometry=g, name=f"{nominal.name} (controller calibration)", source=source)
+    robot = nominal.replace(geometry=g, name=f"{nominal.name} (controller calibration)", source=source)
+    _check_moves(nominal, robot, source)
+    return robot
+
+
+#: a UR segment longer than this (m) is not one: the file is in other units
+MAX_SEGMENT_M = 5.0
+#: the most a factory calibration moves the flange from the nominal model (mm, deg): UR speaks of
+#: centimetres; deltas in millimetres or degrees move it by metres and radians
+MAX_MOVE_MM, MAX_TURN_DEG = 100.0, 5.0
+
+
+def _check_moves(nominal: Robot, robot: Robot, source: str) -> None:
+    """Deltas cannot be judged one by one: a controller's calibration holds opposed offsets of
+    hundreds of metres along parallel axes that cancel.  What they do to the flange can: over
+    joint sets across the ranges, the calibrated model must stay within centimetres and a few
+    degrees of the nominal one."""
+    q = np.random.default_rng(0).uniform(-math.pi, math.pi, (64, nominal.n_joints))
+    A, B = nominal.fk(q), robot.fk(q)
+    moved = float(np.max(np.linalg.norm(A[:, :3, 3] - B[:, :3, 3], axis=1)))
+    cos = np.clip((np.einsum("mij,mij->m", A[:, :3, :3], B[:, :3, :3]) - 1.0) / 2.0, -1.0, 1.0)
+    turned = float(np.degrees(np.max(np.arccos(cos))))
+    if not (moved <= MAX_MOVE_MM and turned <= MAX_TURN_DEG):
+        raise InputError(f"the deltas move the flange by up to {moved:.4g} mm and {turned:.3g}° from {nominal.name}: "
+                         f"not a calibration of it in m and rad (a factory calibration moves it by centimetres; "
+                         f"millimetres or degrees, or another robot's nominal model?)", source=source)
 
 
 def joint_origins(robot: Robot) -> tuple[np.ndarray, np.ndarray]:
