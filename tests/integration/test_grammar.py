@@ -76,8 +76,8 @@ def test_json_prints_what_summary_writes(run_cli, tmp_path):
 
 def test_require_gives_a_verdict(run_cli, tmp_path):
     data = tmp_path / "d.csv"
-    code, _, err = run_cli("simulate", "kr5-arc", "--poses", "40", "--seed", "3", "--errors", "uniform:0.5,0.002", "--noise",
-                           "0.02", "--out", data, "--quiet")
+    code, _, err = run_cli("simulate", "kr5-arc", "--poses", "40", "--seed", "3", "--errors", "uniform:0.5,0.002",
+                           "--noise", "0.02", "--out", data, "--quiet")
     assert code == 0, err
     code, out, err = run_cli("evaluate", "kr5-arc", data, "--json", "--require", "rms<=1000")
     assert code == 0, err
@@ -93,8 +93,8 @@ def test_require_gives_a_verdict(run_cli, tmp_path):
 
 def test_calibrate_requires_the_cross_validated_figure(run_cli, tmp_path):
     data = tmp_path / "d.csv"
-    run_cli("simulate", "kr5-arc", "--poses", "40", "--seed", "4", "--errors", "uniform:0.5,0.002", "--noise", "0.02", "--out",
-            data, "--quiet")
+    run_cli("simulate", "kr5-arc", "--poses", "40", "--seed", "4", "--errors", "uniform:0.5,0.002", "--noise", "0.02",
+            "--out", data, "--quiet")
     code, out, err = run_cli("calibrate", "kr5-arc", data, "--json", "--require", "cv_rms<=1000")
     assert code == 0, err
     result = json.loads(out)
