@@ -155,3 +155,49 @@ def test_a_drift_model_written_and_read_back_predicts_the_same(tmp_path):
     a = result.robot.fk(calibration.q, None, inputs)[:, :3, 3]
     b = robot.fk(calibration.q, None, inputs)[:, :3, 3]
     assert np.max(np.abs(a - b)) < 1e-6
+
+
+# --- terms the poses did not make visible ---------------------------------------------------
+
+def _one_way_campaign(n, seed):
+    """Every joint approached from below (a pose sequence sorted per joint): the directions the
+    rows' order gives are +1 everywhere but the first pose (unknown, 0)."""
+    c = ind.campaign("kr5-arc", {"a2": 0.3, "theta3": 0.002}, n, np.random.default_rng(seed), noise=NOISE,
+                     measure="position")
+    q = np.sort(c["q"], axis=0)  # each joint rises from row to row
+    g = ind.geometry("kr5-arc", {"a2": 0.3, "theta3": 0.002})
+    b = np.radians([BACKLASH_DEG.get(j + 1, 0.0) for j in range(6)])
+    rng = np.random.default_rng(seed + 100)
+    pos = np.array([ind.pose(g, qi + b)[:3, 3] for qi in q]) + rng.normal(0, NOISE, (n, 3))
+    return Measurements(q=q, position=pos, source="<one-way campaign>")
+
+
+def test_backlash_from_one_way_motion_is_dropped_with_what_would_show_it():
+    meas = _one_way_campaign(200, 11)
+    assert np.all(np.diff(meas.q, axis=0) >= 0)
+    result, said = _fit(meas, model="backlash")
+    ident = result.identifiability
+    for j in range(1, 7):
+        assert f"backlash{j}" in ident.dropped
+        text = ident.reasons[f"backlash{j}"].text()
+        assert "at 1 pose only" in text and f"both sides (a dir{j} column" in text
+    assert not _values(result, "backlash")  # nothing reported as if measured
+    assert any("backlash1 dropped" in s for s in said)
+    # given both directions, the same joints' backlash is identified
+    result, _ = _fit(_backlash_campaign(200, 11), model="backlash")
+    assert "backlash2" in result.names
+
+
+def test_drift_over_constant_time_is_dropped():
+    meas = _drift_campaign(120, 12)
+    still = Measurements(q=meas.q, position=meas.position, time=np.full(meas.n_poses, 50.0), source="<one time>")
+    result, _ = _fit(still, model="drift")
+    reason = result.identifiability.reasons["drift2"]
+    assert reason.kind == "unvaried" and "at no pose" in reason.text() and "measure over time" in reason.text()
+    # one pose at another time: a column constant but for one row rests on that pose alone
+    t = np.full(meas.n_poses, 50.0)
+    t[-1] = 900.0
+    late = Measurements(q=meas.q, position=meas.position, time=t, source="<one late pose>")
+    result, _ = _fit(late, model="drift")
+    assert "drift2" in result.identifiability.dropped and "at 1 pose only" in \
+        result.identifiability.reasons["drift2"].text()

@@ -36,6 +36,8 @@ ILL_CONDITIONED = 1e5
 
 #: kinds of reason for leaving a parameter out
 NO_EFFECT, DEPENDENT, SECOND_ORDER, STILL = "no_effect", "dependent", "second_order", "still_joint"
+#: a joint term whose input (direction, time, torque) the poses never varied
+UNVARIED = "unvaried"
 
 
 @dataclass(frozen=True)
@@ -56,10 +58,14 @@ class Reason:
     p_value: float | None = None
     coefficients: tuple[float, ...] = ()
     joints: tuple[int, ...] = ()
+    #: ``unvaried``: what the data lack, and what motion would make the term visible
+    detail: str = ""
 
     def text(self) -> str:
         if self.kind == NO_EFFECT:
             return "no effect on the measured data (zero Jacobian column)"
+        if self.kind == UNVARIED:
+            return self.detail
         others = ", ".join(self.related) or "the others"
         if self.kind == DEPENDENT:
             return f"dependent on {others} (not separable with these measurements)"
@@ -78,6 +84,8 @@ class Reason:
             out["p_value"] = self.p_value
         if self.joints:
             out["joints"] = list(self.joints)
+        if self.detail:
+            out["detail"] = self.detail
         return out
 
 

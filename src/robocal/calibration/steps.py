@@ -39,7 +39,7 @@ from ..optimize.result import OptimizeResult, Progress
 from . import checks
 from .config import CalibrationConfig, resolve_params
 from .diagnostics import GoodnessOfFit, goodness_of_fit, implausible_deviations, joint_patterns, misfit_message
-from .identifiability import NO_EFFECT, SECOND_ORDER, STILL, Identifiability, Reason, analyse
+from .identifiability import NO_EFFECT, SECOND_ORDER, STILL, UNVARIED, Identifiability, Reason, analyse
 from .instrument import MAX_ROUNDS, Instrument, InstrumentFit, beyond_instrument, instrument_fit, with_instrument
 from .methods import Estimate, fit_lm, optimize
 from .noise import (
@@ -268,13 +268,59 @@ def _still_reasons(setup: Setup, ident: Identifiability, names: list[str]) -> Id
         f"{', '.join(newly)} dropped (absorbed by the frames and the other joints)"])
 
 
+#: fewest poses at which a joint term's basis must differ from its most common value: with fewer,
+#: the term is a constant offset (absorbed by the geometry) plus what one or two poses say
+MIN_TERM_SUPPORT = 3
+
+
+def term_support(basis: np.ndarray, groups: np.ndarray) -> tuple[int, int]:
+    """(joint index, poses) of one term parameter's basis (m, n): the joint it acts on most, and
+    how many poses (``groups``: pose index per row) hold a value other than its most common one."""
+    joint = int(np.argmax(np.linalg.norm(basis, axis=0)))
+    v = basis[:, joint]
+    scale = float(np.max(np.abs(v))) or 1.0
+    values, counts = np.unique(np.round(v / scale, 9), return_counts=True)
+    mode = values[np.argmax(counts)]
+    return joint, len(np.unique(groups[np.round(v / scale, 9) != mode]))
+
+
+def unvaried_terms(setup: Setup, names: list[str]) -> dict[str, Reason]:
+    """Joint terms among ``names`` whose input the poses did not vary, with the reason: a
+    backlash from poses all approached one way (its column is the joint's offset, but for the
+    pose whose direction is unknown), a drift over one time, any term whose column is constant
+    but at a pose or two.  Numerically separable, such a term would be fitted to those few
+    poses' noise and reported as if measured."""
+    from ..model.terms import term_of
+
+    space = setup.space
+    terms = [n for n in names if is_term(n)]
+    data = space.joint_data(setup.meas.q, setup.meas.inputs) if terms else None
+    if data is None:
+        return {}
+    groups = np.unique(np.array(setup.meas.pose_ids if setup.meas.pose_ids is not None else
+                                [str(r) for r in setup.meas.rows]), return_inverse=True)[1]
+    order = list(space.terms.names(space.robot.n_joints))
+    reasons = {}
+    for name in terms:
+        joint, support = term_support(data.basis[:, :, order.index(name)], groups)
+        if support < MIN_TERM_SUPPORT:
+            reasons[name] = Reason(UNVARIED, joints=(joint + 1,), detail=term_of(name).unvaried(joint + 1, support))
+    return reasons
+
+
 def analyse_identifiability(setup: Setup, candidates: Candidates) -> tuple[Identifiability, list[str]]:
     """Step 4: the identifiable subset at the initial robot; parameters that need the motion of a
     joint that never moved are dropped (see :func:`_still_reasons`)."""
-    probe = setup.problem(candidates.names)
+    unvaried = unvaried_terms(setup, candidates.names)
+    names = [n for n in candidates.names if n not in unvaried]
+    probe = setup.problem(names)
     J = probe.residual_jacobian(np.zeros(probe.n_params))
-    ident = analyse(J, candidates.names, probe.angle_mask, setup.meas.n_poses, setup.space.robot.reach())
-    ident = _still_reasons(setup, ident, candidates.names)
+    ident = analyse(J, names, probe.angle_mask, setup.meas.n_poses, setup.space.robot.reach())
+    ident = _still_reasons(setup, ident, names)
+    if unvaried:
+        reasons = {**ident.reasons, **unvaried}
+        ident = ident.with_changes(dropped=[n for n in candidates.names if n in reasons], reasons=reasons,
+                                   warnings=ident.warnings + [f"{n} dropped: {r.detail}" for n, r in unvaried.items()])
     notes = list(ident.warnings)
     if candidates.explicit:
         bad = [n for n in candidates.joints if n in ident.reasons]
@@ -292,7 +338,7 @@ def searched_names(candidates: Candidates, ident: Identifiability) -> list[str]:
     """What a swarm searches: every geometric candidate that has any effect on the data (joint
     terms are left to LM, which hybrid runs after the swarm)."""
     return [n for n in candidates.names if not is_term(n)
-            and (n not in ident.reasons or ident.reasons[n].kind not in (NO_EFFECT, STILL))]
+            and (n not in ident.reasons or ident.reasons[n].kind not in (NO_EFFECT, STILL, UNVARIED))]
 
 
 @dataclass(frozen=True)
@@ -375,7 +421,7 @@ def refine_at_estimate(est: Estimate, ident: Identifiability, candidates: Candid
     deviation = est.problem.full(est.x)
     again = analyse(probe.residual_jacobian(deviation[probe.active]), candidates.names, probe.angle_mask,
                     setup.meas.n_poses, setup.space.robot.reach(), prefer=ident.kept)
-    added = [n for n in again.kept if n not in ident.kept and ident.reasons[n].kind != STILL]
+    added = [n for n in again.kept if n not in ident.kept and ident.reasons[n].kind not in (STILL, UNVARIED)]
     if not added:
         return est, ident
     names = ident.kept + added

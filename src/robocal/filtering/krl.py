@@ -135,7 +135,7 @@ def _parse(text: str, file: int, source: str, program: Program, fdats: dict, use
         motion = _MOTION.search(code)
         if motion:
             rest = code[motion.end():]
-            names = re.findall(r"^\s*([A-Za-z_]\w*)(?:\s*,?\s*([A-Za-z_]\w*))?", rest)
+            names = re.findall(r"^\s*(\$?[A-Za-z_]\w*)(?:\s*,?\s*([A-Za-z_]\w*))?", rest)
             words = [w for w in (names[0] if names else ()) if w and not w.upper().startswith("C_")]
             if motion.group(1).upper() not in ("CIRC", "SCIRC"):
                 words = words[:1]
@@ -232,15 +232,17 @@ def read(path: Path, frames_file: Path | None = None) -> Program:
     _parse(text, 0, str(src), program, fdats, uses, _State())
     if dat_text is not None:
         _parse(dat_text, 1, str(dat), program, fdats, uses, _State())
-    else:
-        declared = {t.name.upper() for t in program.targets}
-        undeclared = [(name, used) for name, used in uses.items() if not name.startswith("#") and name not in declared]
-        if undeclared:
-            program.notes.append(f"{dat.name} not found beside {src.name}: the targets its motions name there cannot "
-                                 "be corrected")
-        for name, used in undeclared:
-            program.targets.append(Target(name, used[0][4], "pose", {}, unsupported=f"declared in {dat.name}, "
-                                          "which is missing"))
+    declared = {t.name.upper() for t in program.targets}
+    undeclared = [(name, used) for name, used in uses.items() if not name.startswith("#") and name not in declared]
+    if undeclared and dat_text is None:
+        program.notes.append(f"{dat.name} not found beside {src.name}: the targets its motions name there cannot "
+                             "be corrected")
+    for name, used in undeclared:  # a motion to a target the program's files do not hold: said, never skipped
+        why = (f"declared in {dat.name}, which is missing" if dat_text is None else
+               "a system variable, computed as the program runs" if name.startswith("$") else
+               f"declared neither in {src.name} nor in {dat.name} (a global, e.g. of $config.dat: robocal corrects "
+               "the targets a program's own files hold)")
+        program.targets.append(Target(name, used[0][4], "pose", {}, unsupported=why))
     if not program.targets:
         raise InputError("no targets found (E6POS, POS, E6AXIS or AXIS aggregates)", source=src)
     _assign_frames(program, uses)

@@ -232,8 +232,8 @@ def check_finite(program: Program) -> None:
     """Every number a target or frame of the program holds must be finite: 1e999 reads as
     infinity, and a target there would be flagged unreachable rather than refused."""
     for t in program.targets:
-        for key, f in t.fields.items():
-            if not math.isfinite(f.value):
+        for key, f in t.fields.items():  # (text fields, FANUC's CONFIG letters, are not numbers)
+            if _NUMBER.fullmatch(f.text) and not math.isfinite(f.value):
                 raise InputError(f"{t.name}: its {key} {f.text} is not a finite number",
                                  source=program.files[t.file].path, where=f"line {t.line}")
     for kind, frames in (("tool", program.tools), ("user frame", program.users)):

@@ -128,6 +128,12 @@ def read(path: Path, frames_file: Path | None = None) -> Program:
                                               unsupported=f"the target {a.strip()} is computed as the program runs"))
         spans.append((m.start(2), m.end(2), tool, wobj, line))
     _targets(text, code, program, spans, uses, lines)
+    declared = {t.name.lower() for t in program.targets}
+    for name, used in uses.items():  # a motion to a target this module does not hold: said, never skipped
+        if name not in declared:
+            program.targets.append(Target(name, used[0][2], "pose", {}, unsupported="not declared in this module "
+                                          "(another module of the task, or computed as the program runs): robocal "
+                                          "corrects the targets the module holds"))
     if not program.targets:
         raise InputError("no targets found (robtarget or jointtarget data)", source=source)
     program.targets.sort(key=lambda t: (t.line, min((x.start for x in t.fields.values()), default=0)))

@@ -294,6 +294,18 @@ class Term:
     def needs_torques(self, terms: JointTerms) -> bool:
         return False
 
+    #: what its basis varies with over the poses, and the motion that makes it vary ({j}: the joint)
+    varies_with: str = "input"
+    remedy: str = "measure poses where it varies"
+
+    def unvaried(self, joint: int, support: int) -> str:
+        """Why a parameter of joint ``joint`` (1-based) is not identifiable when its basis differs
+        from its most common value at ``support`` poses only, and what motion would show it."""
+        where = "at no pose" if support == 0 else f"at {support} pose{'s' if support > 1 else ''} only"
+        return (f"the {self.name} of joint {joint} needs its {self.varies_with.format(j=joint)} to vary over the "
+                f"poses, which it does {where}: the rest is a constant offset the geometry absorbs; "
+                f"{self.remedy.format(j=joint)}")
+
     def plant(self, planted, n: int) -> dict[str, np.ndarray]:
         """Arrays of a simulated truth from the simulation's option (1-based joints)."""
         raise NotImplementedError
@@ -310,6 +322,8 @@ class Compliance(Term):
     name = "compliance"
     prefixes = ("compliance", "gravity")
     rung = 2
+    varies_with = "load (torque, or gravity's moment)"
+    remedy = "measure poses that load joint {j} differently (the arm stretched and folded, with and without payload)"
 
     def unit_of(self, parameter):
         return "rad/(N·m)" if parameter.startswith("compliance") else "rad"
@@ -399,6 +413,8 @@ class Harmonics(Term):
     name = "harmonics"
     prefixes = ("harmonic",)
     rung = 1
+    varies_with = "angle"
+    remedy = "spread the poses over joint {j}'s turn"
     file_keys = (FileKey("harmonics", "harmonics", "pairs", True, "deg: [cos(h q), sin(h q)], h = 1, 2, …"),)
 
     def names(self, option, n):
@@ -469,6 +485,9 @@ class Backlash(PerJointTerm):
     name = "backlash"
     prefixes = ("backlash",)
     rung = 3
+    varies_with = "direction of approach"
+    remedy = ("approach joint {j}'s poses from both sides (a dir{j} column with +1 and −1, or a measuring order in "
+              "which joint {j} reverses)")
     file_keys = (FileKey("backlash", "backlash", "scalar", True, "deg, taken up along the joint's last move"),)
 
     def reported(self, parameter, terms=None):
@@ -505,6 +524,8 @@ class Drift(PerJointTerm):
     name = "drift"
     prefixes = ("drift",)
     rung = 4
+    varies_with = "time"
+    remedy = "measure over time (poses at different times: a time column that changes, or rows in measuring order)"
     file_keys = (FileKey("drift", "drift", "scalar", True, "deg per hour (clock s) or per 1000 rows (clock row)"),)
 
     def reported(self, parameter, terms=None):
