@@ -70,6 +70,10 @@ from .timing import stage
 ADD_SIGNIFICANCE = 0.01
 #: residual evaluations allowed to the refit with the added parameters
 REFIT_EVALUATIONS = 100
+#: F-test p of the Gauss–Newton step's predicted decrease above which the refit is not tried:
+#: fifty times the significance level, where the refit would need to find several times the
+#: decrease the linearisation predicts
+CLEARLY_NOT_SIGNIFICANT = 0.5
 
 
 @dataclass(frozen=True)
@@ -426,11 +430,22 @@ def refine_at_estimate(est: Estimate, ident: Identifiability, candidates: Candid
         return est, ident
     names = ident.kept + added
     wider = setup.problem(names)
-    # A parameter that separates only weakly makes LM crawl along a valley; the refit is a
-    # test of whether the addition pays, so it gets a bounded budget.
-    lm = fit_lm(wider, deviation[wider.active], config, max_nfev=REFIT_EVALUATIONS)
-    p = f_test(est.optimization.fun, lm.fun, len(added), wider.n_residuals - len(names))
-    if lm.status != "converged" or p >= ADD_SIGNIFICANCE:
+    dof = wider.n_residuals - len(names)
+    # First the Gauss–Newton step from the estimate: the decrease of χ² it predicts is what the
+    # refit would reach where the problem is near linear.  Far from significant, the refit
+    # (LM crawling along a weakly separated valley, most of a calibration's time) cannot change
+    # the verdict, and is not run.
+    x0 = deviation[wider.active]
+    r, J = wider.residuals(x0), wider.residual_jacobian(x0)
+    step = np.linalg.lstsq(J, -r, rcond=None)[0]
+    p = f_test(float(r @ r), float(np.sum((r + J @ step) ** 2)), len(added), dof)
+    lm = None
+    if p < CLEARLY_NOT_SIGNIFICANT:
+        # A parameter that separates only weakly makes LM crawl along a valley; the refit is a
+        # test of whether the addition pays, so it gets a bounded budget.
+        lm = fit_lm(wider, x0, config, max_nfev=REFIT_EVALUATIONS)
+        p = f_test(est.optimization.fun, lm.fun, len(added), dof)
+    if lm is None or lm.status != "converged" or p >= ADD_SIGNIFICANCE:
         second = {n: Reason(SECOND_ORDER, ident.reasons[n].related, p, ident.reasons[n].coefficients) for n in added}
         reasons = {**ident.reasons, **second}
         return est, ident.with_changes(reasons=reasons)
