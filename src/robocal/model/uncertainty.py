@@ -36,7 +36,7 @@ def point_covariance(robot, covariance: ParameterCovariance, q: np.ndarray, targ
     Jc, _, _ = space.jacobian_columns(np.zeros(space.size), q, target_idx, frames=True,
                                       joints=space.joint_data(q, inputs))
     J = Jc[space.index(known)][:, :, :3]  # (k, m, 3)
-    return np.einsum("kma,kl,lmb->mab", J, C, J)
+    return np.einsum("kma,kmb->mab", J, np.tensordot(C, J, axes=(1, 0)))  # C J first: one pass over the poses
 
 
 def point_sigma(robot, covariance: ParameterCovariance, q: np.ndarray, targets: Sequence[str] | None = None,
