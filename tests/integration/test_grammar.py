@@ -105,3 +105,18 @@ def test_calibrate_requires_the_cross_validated_figure(run_cli, tmp_path):
     assert code == 4 and "cv_rms" in err
     code, _, err = run_cli("calibrate", "kr5-arc", data, "--quiet", "--require", "validation_rms<=1")
     assert code == 2 and "--validate" in err
+
+
+def test_every_option_an_error_names_exists():
+    """An error must name an option the user can type: every ``--flag`` in robocal's messages and
+    every ``option=`` of its input errors is an option of some command."""
+    import re
+    from pathlib import Path
+
+    flags = {o for _, cmd in COMMANDS for p in cmd.params for o in getattr(p, "opts", ())} | {"--version", "--help"}
+    named = set()
+    for path in (Path(__file__).parents[2] / "src" / "robocal").rglob("*.py"):
+        text = path.read_text(encoding="utf-8")
+        named |= {m.group() for m in re.finditer(r"(?<![\w-])--[a-z][a-z0-9-]*", text)}
+        named |= {"--" + m.group(1).replace("_", "-") for m in re.finditer(r"option=\"([a-z_]+)\"", text)}
+    assert named - flags == set()
