@@ -111,12 +111,18 @@ def test_every_option_an_error_names_exists():
     """An error must name an option the user can type: every ``--flag`` in robocal's messages and
     every ``option=`` of its input errors is an option of some command."""
     import re
+    from dataclasses import fields
     from pathlib import Path
 
+    from robocal.calibration.config import CalibrationConfig
+
     flags = {o for _, cmd in COMMANDS for p in cmd.params for o in getattr(p, "opts", ())} | {"--version", "--help"}
+    # the calibration config's own errors name its fields (a Python user's keywords); those the
+    # command line has no flag for (``swarm``) are not reachable from it
+    api_only = {"--" + f.name.replace("_", "-") for f in fields(CalibrationConfig)} - flags
     named = set()
     for path in (Path(__file__).parents[2] / "src" / "robocal").rglob("*.py"):
         text = path.read_text(encoding="utf-8")
         named |= {m.group() for m in re.finditer(r"(?<![\w-])--[a-z][a-z0-9-]*", text)}
         named |= {"--" + m.group(1).replace("_", "-") for m in re.finditer(r"option=\"([a-z_]+)\"", text)}
-    assert named - flags == set()
+    assert named - flags - api_only == set()

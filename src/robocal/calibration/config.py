@@ -54,8 +54,8 @@ class SwarmSettings:
         allowed = self.method.overridable
         for key, value in dict(self.overrides).items():
             if key not in allowed:
-                raise InputError(f"unknown swarm setting {key!r} for {self.method.name} (allowed: "
-                                 f"{', '.join(allowed) or 'none'})")
+                raise InputError(f"unknown setting {key!r} for {self.method.name} (allowed: "
+                                 f"{', '.join(allowed) or 'none'})", option="swarm")
             opt.number(value, f"swarm {key}", minimum=0.0)
         set_(self, "overrides", dict(self.overrides))
         opt.choice(self.halton, HALTON, "halton", "Halton start")
