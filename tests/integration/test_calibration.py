@@ -1,6 +1,7 @@
 """Calibration engine: recovery of planted errors, identifiability, frames, swarms, CLI."""
 
 import json
+import warnings
 
 import independent as ind
 import numpy as np
@@ -264,3 +265,20 @@ def test_cli_calibrate_bad_options_write_nothing(tmp_path, run_cli):
         code, _, err = run_cli("calibrate", "kr5-arc", d, *args, "--out", out)
         assert code == 2 and err.count("\n") == 1 and "Traceback" not in err, (args, err)
         assert not out.exists()
+
+
+def test_a_swarms_prediction_is_its_own_not_lms():
+    """A swarm's answer is not the data's optimum: its folds refitted by LM would predict LM's
+    better model.  Its prediction is its own misfit plus its structure's optimism, never below
+    its in-sample fit, and the folds' refits are model selection's time, not the method's."""
+    robot = load_robot("kr5-arc")
+    sim = simulate(robot, 40, deviations="uniform:0.5,0.002", noise=0.02, seed=3, measure="position")
+    val = simulate(sim.truth, 300, noise=0.02, seed=4, measure="position").measurements
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = calibrate(robot, sim.measurements, "pso", frames="none", validate=val, particles=40, iterations=150)
+        lm = calibrate(robot, sim.measurements, "lm", frames="none", validate=val)
+    fit, predicted = res.metrics["after"].position["rms"], res.metrics["predicted"].position["rms"]
+    assert predicted > fit and predicted > lm.metrics["predicted"].position["rms"]
+    assert predicted == pytest.approx(res.metrics["validation_after"].position["rms"], rel=0.35)
+    assert res.time_s == res.timings["optimize_s"] and res.timings["model_s"] > 0

@@ -59,7 +59,9 @@ def test_lm_finds_the_frames_itself_and_validates_in_the_geometric_regime(split,
 @pytest.mark.parametrize("method", ["ipso", "pso"])
 def test_swarms_at_paper_settings_reach_lms_regime_on_real_data(split, method):
     cal, val = split
-    res, _ = _run(cal.position_only(), val.position_only(), method, frames="base+tool")
+    # the papers' swarm settings on 400 of the real poses (the swarm's cost grows with them, its
+    # regime does not), judged on the whole held-out half
+    res, _ = _run(cal.subset(np.arange(400)).position_only(), val.position_only(), method, frames="base+tool")
     assert res.metrics["validation_after"].position["rms"] < 1.0
     assert res.optimization.status == "completed"
 

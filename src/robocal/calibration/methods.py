@@ -63,9 +63,11 @@ def swarm_box(names: list[str], method: str, box: tuple[float, float] | None) ->
 
 
 def fit_lm(problem: Problem, x0: np.ndarray, config: CalibrationConfig, progress: Progress | None = None,
-           max_nfev: int | None = None) -> OptimizeResult:
+           max_nfev: int | None = None, timed_as: str = "optimize") -> OptimizeResult:
+    """LM on ``problem`` from x0; its time counts to the stage ``timed_as`` (a cross-validation
+    fold's refit is model selection, not the method's optimizing)."""
     # residuals are whitened: the loss scale, given in mm, is counted in units of σp
-    with stage("optimize"):
+    with stage(timed_as):
         return levenberg_marquardt(problem.residuals, problem.residual_jacobian, x0, loss=config.loss,
                                    f_scale=config.f_scale / problem.setup.sigma_position,
                                    max_nfev=max_nfev or config.max_evaluations, callback=progress)
