@@ -18,7 +18,7 @@ frames = "none"
 poses = [30]
 noise = [0.0, 0.02]
 methods = ["lm", "ldpso-bt"]
-seeds = 12
+seeds = 6
 validate = 200
 iterations = 100   # the swarm's generations, kept short for the suite
 """
@@ -38,16 +38,16 @@ def in_process(tmp_path_factory):
 
 def test_a_study_runs_every_seed_of_every_cell(in_process):
     out, result = in_process
-    assert result.ran == 48 and result.skipped == 0
+    assert result.ran == 24 and result.skipped == 0
     rows = _without_times(out / "runs.csv")
-    assert len(rows) == 48
+    assert len(rows) == 24
     assert list(rows[0]) == ["method", "poses", "noise", "seed", "status", "before_rms", "after_rms", "validation_rms",
                              "iterations", "evaluations", "spec"]
     assert {r["spec"] for r in rows} == {parse_study(STUDY, source="study.toml").fingerprint()}
     assert {(r["method"], r["noise"]) for r in rows} == {("lm", "0"), ("lm", "0.02"), ("ldpso-bt", "0"),
                                                           ("ldpso-bt", "0.02")}
     summary = (out / "summary.md").read_text()
-    assert "| lm | ldpso-bt | 30 | 0.02 | 12 |" in summary
+    assert "| lm | ldpso-bt | 30 | 0.02 | 6 |" in summary
     assert (out / "validation_rms.png").stat().st_size > 1000 and (out / "time.png").stat().st_size > 1000
 
 
@@ -57,7 +57,7 @@ def test_local_workers_and_a_dask_scheduler_give_the_same_runs(in_process, tmp_p
 
     out, _ = in_process
     local = run_study(parse_study(STUDY, source="study.toml"), tmp_path / "local", workers=2)
-    assert local.ran == 48 and "2 local worker processes" in local.executor
+    assert local.ran == 24 and "2 local worker processes" in local.executor
     assert _without_times(tmp_path / "local" / "runs.csv") == _without_times(out / "runs.csv")
     with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
                       dashboard_address=None) as cluster:
@@ -65,20 +65,20 @@ def test_local_workers_and_a_dask_scheduler_give_the_same_runs(in_process, tmp_p
                            scheduler=cluster.scheduler_address)
         # the scheduler's own count of the study's tasks that reached memory (were computed)
         computed = cluster.scheduler.task_prefixes["robocal-runs"].state_counts["memory"]
-    assert remote.ran == 48 and computed >= 2
+    assert remote.ran == 24 and computed >= 2
     assert _without_times(tmp_path / "dask" / "runs.csv") == _without_times(out / "runs.csv")
 
 
 def test_an_interrupted_study_resumes_where_it_stopped(in_process, tmp_path):
     out, _ = in_process
     lines = (out / "runs.csv").read_text().splitlines()
-    # a study that stopped after 20 runs, the last row cut short by the crash
-    (tmp_path / "runs.csv").write_text("\n".join(lines[:21]) + "\n" + lines[21][:15])
+    # a study that stopped after 10 runs, the last row cut short by the crash
+    (tmp_path / "runs.csv").write_text("\n".join(lines[:11]) + "\n" + lines[11][:15])
     again = run_study(parse_study(STUDY, source="study.toml"), tmp_path, workers=1)
-    assert again.skipped == 20 and again.ran == 28
+    assert again.skipped == 10 and again.ran == 14
     assert _without_times(tmp_path / "runs.csv") == _without_times(out / "runs.csv")
     done = run_study(parse_study(STUDY, source="study.toml"), tmp_path, workers=1)
-    assert done.ran == 0 and done.skipped == 48
+    assert done.ran == 0 and done.skipped == 24
 
 
 BAD = [
