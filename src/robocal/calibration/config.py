@@ -130,6 +130,9 @@ class CalibrationConfig:
     of distance from the instrument; ``k=K`` for U = K σ, default 2) that sets each point's
     position σ (see :mod:`robocal.calibration.instrument`); files may give σ per point instead.
     exclude: pose ids (or ``row N`` for files without them) to leave out of the calibration.
+    point_distance: known distances between two points of a setup (``"A,B=MM"`` or (A, B, mm)),
+    for data whose rows touched unknown points (:mod:`robocal.model.constraints`); distance_sigma:
+    their standard uncertainty, mm.
     """
 
     method: str = "lm"
@@ -160,6 +163,8 @@ class CalibrationConfig:
     decimal: str = "."
     euler: str = "xyz"
     exclude: tuple[str, ...] = ()
+    point_distance: tuple[tuple[str, str, float], ...] = ()
+    distance_sigma: float = 0.05
 
     def __post_init__(self) -> None:
         set_ = object.__setattr__
@@ -189,6 +194,8 @@ class CalibrationConfig:
         set_(self, "swarm", swarm.overrides)
         _ = self.read_settings  # checks the file-reading options
         set_(self, "exclude", _exclude(self.exclude))
+        set_(self, "point_distance", point_distances(self.point_distance))
+        set_(self, "distance_sigma", opt.number(self.distance_sigma, "distance_sigma", minimum=0.0, strict=True))
         model = ModelSettings(self.model, self.harmonics, self.payload)
         set_(self, "model", model.name)
         set_(self, "harmonics", model.harmonics)
@@ -263,6 +270,33 @@ class CalibrationConfig:
     def is_swarm(self) -> bool:
         """A swarm alone gives the estimate."""
         return self.spec.swarm_only
+
+
+def point_distances(value) -> tuple[tuple[str, str, float], ...]:
+    """Known distances between two points: ``"A,B=MM"`` items (or (A, B, mm) tuples), each pair once."""
+    if value is None:
+        return ()
+    items = [value] if isinstance(value, str) else list(value)
+    out: list[tuple[str, str, float]] = []
+    for item in items:
+        if isinstance(item, str):
+            names, _, mm = item.partition("=")
+            pair = [n.strip() for n in names.split(",")]
+            if len(pair) != 2 or not all(pair) or pair[0] == pair[1] or not mm.strip():
+                raise InputError(f"expected A,B=MM (two different point labels and their distance), got {item!r}",
+                                 option="point_distance")
+            d = opt.number(mm.strip(), "point_distance", minimum=0.0, strict=True)
+        else:
+            try:
+                a, b, d = item
+            except (TypeError, ValueError):
+                raise InputError(f"expected (A, B, mm), got {item!r}", option="point_distance") from None
+            pair, d = [str(a), str(b)], opt.number(d, "point_distance", minimum=0.0, strict=True)
+        key = tuple(sorted(pair))
+        if any(tuple(sorted(o[:2])) == key for o in out):
+            raise InputError(f"the distance of {pair[0]} and {pair[1]} is given twice", option="point_distance")
+        out.append((pair[0], pair[1], float(d)))
+    return tuple(out)
 
 
 def _exclude(value) -> tuple[str, ...]:

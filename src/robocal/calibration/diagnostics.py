@@ -48,7 +48,7 @@ class GoodnessOfFit(ChiSquared):
 
 def goodness_of_fit(problem: Problem, x: np.ndarray, noise_source: str) -> GoodnessOfFit:
     r = problem.residuals(x)
-    return GoodnessOfFit(float(r @ r), int(r.size - problem.n_params), noise_source)
+    return GoodnessOfFit(float(r @ r), int(r.size - problem.n_params - problem.n_nuisance), noise_source)
 
 
 def _row_pose(problem: Problem) -> np.ndarray:

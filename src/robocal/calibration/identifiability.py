@@ -38,6 +38,8 @@ ILL_CONDITIONED = 1e5
 NO_EFFECT, DEPENDENT, SECOND_ORDER, STILL = "no_effect", "dependent", "second_order", "still_joint"
 #: a joint term whose input (direction, time, torque) the poses never varied
 UNVARIED = "unvaried"
+#: what data of unknown points or planes cannot see at all: the frame they stand in, the length scale
+UNOBSERVABLE = "unobservable"
 
 
 @dataclass(frozen=True)
@@ -64,7 +66,7 @@ class Reason:
     def text(self) -> str:
         if self.kind == NO_EFFECT:
             return "no effect on the measured data (zero Jacobian column)"
-        if self.kind == UNVARIED:
+        if self.kind in (UNVARIED, UNOBSERVABLE):
             return self.detail
         others = ", ".join(self.related) or "the others"
         if self.kind == DEPENDENT:

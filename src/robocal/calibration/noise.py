@@ -107,10 +107,11 @@ def leverage_split(problem: Problem, x: np.ndarray) -> tuple[float, float]:
     tr_b(H) = tr(J_bᵀJ_b (JᵀJ)⁻¹): k×k products only, whatever the number of poses.
     """
     J = problem.residual_jacobian(x)
-    n_pos = problem.n_position_rows()
+    n_pos, n_rot = problem.n_position_rows(), problem.n_orientation_rows()
     M_p = J[:n_pos].T @ J[:n_pos]
-    M_r = J[n_pos:].T @ J[n_pos:]
-    inv = np.linalg.pinv(M_p + M_r)
+    M_r = J[n_pos:n_pos + n_rot].T @ J[n_pos:n_pos + n_rot]
+    M_d = J[n_pos + n_rot:].T @ J[n_pos + n_rot:]  # stated distances: they use some too, but have their σ
+    inv = np.linalg.pinv(M_p + M_r + M_d)
     return float(np.sum(M_p * inv.T)), float(np.sum(M_r * inv.T))
 
 
@@ -118,7 +119,7 @@ def block_sigmas(problem: Problem, x: np.ndarray, model: NoiseModel) -> tuple[fl
     """σp, σr that these residuals show, keeping whatever the model states."""
     dp, dr = problem.scaled_errors(x)
     rss_p = float(np.sum(dp * dp))
-    n_p = dp.size
+    n_p = dp.size - problem.n_nuisance  # the eliminated points and planes used some of the rows
     used_p, used_r = leverage_split(problem, x)
     sr = problem.setup.sigma_orientation
     if dr is None:
@@ -146,36 +147,39 @@ def settle(problem: Problem, x: np.ndarray, model: NoiseModel, iterations: int =
     chain of refits would end with, to first order (full-pose data; position-only data settle
     at once, see :func:`settled`)."""
     sp, sr = problem.setup.sigma_position, problem.setup.sigma_orientation
-    n_pos = problem.n_position_rows()
+    n_pos, n_r = problem.n_position_rows(), problem.n_orientation_rows()
     r = problem.residuals(x)
     J = problem.residual_jacobian(x)
-    # back to millimetres and radians, so any weights can be applied
-    r_p, r_r, J_p, J_r = r[:n_pos] * sp, r[n_pos:] * sr, J[:n_pos] * sp, J[n_pos:] * sr
-    P_p, P_r = J_p.T @ J_p, J_r.T @ J_r
-    g_p, g_r = J_p.T @ r_p, J_r.T @ r_r
-    c_p, c_r = float(r_p @ r_p), float(r_r @ r_r)
-    n_r = r.size - n_pos
+    # back to millimetres and radians, so any weights can be applied; stated distances keep theirs
+    rot = slice(n_pos, n_pos + n_r)
+    r_p, r_r, J_p, J_r = r[:n_pos] * sp, r[rot] * sr, J[:n_pos] * sp, J[rot] * sr
+    r_d, J_d = r[n_pos + n_r:], J[n_pos + n_r:]
+    P_p, P_r, P_d = J_p.T @ J_p, J_r.T @ J_r, J_d.T @ J_d
+    g_p, g_r, g_d = J_p.T @ r_p, J_r.T @ r_r, J_d.T @ r_d
+    c_p, c_r, c_d = float(r_p @ r_p), float(r_r @ r_r), float(r_d @ r_d)
+    n_free = n_pos - problem.n_nuisance  # the eliminated points and planes used some of the rows
     sigmas = (sp, sr)
     for _ in range(iterations if n_r else 1):
         wp, wr = sigmas[0] ** -2, (sigmas[1] ** -2 if n_r else 0.0)
-        inv = np.linalg.pinv(wp * P_p + wr * P_r)
-        step = -inv @ (wp * g_p + wr * g_r)
+        inv = np.linalg.pinv(wp * P_p + wr * P_r + P_d)
+        step = -inv @ (wp * g_p + wr * g_r + g_d)
         # |r + J δ|² per block from k×k products only, whatever the number of poses
         rss_p = c_p + 2 * g_p @ step + step @ P_p @ step
         rss_r = c_r + 2 * g_r @ step + step @ P_r @ step
         used = float(np.sum(wp * P_p * inv.T)), float(np.sum(wr * P_r * inv.T))
         if not n_r:
-            new = (_block_values(rss_p, n_pos, used[0], 0.0, 0, 0.0, model)[0], sr)
+            new = (_block_values(rss_p, n_free, used[0], 0.0, 0, 0.0, model)[0], sr)
         else:
-            new = _block_values(rss_p, n_pos, used[0], rss_r, n_r, used[1], model)
+            new = _block_values(rss_p, n_free, used[0], rss_r, n_r, used[1], model)
         done = settled(sigmas, new, bool(n_r))
         sigmas = new
         if done:
             break
     wp, wr = sigmas[0] ** -2, (sigmas[1] ** -2 if n_r else 0.0)
-    inv = np.linalg.pinv(wp * P_p + wr * P_r)
-    step = -inv @ (wp * g_p + wr * g_r)
-    chi2 = wp * (c_p + 2 * g_p @ step + step @ P_p @ step) + wr * (c_r + 2 * g_r @ step + step @ P_r @ step)
+    inv = np.linalg.pinv(wp * P_p + wr * P_r + P_d)
+    step = -inv @ (wp * g_p + wr * g_r + g_d)
+    chi2 = wp * (c_p + 2 * g_p @ step + step @ P_p @ step) + wr * (c_r + 2 * g_r @ step + step @ P_r @ step) + \
+        (c_d + 2 * g_d @ step + step @ P_d @ step)
     used = float(np.sum(wp * P_p * inv.T)), float(np.sum(wr * P_r * inv.T))
     return Settled(sigmas, step, float(chi2), used)
 

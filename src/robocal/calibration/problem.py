@@ -120,6 +120,8 @@ class Problem:
         self.target_idx = self.space.target_index(self.meas.targets)
         self.joints = self.space.joint_data(self.meas.q, self.meas.inputs)
         self._Rm = self.meas.rotation if self.uses_orientation else None
+        # rows that touched an unknown point or plane, and stated distances (robocal.model.constraints)
+        self.constraints = self.meas.constraints
         self._frames_active = bool(np.any(self.active >= self.space.n_joint_params))
         self._backend = resolve(setup.backend)  # read once: ROBOCAL_NO_NUMBA as it is when the problem is set up
 
@@ -137,7 +139,17 @@ class Problem:
 
     @property
     def n_residuals(self) -> int:
-        return self.meas.n_poses * (6 if self.uses_orientation else 3)
+        return self.meas.n_poses * (6 if self.uses_orientation else 3) + self.n_distances
+
+    @property
+    def n_distances(self) -> int:
+        return 0 if self.constraints is None else len(self.constraints.distances)
+
+    @property
+    def n_nuisance(self) -> int:
+        """The data's values the eliminated points and planes use (they count as parameters in
+        every degrees-of-freedom sum)."""
+        return 0 if self.constraints is None else self.constraints.n_unknowns
 
     def full(self, x: np.ndarray) -> np.ndarray:
         """Estimated deviations (…, k_active) → full deviation vector (…, k_space)."""
@@ -149,9 +161,17 @@ class Problem:
     def errors(self, X: np.ndarray):
         """Position errors (…, m, 3) mm and orientation errors (…, m, 3) rad (or None)."""
         if self._Rm is None:
-            return self.meas.position - self.space.points(self.full(X), self.meas.q, self.target_idx, self.joints), None
+            p = self.space.points(self.full(X), self.meas.q, self.target_idx, self.joints)
+            return self._position_errors(p), None
         R, p = self.space.pose(self.full(X), self.meas.q, self.target_idx, self.joints)
-        return self.meas.position - p, orientation_error(self._Rm, R)
+        return self._position_errors(p), orientation_error(self._Rm, R)
+
+    def _position_errors(self, p: np.ndarray) -> np.ndarray:
+        """Measured less predicted points (…, m, 3); a contact row's offset from its point's or
+        plane's best fit."""
+        dp = self.meas.position - p
+        c = self.constraints
+        return dp if c is None else np.where(c.rows[:, None], c.errors(p), dp)
 
     def scaled_errors(self, X: np.ndarray):
         """:meth:`errors` divided by each point's weight factor (the instrument's, relative):
@@ -173,7 +193,8 @@ class Problem:
         X = np.asarray(X, dtype=float)
         compiled = (self._backend if backend is None else resolve(backend)) == "numba"
         if X.ndim == 2 and compiled and self.joints is None and self._kernels_apply and self._fp is None \
-                and self._fr is None:  # the kernels move no joints and weigh every point alike
+                and self._fr is None and self.constraints is None:
+            # the kernels move no joints, weigh every point alike and know measured points only
             return self._compiled_objective(X, kind)
         dp, dr = self.scaled_errors(X)
         if kind == "sum_norms":
@@ -181,6 +202,10 @@ class Problem:
         f = np.sum(dp * dp, axis=(-1, -2))
         if dr is not None:
             f = f + self.k * np.sum(dr * dr, axis=(-1, -2))
+        if self.n_distances:  # in the objective's mm², weighed as χ² weighs them against σp
+            p = self.space.points(self.full(X), self.meas.q, self.target_idx, self.joints)
+            dd = self.constraints.distance_residuals(p) * (self.setup.sigma_position / self.constraints.distance_sigma)
+            f = f + np.sum(dd * dd, axis=-1)
         return f
 
     @cached_property
@@ -233,22 +258,33 @@ class Problem:
         """Whitened residual vector [δp/σp (3m), δ/σr (3m)] of one solution (k_active,): its
         squared norm is χ²."""
         dp, dr = self.errors(x)
-        if dr is None:
-            return self._wp * dp.ravel()
-        return np.concatenate([self._wp * dp.ravel(), self._wr * dr.ravel()])
+        out = [self._wp * dp.ravel()] + ([] if dr is None else [self._wr * dr.ravel()])
+        if self.n_distances:
+            p = self.space.points(self.full(x), self.meas.q, self.target_idx, self.joints)
+            out.append(self.constraints.distance_residuals(p) / self.constraints.distance_sigma)
+        return out[0] if len(out) == 1 else np.concatenate(out)
 
     def n_position_rows(self) -> int:
-        """The residual vector's first rows that are positions; the rest are orientations."""
+        """The residual vector's first rows that are positions; then orientations (full-pose
+        data), then stated distances (already whitened by their own σ)."""
         return 3 * self.meas.n_poses
+
+    def n_orientation_rows(self) -> int:
+        return 3 * self.meas.n_poses if self._Rm is not None else 0
 
     def residual_jacobian(self, x: np.ndarray) -> np.ndarray:
         """Exact ∂(whitened residuals)/∂x, (n_residuals, k_active), Fortran-ordered as MINPACK wants."""
-        Jc, R, _ = self.space.jacobian_columns(self.full(x), self.meas.q, self.target_idx, frames=self._frames_active,
+        Jc, R, p = self.space.jacobian_columns(self.full(x), self.meas.q, self.target_idx, frames=self._frames_active,
                                                joints=self.joints)
         Jc = Jc[self.active]  # (k, m, 6)
         k, m = Jc.shape[0], Jc.shape[1]
         out = np.empty((k, self.n_residuals))
-        out[:, : 3 * m] = -self._wp * Jc[:, :, :3].reshape(k, 3 * m)
+        c = self.constraints
+        Jp = -Jc[:, :, :3] if c is None else np.where(c.rows[None, :, None], c.error_jacobian(Jc[:, :, :3], p),
+                                                        -Jc[:, :, :3])
+        out[:, : 3 * m] = self._wp * Jp.reshape(k, 3 * m)
+        if self.n_distances:
+            out[:, self.n_residuals - self.n_distances:] = c.distance_jacobian(Jc[:, :, :3], p) / c.distance_sigma
         if self._Rm is not None:
             dr = orientation_error(self._Rm, R)
             w = np.ascontiguousarray(Jc[:, :, 3:])
@@ -259,5 +295,5 @@ class Problem:
                     Jr = kernels.apply_right_jacobian_inv(dr, w)
             else:
                 Jr = apply_right_jacobian_inv(dr, w)
-            out[:, 3 * m :] = -self._wr * Jr.reshape(k, 3 * m)
+            out[:, 3 * m : 6 * m] = -self._wr * Jr.reshape(k, 3 * m)
         return out.T

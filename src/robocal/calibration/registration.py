@@ -38,7 +38,7 @@ def register_frames(robot: Robot, meas: Measurements, mode: str, iterations: int
     with full-pose data its rotation is the chordal mean of the measured orientations
     relative to the flange.
     """
-    if mode == "none":
+    if mode in ("none", "tcp"):  # tools alone are fitted with the joints, from their nominal
         return robot
     _check_spread(meas.position, meas.source)
     targets = meas.target_names
@@ -212,8 +212,13 @@ def fit_frames(robot: Robot, meas: Measurements, mode: str, sigma_position: floa
     from ..optimize.lm import levenberg_marquardt
     from .problem import DEFAULT_K, Setup
 
+    c = meas.constraints
+    if c is not None:  # rows that touched unknown points or planes: the tracker rows register the frames
+        if c.only or mode in ("none", "tcp"):
+            return robot
+        meas = meas.subset(~c.rows)
     initial = register_frames(robot, meas, mode)
-    if mode == "none":
+    if mode in ("none", "tcp"):
         return initial
     if not robot.geometric:  # what is fitted is the whole model's pose: terms and residual
         return _fit_frames_whole(initial, meas, mode, sigma_position, sigma_orientation)

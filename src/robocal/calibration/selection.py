@@ -119,9 +119,17 @@ class Chosen:
 
 
 def pose_groups(meas: Measurements) -> np.ndarray:
-    """Group index per row: the rows of one pose_id (its reflectors) form one group."""
-    labels = np.array(meas.pose_ids if meas.pose_ids is not None else [str(r) for r in meas.rows])
-    return np.unique(labels, return_inverse=True)[1]
+    """Group index per row: the rows of one pose_id (its reflectors) form one group; rows that
+    touched unknown points or planes, their setup (a held-out setup's points are new unknowns:
+    the honest test), or without setups their point or plane."""
+    labels = np.array(meas.pose_ids if meas.pose_ids is not None else [str(r) for r in meas.rows], dtype=object)
+    c = meas.constraints
+    if c is not None:
+        g = np.maximum(c.group, 0)
+        key = np.array([f"\x1f{c.setup[k]}" if c.setup[k] else f"\x1f{c.kind[k]} {c.label[k]}" for k in g],
+                       dtype=object)
+        labels = np.where(c.rows, key, labels)
+    return np.unique(labels.astype(str), return_inverse=True)[1]
 
 
 def folds(meas: Measurements, k: int, seed: int | None) -> list[np.ndarray]:
@@ -155,12 +163,18 @@ class CrossValidation:
 
 
 def _pose_rows(problem, index: np.ndarray) -> np.ndarray:
-    """The residual rows of poses ``index``: their positions, and orientations for full-pose data."""
+    """The residual rows of poses ``index``: their positions, orientations for full-pose data,
+    and the stated distances between points they touched."""
     m = problem.meas.n_poses
     rows = (3 * index[:, None] + np.arange(3)).ravel()
-    if problem.n_residuals > 3 * m:
+    if problem.n_orientation_rows():
         rows = np.concatenate([rows, 3 * m + rows])
-    return rows
+    if problem.n_distances:
+        c = problem.constraints
+        held = set(c.group[index][c.group[index] >= 0].tolist())
+        first = problem.n_residuals - problem.n_distances
+        rows = np.concatenate([rows, [first + d for d, (a, b, _) in enumerate(c.distances) if a in held or b in held]])
+    return rows.astype(int)
 
 
 @staged("model")

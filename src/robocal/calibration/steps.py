@@ -30,16 +30,26 @@ from ..exceptions import InputError
 from ..io.measurements import load_measurements
 from ..io.robotfile import load_robot
 from ..model.candidates import complete, frame_candidates, joint_candidates
+from ..model.kinematics import joint_kinds
 from ..model.measurements import Measurements
 from ..model.metrics import Metrics
-from ..model.parameters import ParameterSpace, is_term
+from ..model.parameters import ParameterSpace, is_angle, is_term
 from ..model.robot import Robot
 from ..model.terms import TERMS, TermSpec
 from ..optimize.result import OptimizeResult, Progress
 from . import checks
 from .config import CalibrationConfig, resolve_params
 from .diagnostics import GoodnessOfFit, goodness_of_fit, implausible_deviations, joint_patterns, misfit_message
-from .identifiability import NO_EFFECT, SECOND_ORDER, STILL, UNVARIED, Identifiability, Reason, analyse
+from .identifiability import (
+    NO_EFFECT,
+    SECOND_ORDER,
+    STILL,
+    UNOBSERVABLE,
+    UNVARIED,
+    Identifiability,
+    Reason,
+    analyse,
+)
 from .instrument import MAX_ROUNDS, Instrument, InstrumentFit, beyond_instrument, instrument_fit, with_instrument
 from .methods import Estimate, fit_lm, optimize
 from .noise import (
@@ -121,6 +131,10 @@ def load_inputs(robot, data, validate, config: CalibrationConfig, columns=None) 
     if not (meas.full_pose and config.use_orientation):
         meas = meas.position_only()
         val = None if val is None else val.position_only()
+    if config.point_distance or meas.constraints is not None or (val is not None and val.constraints is not None):
+        meas = meas.with_distances(config.point_distance, config.distance_sigma)
+        val = None if val is None else val.with_distances(
+            config.point_distance if val.constraints is not None else (), config.distance_sigma)
     meas = _instrument_sigmas(meas, config, notes)
     meas = _excluded(meas, config.exclude, notes)
     if config.payload is not None:  # a stated payload where the files have no column
@@ -128,18 +142,40 @@ def load_inputs(robot, data, validate, config: CalibrationConfig, columns=None) 
         if val is not None and val.payload is None:
             val = replace(val, payload=np.full(val.n_poses, config.payload))
     frames = config.frames
-    if frames in ("auto", "none"):
+    if meas.constraints is not None:
+        frames, said = _contact_frames(frames, meas)
+        notes += said
+    elif frames in ("auto", "none"):
         choice = choose_frames(nominal, meas)
         if frames == "auto" and choice.mode != "none":  # it changed what is calibrated: say so
             notes.append(f"frames auto: {choice.sentence()}")
         elif frames == "none" and choice.mode != "none":
             notes.append(f"frames none, but {choice.sentence()}: calibrate with frames auto or {choice.mode}")
         frames = choice.mode if frames == "auto" else "none"
-    checks.check_targets(nominal, meas, frames)
-    checks.check_validation_targets(nominal, meas, val)
-    if config.length_unit is None:  # a stated unit overrides the spread check
-        checks.check_units(nominal, meas, frames)
+    tracker = meas if meas.constraints is None else meas.subset(~meas.constraints.rows)
+    if tracker.n_poses:
+        checks.check_targets(nominal, tracker, frames)
+        checks.check_validation_targets(nominal, tracker, val)
+        if config.length_unit is None:  # a stated unit overrides the spread check
+            checks.check_units(nominal, tracker, frames)
     return Inputs(nominal, meas, val, frames, tuple(notes + checks.degeneracy_warnings(nominal, meas)))
+
+
+def _contact_frames(frames: str, meas: Measurements) -> tuple[str, list[str]]:
+    """The frames of data whose rows touched unknown points or planes: those can stand anywhere,
+    so they cannot see the base frame; the tool point they see.  Tracker rows beside them see
+    the base as ever."""
+    c = meas.constraints
+    if c.only and frames in ("base", "base+tool"):
+        raise InputError(f"the base frame is not observable from {meas.source}: its rows touched points or planes "
+                         "whose place is unknown (use frames tcp, or auto)", option="frames")
+    if frames != "auto":
+        return frames, []
+    if c.only:
+        return "tcp", ["frames auto: the rows touched points or planes whose place is unknown, so the base frame is "
+                        "not observable from them; the tool point is identified (frames tcp)"]
+    return "base+tool", ["frames auto: tracker rows beside rows that touched points or planes: base and tool are "
+                         "identified (frames base+tool)"]
 
 
 def _excluded(meas: Measurements, exclude: tuple[str, ...], notes: list[str]) -> Measurements:
@@ -223,7 +259,7 @@ def register(inputs: Inputs, config: CalibrationConfig, spec: TermSpec = TermSpe
     then searches a few millimetres around frames that are already right.  With a ``parent``
     fit of the same data (a simpler model), its registration (the same: it depends on the
     nominal joints only) and its settled weights are the start."""
-    targets = inputs.meas.target_names if inputs.frames == "base+tool" else None
+    targets = inputs.meas.target_names if inputs.frames in ("base+tool", "tcp") else None
     if parent is not None:
         settled = parent.estimate.problem.setup
         return Setup(ParameterSpace.of(parent.setup.space.robot, targets, spec), inputs.meas, settled.sigma_position,
@@ -312,15 +348,56 @@ def unvaried_terms(setup: Setup, names: list[str]) -> dict[str, Reason]:
     return reasons
 
 
+def gauge_names(setup: Setup) -> list[str]:
+    """The base frame's parameters when every row touched an unknown point or plane: such data
+    are the same in any frame (their points and planes move with it), so the parameters that
+    only move the whole robot (θ1 and d1, a URDF's first origin) must be told from that motion
+    and dropped; it is scanned first, then left out."""
+    c = setup.meas.constraints
+    return [] if c is None or not c.only else [n for n in setup.space.names if n.startswith("base_")]
+
+
+def _without_gauge(setup: Setup, ident: Identifiability, gauge: list[str], names: list[str]) -> Identifiability:
+    """The analysis with the base frame left out (said why), and, without a stated distance, the
+    length scale fixed by the longest link (said why: points and planes see shapes, not sizes)."""
+    if not gauge:
+        return ident
+    reasons = dict(ident.reasons)
+    for n in gauge:
+        reasons[n] = Reason(UNOBSERVABLE, detail="the frame the robot stands in: the rows touched points or planes "
+                                                 "whose place is unknown, so any frame fits them alike")
+    kept = [n for n in ident.kept if n not in gauge]
+    said = []
+    c = setup.meas.constraints
+    if not c.distances:
+        robot = setup.space.robot
+        kinds = len(joint_kinds(robot.convention))
+        lengths = [n for n in kept if setup.space.names.index(n) < setup.space.n_joint_params and not is_angle(n)]
+        if lengths:
+            value = {n: abs(float(robot.geometry.reshape(-1, robot.geometry.shape[1])[i // kinds, i % kinds]))
+                     for n in lengths for i in [setup.space.names.index(n)]}
+            longest = max(lengths, key=lambda n: value[n])
+            reasons[longest] = Reason(UNOBSERVABLE, detail=(
+                f"the length scale, held by {longest} at its nominal {value[longest]:.4g} mm: points and planes "
+                "see the robot's shape, not its size; a known distance between two points (point_distance "
+                "A,B=MM) or tracker rows make it visible"))
+            kept.remove(longest)
+            said.append(f"{longest} held at nominal: without a known distance the length scale is not observable "
+                        "from points or planes")
+    dropped = [n for n in names if n in reasons and n not in kept]
+    return ident.with_changes(kept=kept, dropped=dropped, reasons=reasons, warnings=ident.warnings + said)
+
+
 def analyse_identifiability(setup: Setup, candidates: Candidates) -> tuple[Identifiability, list[str]]:
     """Step 4: the identifiable subset at the initial robot; parameters that need the motion of a
     joint that never moved are dropped (see :func:`_still_reasons`)."""
     unvaried = unvaried_terms(setup, candidates.names)
     names = [n for n in candidates.names if n not in unvaried]
-    probe = setup.problem(names)
+    gauge = gauge_names(setup)
+    probe = setup.problem(gauge + names)
     J = probe.residual_jacobian(np.zeros(probe.n_params))
-    ident = analyse(J, names, probe.angle_mask, setup.meas.n_poses, setup.space.robot.reach())
-    ident = _still_reasons(setup, ident, names)
+    ident = analyse(J, gauge + names, probe.angle_mask, setup.meas.n_poses, setup.space.robot.reach(), prefer=gauge)
+    ident = _without_gauge(setup, _still_reasons(setup, ident, gauge + names), gauge, candidates.names)
     if unvaried:
         reasons = {**ident.reasons, **unvaried}
         ident = ident.with_changes(dropped=[n for n in candidates.names if n in reasons], reasons=reasons,
@@ -421,16 +498,18 @@ def refine_at_estimate(est: Estimate, ident: Identifiability, candidates: Candid
         return est, ident
     setup = est.problem.setup
     # judged with still joints held still: their parameters stay out whatever the estimate
-    probe = setup.with_measurements(checks.held_still(setup.meas)).problem(candidates.names)
+    gauge = gauge_names(setup)
+    probe = setup.with_measurements(checks.held_still(setup.meas)).problem(gauge + candidates.names)
     deviation = est.problem.full(est.x)
-    again = analyse(probe.residual_jacobian(deviation[probe.active]), candidates.names, probe.angle_mask,
-                    setup.meas.n_poses, setup.space.robot.reach(), prefer=ident.kept)
-    added = [n for n in again.kept if n not in ident.kept and ident.reasons[n].kind not in (STILL, UNVARIED)]
+    again = analyse(probe.residual_jacobian(deviation[probe.active]), gauge + candidates.names, probe.angle_mask,
+                    setup.meas.n_poses, setup.space.robot.reach(), prefer=gauge + ident.kept)
+    added = [n for n in again.kept if n not in ident.kept and n not in gauge
+             and ident.reasons[n].kind not in (STILL, UNVARIED, UNOBSERVABLE)]
     if not added:
         return est, ident
     names = ident.kept + added
     wider = setup.problem(names)
-    dof = wider.n_residuals - len(names)
+    dof = wider.n_residuals - len(names) - wider.n_nuisance
     # First the Gauss–Newton step from the estimate: the decrease of χ² it predicts is what the
     # refit would reach where the problem is near linear.  Far from significant, the refit
     # (LM crawling along a weakly separated valley, most of a calibration's time) cannot change

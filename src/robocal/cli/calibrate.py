@@ -32,7 +32,8 @@ COMPILE_SAID_S = 1.5
 #: the config's fields an option of the same name sets (angle_noise in degrees here, rad there)
 CONFIG_FIELDS = ("method", "frames", "params", "seed", "objective", "noise", "angle_noise", "k", "loss", "f_scale",
                  "particles", "iterations", "box", "halton", "backend", "model", "harmonics", "payload", "joint_unit",
-                 "length_unit", "instrument", "delimiter", "decimal", "euler", "exclude")
+                 "length_unit", "instrument", "delimiter", "decimal", "euler", "exclude", "point_distance",
+                 "distance_sigma")
 #: the command's own options: its inputs and outputs, how to read them, and what it prints
 CLI_ONLY = ("robot", "data", "validate", "out", "export", "report", "column", "base_link", "tip_link", "quiet",
             "position_only", "poses_out", "exclude_file", "as_json", "require")
@@ -86,7 +87,8 @@ def calibrate_cmd(
     data: Path = typer.Argument(..., help="measurement CSV"),
     method: str = typer.Option("lm", "--method", help="lm | pso | ipso | ldpso-bt | hybrid"),
     validate: Path | None = typer.Option(None, "--validate", help="validation CSV (poses not used to identify)"),
-    frames: str = typer.Option("auto", "--frames", help="auto | none | base | base+tool (auto: registered if needed)"),
+    frames: str = typer.Option("auto", "--frames", help="auto | none | base | base+tool | tcp (auto: registered if "
+                               "needed; tcp: the tool point alone, for rows that touched points or planes)"),
     seed: int = typer.Option(0, "--seed"),
     params: str | None = typer.Option(
         None, "--params", help="candidate joint parameters: comma list, or wen2019 | kou2022 (default: all)"
@@ -123,6 +125,10 @@ def calibrate_cmd(
                                        "without pose_id)"),
     exclude_file: Path | None = typer.Option(None, "--exclude-file", help="a file of pose ids to leave out, one a "
                                              "line"),
+    point_distance: list[str] | None = typer.Option(None, "--point-distance", help="A,B=MM: two points of each setup "
+                                                    "stand MM apart (data whose rows touched points; repeatable)"),
+    distance_sigma: float = typer.Option(0.05, "--distance-sigma", help="standard uncertainty of a stated distance, "
+                                         "mm"),
     column: list[str] | None = typer.Option(None, "--column", help="map file columns: FILE=ROBOCAL[,FILE=ROBOCAL…]"),
     joint_unit: str | None = typer.Option(None, "--joint-unit", help="deg | rad (default: deg, checked)"),
     length_unit: str | None = typer.Option(None, "--length-unit", help="mm | m (default: mm, checked)"),
@@ -168,6 +174,7 @@ def calibrate_cmd(
             raise InputError("lists no pose id (one a line; # starts a comment)", source=exclude_file,
                              option="exclude_file")
         given["exclude"] = ",".join([*(exclude.split(",") if exclude else []), *listed])
+    given["point_distance"] = tuple(point_distance or ())
     cfg = CalibrationConfig(**{**given, "use_orientation": not position_only,
                                "angle_noise": None if angle_noise is None else math.radians(angle_noise)})
     nominal = load_robot(robot, base_link=base_link, tip_link=tip_link)

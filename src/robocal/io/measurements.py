@@ -30,6 +30,8 @@ from .table import DECIMALS, DELIMITERS, CsvTable, numbers, read_csv, strings
 POSITION = ("x", "y", "z")
 ORIENTATION = ("rx", "ry", "rz")
 OPTIONAL = ("pose_id", "target", "payload", "cycle", "time", "temperature")
+#: rows without a measured position: the tool point touched an unknown point or plane, one of a setup's
+CONSTRAINT = ("point", "plane", "setup")
 #: the instrument's standard deviation of each measured value: mm, and deg about the measuring frame's axes
 POSITION_SIGMA = ("sx", "sy", "sz")
 ORIENTATION_SIGMA = ("srx", "sry", "srz")
@@ -67,6 +69,9 @@ class PoseTable:
     temperature: np.ndarray | None = None
     sigma_position: np.ndarray | None = None
     sigma_orientation: np.ndarray | None = None
+    point: list[str] | None = None
+    plane: list[str] | None = None
+    setup: list[str] | None = None
 
 
 def _per_joint_columns(table: CsvTable, n_joints: int, pattern: re.Pattern, what: str) -> list[str] | None:
@@ -217,11 +222,13 @@ def read_pose_table(text: str, *, source: str, options: ReadOptions = ReadOption
     Joints come back in degrees (prismatic ones in mm) and lengths in mm, whatever units the
     options state.
     """
-    known = set(POSITION) | set(ORIENTATION) | set(OPTIONAL) | set(POSITION_SIGMA) | set(ORIENTATION_SIGMA)
+    known = set(POSITION) | set(ORIENTATION) | set(OPTIONAL) | set(POSITION_SIGMA) | set(ORIENTATION_SIGMA) | \
+        set(CONSTRAINT)
     for old, new in (options.columns or {}).items():  # a name robocal does not read would be dropped unseen
         if new not in known and not any(p.match(new) for p in (_JOINT, _TORQUE, _DIRECTION)):
             raise InputError(f"{old}={new}: '{new}' is not a column robocal reads (expected q1..qn, x, y, z, rx, ry, "
-                             f"rz, sx, sy, sz, srx, sry, srz, {', '.join(OPTIONAL)}, tau1..taun, dir1..dirn)",
+                             f"rz, sx, sy, sz, srx, sry, srz, {', '.join(OPTIONAL + CONSTRAINT)}, tau1..taun, "
+                             "dir1..dirn)",
                              option="column")
     table = read_csv(text, source=source, columns=options.columns, delimiter=options.delimiter,
                      decimal=options.decimal)
@@ -238,9 +245,26 @@ def read_pose_table(text: str, *, source: str, options: ReadOptions = ReadOption
         if h not in known and not any(p.match(h) for p in (_JOINT, _TORQUE, _DIRECTION)):
             raise InputError(f"unknown column '{h}' (expected q1..qn, x, y, z, optional rx, ry, rz, pose_id, "
                              "target, cycle, tau1..taun, payload, dir1..dirn, time, temperature, sx, sy, sz, srx, sry, "
-                             "srz; map other names with a column mapping)", source=source)
+                             "srz, point, plane, setup; map other names with a column mapping)", source=source)
     qcols = _joint_columns(table, options.n_joints, require_joints, options.robot_label)
-    has_pos, has_rot = _pose_columns(table, bool(qcols), require_position)
+    labels = _constraint_labels(table) if require_position else None
+    touched = None if labels is None else np.array([bool(a or b) for a, b in zip(labels[0], labels[1])])
+    has_pos, has_rot = _pose_columns(table, bool(qcols), require_position and labels is None)
+    if touched is not None:
+        if has_rot:
+            import warnings
+
+            from ..exceptions import RobocalWarning
+
+            warnings.warn(f"{source}: rows that touched a point or plane have no orientation: rx, ry, rz are left "
+                          "out, and the data are read as positions", RobocalWarning, stacklevel=2)
+            has_rot = False
+        if any(h in table for h in POSITION_SIGMA + ORIENTATION_SIGMA):
+            raise InputError("σ columns (sx..srz) with point or plane rows are not read: state the tracker's and "
+                             "the contacts' σ with --noise, or give the rows in two files", source=source)
+        if not has_pos and not touched.all():
+            row = int(table.lines[int(np.argmin(touched))])
+            raise InputError("has neither a point or plane label nor x, y, z", source=source, where=f"row {row}")
     for names, present, what in ((POSITION_SIGMA, has_pos, "x, y, z"), (ORIENTATION_SIGMA, has_rot, "rx, ry, rz")):
         if not present and any(h in table for h in names):
             raise InputError(f"σ columns {', '.join(names)} without the {what} columns they are the σ of",
@@ -263,10 +287,17 @@ def read_pose_table(text: str, *, source: str, options: ReadOptions = ReadOption
     if payload is not None and np.any(payload < 0):
         row = int(table.lines[int(np.argmax(payload < 0))])
         raise InputError("payload must be ≥ 0 kg", source=source, where=f"row {row}, column 'payload'")
+    if touched is not None:
+        position = np.full((len(table.rows), 3), np.nan)
+        if has_pos:
+            position[~touched] = scale * _tracker_positions(table, touched, MAX_LENGTH_MM / scale,
+                                                             "m" if scale != 1 else "mm")
+    else:
+        position = scale * numbers(table, POSITION, MAX_LENGTH_MM / scale, "m" if scale != 1 else "mm") \
+            if has_pos else None
     return PoseTable(
         q=q,
-        position=scale * numbers(table, POSITION, MAX_LENGTH_MM / scale, "m" if scale != 1 else "mm") if has_pos
-        else None,
+        position=position,
         rpy=numbers(table, ORIENTATION, MAX_JOINT_DEG, "deg") if has_rot else None,
         pose_ids=strings(table, "pose_id", required=True) if "pose_id" in table else None,
         targets=strings(table, "target") if "target" in table else None,
@@ -279,7 +310,46 @@ def read_pose_table(text: str, *, source: str, options: ReadOptions = ReadOption
         temperature=numbers(table, ["temperature"], MAX_TEMPERATURE_C, "°C")[:, 0] if "temperature" in table else None,
         sigma_position=_sigmas(table, POSITION_SIGMA, scale, "m" if scale != 1 else "mm") if has_pos else None,
         sigma_orientation=_sigmas(table, ORIENTATION_SIGMA, 1.0, "deg") if has_rot else None,
+        point=None if labels is None or "point" not in table else labels[0],
+        plane=None if labels is None or "plane" not in table else labels[1],
+        setup=None if labels is None or "setup" not in table else labels[2],
     )
+
+
+def _constraint_labels(table: CsvTable) -> tuple[list[str], list[str], list[str]] | None:
+    """The point, plane and setup label of each row ("" where none), or None: no point or plane
+    column.  A row touches a point or a plane, not both; a setup names the artefact's placement."""
+    if "point" not in table and "plane" not in table:
+        if "setup" in table:
+            raise InputError("a setup column numbers the placements of the points or planes the rows touched: it "
+                             "needs a point or plane column", source=table.source)
+        return None
+    m = len(table.rows)
+    point = strings(table, "point") if "point" in table else [""] * m
+    plane = strings(table, "plane") if "plane" in table else [""] * m
+    setup = strings(table, "setup") if "setup" in table else [""] * m
+    for i, (a, b) in enumerate(zip(point, plane)):
+        if a and b:
+            raise InputError(f"touches point {a!r} and plane {b!r}: a row touches one", source=table.source,
+                             where=f"row {int(table.lines[i])}")
+    return point, plane, setup
+
+
+def _tracker_positions(table: CsvTable, touched: np.ndarray, limit: float, unit: str) -> np.ndarray:
+    """x, y, z of the rows that did not touch a point or plane (a tracker's); the others must
+    leave them empty (a row is one or the other)."""
+    idx = table.index
+    for r in np.flatnonzero(touched):
+        filled = [c for c in POSITION if table.rows[r][idx[c]].strip()]
+        if filled:
+            raise InputError(f"touches a point or plane and has a measured {filled[0]}: a row is a contact (x, y, z "
+                             "empty) or a tracker row (no label)", source=table.source,
+                             where=f"row {int(table.lines[r])}")
+    from dataclasses import replace as _replace
+
+    keep = np.flatnonzero(~touched)
+    sub = _replace(table, rows=tuple(table.rows[i] for i in keep), lines=table.lines[keep])
+    return numbers(sub, POSITION, limit, unit)
 
 
 def _sigmas(table: CsvTable, names: tuple[str, ...], scale: float, unit: str) -> np.ndarray | None:
@@ -344,11 +414,14 @@ def parse_measurements(text: str, *, source: str = "<data>", average: bool = Tru
             euler_sigma(t.rpy, t.sigma_orientation, read.euler)),
         sigma_source=f"the sx..{'srz' if t.sigma_orientation is not None else 'sz'} columns of {source}"
         if t.sigma_position is not None or t.sigma_orientation is not None else "",
+        point=None if t.point is None else tuple(t.point),
+        plane=None if t.plane is None else tuple(t.plane),
+        setup=None if t.setup is None else tuple(t.setup),
     )
     if t.cycles is not None and t.pose_ids is None:
         raise InputError("a cycle column numbers the measuring cycles of each pose: it needs a pose_id column",
                          source=source)
-    if average and t.pose_ids is not None:
+    if average and t.pose_ids is not None and meas.constraints is None:  # a contact row is its own
         meas = average_repeats(meas, repeat_tolerance, t.cycles)
     return meas
 

@@ -9,8 +9,9 @@ from .kinematics import joint_parameter_names
 from .parameters import FRAME_AXES, tool_prefix
 from .robot import Robot
 
-#: what a calibration estimates besides the joints: nothing, the measuring frame, or it and the tools
-FRAME_MODES = ("none", "base", "base+tool")
+#: what a calibration estimates besides the joints: nothing, the measuring frame, it and the tools,
+#: or the tools alone, ``tcp`` (data that touched unknown points or planes cannot see the base)
+FRAME_MODES = ("none", "base", "base+tool", "tcp")
 #: ``auto``: registered when the data are not in the robot's frame (see calibration.registration)
 FRAME_CHOICES = ("auto",) + FRAME_MODES
 
@@ -51,7 +52,7 @@ def frame_candidates(mode: str, targets: Sequence[str], full_pose: bool) -> list
     names = []
     if mode in ("base", "base+tool"):
         names += [f"base_{a}" for a in FRAME_AXES]
-    if mode == "base+tool":
+    if mode in ("base+tool", "tcp"):
         axes = FRAME_AXES if full_pose else FRAME_AXES[:3]
         for t in targets:
             names += [f"{tool_prefix(t)}_{a}" for a in axes]

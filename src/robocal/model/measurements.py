@@ -44,6 +44,43 @@ class Measurements:
     sigma_position: np.ndarray | None = None
     sigma_orientation: np.ndarray | None = None
     sigma_source: str = ""
+    point: tuple[str, ...] | None = None
+    plane: tuple[str, ...] | None = None
+    setup: tuple[str, ...] | None = None
+    distances: tuple[tuple[str, str, float], ...] = ()
+    distance_sigma: float = 0.05
+
+    @property
+    def constraints(self):
+        """The rows that touched unknown points or planes (:class:`robocal.model.constraints.Constraints`),
+        with the stated distances, or None: every row measured."""
+        if self.point is None and self.plane is None:
+            return None
+        cached = self.__dict__.get("_constraints")
+        if cached is None:
+            from .constraints import constraints_of
+
+            cached = constraints_of(self.point, self.plane, self.setup, self.n_poses,
+                                    {(a, b): d for a, b, d in self.distances}, self.distance_sigma, self.source,
+                                    strict=False)
+            object.__setattr__(self, "_constraints", cached)
+        return cached
+
+    def with_distances(self, distances, sigma: float | None = None) -> Measurements:
+        """The same rows with stated distances ((point a, point b, mm), …) between the points of a
+        setup; a distance whose points no setup has is an error."""
+        from .constraints import constraints_of
+
+        distances = tuple((str(a), str(b), float(d)) for a, b, d in distances)
+        if distances:
+            if self.point is None:
+                from ..exceptions import InputError
+
+                raise InputError(f"{self.source} has no point column: a distance is between two of its points",
+                                 option="point_distance")
+            constraints_of(self.point, self.plane, self.setup, self.n_poses, {(a, b): d for a, b, d in distances},
+                           source=self.source)
+        return replace(self, distances=distances, distance_sigma=self.distance_sigma if sigma is None else sigma)
 
     @property
     def inputs(self):
@@ -141,6 +178,9 @@ class Measurements:
             temperature=None if self.temperature is None else self.temperature[index],
             sigma_position=None if self.sigma_position is None else self.sigma_position[index],
             sigma_orientation=None if self.sigma_orientation is None else self.sigma_orientation[index],
+            point=pick(self.point),
+            plane=pick(self.plane),
+            setup=pick(self.setup),
         )
 
     def position_only(self) -> Measurements:

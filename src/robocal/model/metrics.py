@@ -14,9 +14,14 @@ from .robot import Robot
 def pose_errors(robot: Robot, meas: Measurements) -> tuple[np.ndarray, np.ndarray | None]:
     """Position errors δp = p_measured − p_model (m, 3) in mm, and for full-pose data the
     orientation errors δ = log(R_measured · R_modelᵀ) (m, 3) in rad about the measuring
-    frame's axes (None for position-only data)."""
+    frame's axes (None for position-only data).  Rows that touched an unknown point or plane
+    (:mod:`robocal.model.constraints`) have the offset of their predicted point from that
+    point's (plane's) best fit."""
     T = robot.fk(meas.q, meas.targets, meas.inputs)
     dp = meas.position - T[:, :3, 3]
+    c = meas.constraints
+    if c is not None:  # rows that touched an unknown point or plane: the offset from its best fit
+        dp = np.where(c.rows[:, None], c.errors(T[:, :3, 3]), dp)
     if meas.rotation is None:
         return dp, None
     return dp, orientation_error(meas.rotation, T[:, :3, :3])
