@@ -32,6 +32,9 @@ class Evaluation:
     poses: tuple[str, ...] = ()
     #: per pose: its errors and flags (:func:`robocal.model.metrics.per_pose`), with σ when asked
     pose_rows: list = field(default_factory=list)
+    #: data whose rows touched unknown points or planes: point_spread_rms, plane_rms,
+    #: distance_error_rms (mm; :meth:`robocal.model.constraints.Constraints.figures`)
+    contact: dict = field(default_factory=dict)
 
     def uncertainty_summary(self) -> dict | None:
         if self.sigma is None:
@@ -41,6 +44,7 @@ class Evaluation:
 
     def to_dict(self) -> dict:
         out = self.metrics.to_dict()
+        out.update(self.contact)
         if self.frames != "none":
             out["frames"] = self.frames
         if len(self.per_target) > 1:
@@ -54,7 +58,7 @@ class Evaluation:
 def evaluate(robot: str | Path | Robot, data: str | Path | Measurements, *, columns: Mapping[str, str] | None = None,
              frames: str = "none", joint_unit: str | None = None, length_unit: str | None = None,
              payload: float | None = None, uncertainty: bool = False, delimiter: str = ",", decimal: str = ".",
-             euler: str = "xyz") -> Evaluation:
+             euler: str = "xyz", point_distance=(), distance_sigma: float = 0.05) -> Evaluation:
     """Error metrics of ``robot`` (file, built-in name or Robot) on ``data`` (file or Measurements).
 
     frames: ``none`` evaluates the model as it is (a calibrated model carries its frames);
@@ -63,9 +67,13 @@ def evaluate(robot: str | Path | Robot, data: str | Path | Measurements, *, colu
     data are not in the robot's frame.  With ``none`` and data far from the robot's frame, a
     note names the frames option.  The whole model is evaluated: its joint terms (on the data's
     ``tau1..tauN`` and ``payload`` columns; payload: kg where the file has no such column)
-    and its residual correction.
+    and its residual correction.  Rows that touched unknown points or planes are judged by how
+    well the model's tool points meet (``point_spread_rms``, ``plane_rms``) and, with
+    ``point_distance`` (``"A,B=MM"``), how far the points' means miss the stated distances
+    (``distance_error_rms``); a held-out setup is the honest test, its points being new unknowns.
     """
     from .calibration.checks import check_units
+    from .calibration.config import point_distances
     from .calibration.registration import choose_frames, fit_frames
 
     opt.choice(frames, FRAME_CHOICES, "frames", "frames mode")
@@ -77,8 +85,16 @@ def evaluate(robot: str | Path | Robot, data: str | Path | Measurements, *, colu
         data, n_joints=r.n_joints, columns=columns, joint_unit=joint_unit, length_unit=length_unit,
         delimiter=delimiter, decimal=decimal, euler=euler,
         robot_label=r.source, prismatic=tuple(map(bool, r.prismatic)) if r.prismatic.any() else None)
-    if length_unit is None:
-        check_units(r, meas, frames)
+    distances = point_distances(point_distance)
+    if distances or meas.constraints is not None:
+        meas = meas.with_distances(distances, opt.number(distance_sigma, "distance_sigma", minimum=0.0, strict=True))
+    contact = meas.constraints
+    tracker = meas if contact is None else meas.subset(~contact.rows)
+    if contact is not None and contact.only and frames in ("base", "base+tool"):
+        raise InputError("the base frame is not observable from rows that touched points or planes whose place is "
+                         "unknown: evaluate with frames none", source=meas.source, option="frames")
+    if length_unit is None and tracker.n_poses:
+        check_units(r, tracker, frames)
     if payload is not None and meas.payload is None:
         meas = replace(meas, payload=np.full(meas.n_poses, opt.number(payload, "payload", minimum=0.0)))
     from .model.uncertainty import known_targets, predicted_sigma, region_note
@@ -93,8 +109,10 @@ def evaluate(robot: str | Path | Robot, data: str | Path | Measurements, *, colu
         notes.append(f"reflector '{missing[0]}' has no tool frame in the robot {r.source or r.name}: base and tools "
                      "fitted to these data (frames base+tool) before evaluating")
         frames = "base+tool"
-    if frames in ("none", "auto"):
-        choice = choose_frames(r, meas)
+    if contact is not None and contact.only:
+        mode = "none"  # points and planes stand in any frame
+    elif frames in ("none", "auto"):
+        choice = choose_frames(r, tracker)
         if frames == "none" and choice.mode != "none":
             notes.append(f"{choice.sentence()}; evaluated as given: fit the frames first with frames auto or "
                          f"{choice.mode}")
@@ -108,7 +126,7 @@ def evaluate(robot: str | Path | Robot, data: str | Path | Measurements, *, colu
             raise InputError(f"reflector '{missing[0]}' has no tool frame in the robot {r.source or r.name}: fit it "
                              "with frames base+tool", source=meas.source, option="frames")
         mode = frames
-        r = fit_frames(r, meas, mode)
+        r = fit_frames(r, tracker, mode)
     per_target = {t or "(default)": Metrics.of(r, meas.subset([i for i, x in enumerate(meas.targets) if x == t]))
                   for t in meas.target_names} if meas.targets is not None else {}
     sigma = None
@@ -120,5 +138,6 @@ def evaluate(robot: str | Path | Robot, data: str | Path | Measurements, *, colu
     if sigma is not None:
         for row, s in zip(rows, sigma):
             row["sigma_mm"] = float(s)
+    figures = {} if contact is None else contact.figures(r.positions(meas.q, meas.targets, meas.inputs))
     return Evaluation(Metrics.of(r, meas), mode, notes, per_target, sigma,
-                      tuple(meas.label(i) for i in range(meas.n_poses)) if uncertainty else (), rows)
+                      tuple(meas.label(i) for i in range(meas.n_poses)) if uncertainty else (), rows, figures)

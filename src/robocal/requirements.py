@@ -20,7 +20,7 @@ FAILED = 4
 #: the figures each command can be held to (mm)
 FIGURES = {
     "calibrate": ("rms", "max", "cv_rms", "validation_rms", "validation_max"),
-    "evaluate": ("rms", "mean", "std", "max"),
+    "evaluate": ("rms", "mean", "std", "max", "point_spread_rms", "distance_error_rms", "plane_rms"),
 }
 _OPS = {"<=": operator.le, "<": operator.lt, ">=": operator.ge, ">": operator.gt}
 _PATTERN = re.compile(r"^\s*([a-z_]+)\s*(<=|>=|<|>)\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*$")

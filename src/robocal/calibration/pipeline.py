@@ -137,6 +137,12 @@ def _calibrate(robot, data, validate, cfg: CalibrationConfig, columns, progress,
     notes += said
     if chosen.prediction is not None:  # what the held-out poses said: the headline without validation poses
         metrics = {"before": metrics["before"], "predicted": chosen.prediction, **metrics}
+    contact = {}
+    for key, robot, data in (("before", initial, est.problem.meas), ("after", calibrated, est.problem.meas),
+                             ("validation_before", initial, inputs.validation),
+                             ("validation_after", calibrated, inputs.validation)):
+        if data is not None and data.constraints is not None:
+            contact[key] = data.constraints.figures(robot.positions(data.q, data.targets, data.inputs))
     return CalibrationResult(
         config=cfg, robot=calibrated, initial=initial, nominal=inputs.nominal, names=est.problem.names, x=est.x,
         uncertainty=fit.uncertainty, identifiability=fit.identifiability, optimization=est.optimization,
@@ -146,5 +152,5 @@ def _calibrate(robot, data, validate, cfg: CalibrationConfig, columns, progress,
         noise=fit.noise, goodness_of_fit=fit.goodness, covariance=fit.covariance, frames=inputs.frames,
         model=chosen.name, model_selection=_validated(chosen.table, chosen.name, metrics), error_budget=budget,
         geometric=None if chosen.geometric is None or chosen.geometric is fit else chosen.geometric.robot,
-        instrument=fit.instrument, all_rows=inputs.meas, excluded=cfg.exclude,
+        instrument=fit.instrument, all_rows=inputs.meas, excluded=cfg.exclude, contact=contact,
     )

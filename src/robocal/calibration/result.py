@@ -121,6 +121,9 @@ class CalibrationResult:
     #: every calibration pose the data gave (outliers included), and the poses left out as asked
     all_rows: Measurements | None = field(default=None, repr=False)
     excluded: tuple[str, ...] = ()
+    #: data whose rows touched unknown points or planes: their figures (point_spread_rms,
+    #: plane_rms, distance_error_rms, mm) per set, ``before``/``after``/``validation_…``
+    contact: dict = field(default_factory=dict)
 
     def headline(self) -> tuple[str, str, Metrics]:
         """The figure to lead with: (key, label, metrics): accuracy on the validation poses when
@@ -284,6 +287,7 @@ class CalibrationResult:
             "headline": {"figure": self.headline()[0], "position_rms_mm": self.headline()[2].position["rms"],
                          "position_max_mm": self.headline()[2].position["max"]},
             "metrics": {k: v.to_dict() for k, v in self.metrics.items()},
+            **({"contact": dict(self.contact)} if self.contact else {}),
             "metrics_per_target": {t: {k: v.to_dict() for k, v in m.items()}
                                    for t, m in self.per_target_metrics().items()},
             "frames_registered": frames_dict(self.initial),
@@ -332,9 +336,11 @@ class CalibrationResult:
         if not self.robot.geometric:  # the sidecar first: the URDF alone would be an incomplete model
             whole = path.with_name(f"{path.stem}.robocal.toml")
             written = save_robot(self.robot, whole, comment)
+        probe = bool(self.contact)  # the tip link itself touched the points or planes: it is the tool
+        where = "the tip link is the identified tool point" if probe else "target the tool"
         atomic_write(path, urdf_text(self.robot, comment + "\nLengths in m, angles in rad; measuring_frame carries "
-                                                           "the identified base frame, target the tool.",
-                                     whole_model=None if whole is None else whole.name))
+                                                           f"the identified base frame, {where}.",
+                                     whole_model=None if whole is None else whole.name, tool_at_tip=probe))
         return [path, *written]
 
 

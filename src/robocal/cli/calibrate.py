@@ -56,6 +56,9 @@ def _print_summary(result, robot_name: str, data: Path) -> None:
     out.print(f"[bold]{result.headline_text()}[/bold]")
     out.print(metrics_table(f"{robot_name}: {result.method} on {data} ({result.measurements.describe()})",
                             result.accuracy_columns()))
+    for key, figures in result.contact.items():
+        out.print(f"points and planes touched, {key.replace('_', ' ')}: "
+                  + ", ".join(f"{k.replace('_', ' ')} {v:.4f} mm" for k, v in figures.items()))
     per_target = result.per_target_metrics()
     if per_target:
         keys = [k for k in ("before", "after", "validation_after") if k in next(iter(per_target.values()))]

@@ -36,8 +36,13 @@ def evaluate_cmd(
     poses_out: Path | None = typer.Option(None, "--poses-out", help="per-pose errors CSV to write"),
     uncertainty: bool = typer.Option(False, "--uncertainty", help="also each pose's predicted position uncertainty "
                                      "(mm, from the parameter covariance a calibrated model carries)"),
+    point_distance: list[str] | None = typer.Option(None, "--point-distance", help="A,B=MM: two points of each setup "
+                                                    "stand MM apart (data whose rows touched points; repeatable)"),
+    distance_sigma: float = typer.Option(0.05, "--distance-sigma", help="standard uncertainty of a stated distance, "
+                                         "mm"),
     require: list[str] | None = typer.Option(None, "--require", help="a verdict for CI: FIGURE<=VALUE (rms, mean, "
-                                             "max, std, mm); not met: exit 4, named on stderr; repeatable"),
+                                             "max, std; point_spread_rms, distance_error_rms, plane_rms for contact "
+                                             "data; mm); not met: exit 4, named on stderr; repeatable"),
     quiet: bool = quiet_flag(),
 ) -> None:
     """Error metrics (MODEL §6) of a robot model on measured data."""
@@ -52,7 +57,8 @@ def evaluate_cmd(
     check_outputs((robot, data), poses_out=poses_out)
     ev = evaluate(load(robot, base_link, tip_link), data, columns=opt.column_map(column), frames=frames,
                   joint_unit=joint_unit, length_unit=length_unit, payload=payload, uncertainty=uncertainty,
-                  delimiter=delimiter, decimal=decimal, euler=euler)
+                  delimiter=delimiter, decimal=decimal, euler=euler, point_distance=tuple(point_distance or ()),
+                  distance_sigma=distance_sigma)
     print_warnings(ev.notes)
     if poses_out is not None:
         from ..io.atomic import atomic_write
@@ -65,7 +71,9 @@ def evaluate_cmd(
         print(json.dumps(ev.to_dict(), indent=2))
     elif not quiet:
         _print_tables(ev, robot, data)
-    verdict(checks, {k: ev.metrics.position[k] for k in ("rms", "mean", "std", "max")})
+    figures = {k: ev.metrics.position[k] for k in ("rms", "mean", "std", "max")}
+    verdict(checks, {**figures, **{k: ev.contact.get(k, float("nan")) for k in
+                                   ("point_spread_rms", "distance_error_rms", "plane_rms")}})
 
 
 def _print_tables(ev, robot, data) -> None:
@@ -74,6 +82,9 @@ def _print_tables(ev, robot, data) -> None:
     title = f"{robot} on {data} ({ev.metrics.n} poses{'' if ev.frames == 'none' else ', frames ' + ev.frames})"
     columns = {"error": ev.metrics, **(ev.per_target if len(ev.per_target) > 1 else {})}
     console().print(metrics_table(title, columns))
+    if ev.contact:
+        console().print("points and planes touched: " + ", ".join(f"{k.replace('_', ' ')} {v:.4f} mm"
+                                                                  for k, v in ev.contact.items()))
     if ev.sigma is not None:
         _print_uncertainty(ev)
 

@@ -11,8 +11,10 @@ inertials, collisions and other elements are kept for the export and otherwise i
 
 Writing (:func:`urdf_text`): a robot read from a URDF is written back as that file with its
 chain's joint origins corrected (an identified joint zero folds into its origin), a root link
-``measuring_frame`` carrying the identified base, and a link ``target`` (``target_NAME`` for
-named reflectors) on a fixed joint from the tip link, carrying the identified tool.  Links, visuals, inertials,
+``measuring_frame`` carrying the identified base, and the identified tool: a tracker's reflector
+on a link ``target`` (``target_NAME`` for named reflectors) on a fixed joint from the tip link;
+the probe of data that touched points or planes on the chain's own tip link, when fixed joints
+lead to it from the flange (the last of them is corrected: the tip link is the tool point).  Links, visuals, inertials,
 joint names and limits stay as they were.  A DH, Hayati or Craig robot is written as a new
 URDF of the same kinematics.  The standard library's XML keeps the file faithful, comments
 included, where a URDF object model would re-serialise it.
@@ -392,7 +394,7 @@ def _append(root: ET.Element, *elements: ET.Element) -> None:
     root[-1].tail = "\n"
 
 
-def _from_file(robot: Robot) -> ET.Element:
+def _from_file(robot: Robot, tool_at_tip: bool = False) -> ET.Element:
     chain: UrdfChain = robot.urdf
     root = _parse_xml(chain.text, robot.source)
     joints = {j.get("name"): j for j in root.findall("joint")}
@@ -417,16 +419,24 @@ def _from_file(robot: Robot) -> ET.Element:
             joint = _fixed_joint(f"{MEASURING_FRAME}_joint", chain.base_link, MEASURING_FRAME,
                                  chain.lead @ invert(robot.base))
         _append(root, base_link, joint)
-    _write_targets(robot, root, joints, chain)
+    _write_targets(robot, root, joints, chain, tool_at_tip)
     return root
 
 
-def _write_targets(robot: Robot, root: ET.Element, joints: dict, chain: UrdfChain) -> None:
+def _write_targets(robot: Robot, root: ET.Element, joints: dict, chain: UrdfChain, tool_at_tip: bool = False) -> None:
     tools = {"": robot.tool, **robot.targets}
     for name, T in tools.items():
         link = TARGET if name == "" else f"{TARGET}_{name}"
         if name == "" and chain.tip_link == TARGET:
             continue  # the tip is robocal's target: the tool is its chain, updated below
+        if name == "" and tool_at_tip and chain.tip_link != chain.flange_link and link not in chain.target_joints:
+            # the user's own tip (a probe's ball, a TCP link) sits on fixed joints after the flange:
+            # its last one carries the identified tool, so the tip link is the calibrated tool point
+            by_child = {j.find("child").get("link"): j for j in root.findall("joint")}
+            joint = by_child[chain.tip_link]
+            before = _fixed_before(root, chain.flange_link, joint.find("parent").get("link"), robot.source)
+            _set_origin(joint, invert(before) @ T, "\n    ")
+            continue
         if link in chain.target_joints:
             joint = joints[chain.target_joints[link]]
             before = _fixed_before(root, chain.flange_link, joint.find("parent").get("link"), robot.source)
@@ -509,12 +519,16 @@ def _dh_split(convention: str, g: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return (fixed, np.eye(4)) if convention == "craig" else (np.eye(4), fixed)
 
 
-def urdf_text(robot: Robot, comment: str | None = None, whole_model: str | None = None) -> str:
+def urdf_text(robot: Robot, comment: str | None = None, whole_model: str | None = None,
+              tool_at_tip: bool = False) -> str:
     """The URDF of a robot (see the module docstring); joint terms and residual corrections
     cannot live in a URDF and are left out (:func:`robocal.io.robotfile.save_robot` writes them):
     ``whole_model`` names the robot file beside it that holds them, so that the URDF alone is
-    never taken for the whole model."""
-    root = _from_file(robot) if robot.urdf is not None and robot.convention == "urdf" else _from_dh(robot)
+    never taken for the whole model.  ``tool_at_tip``: the identified tool is the tip link itself
+    (a probe's ball that touched points or planes), corrected on the fixed joint that leads to
+    it; otherwise (a tracker's reflector) it hangs from the tip on robocal's ``target`` link."""
+    root = _from_file(robot, tool_at_tip) if robot.urdf is not None and robot.convention == "urdf" \
+        else _from_dh(robot)
     for old in root.findall(WHOLE_MODEL):  # an earlier export's: this one says its own
         root.remove(old)
     if whole_model:
