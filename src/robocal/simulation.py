@@ -206,3 +206,113 @@ def planted_terms(robot: Robot, compliance: Mapping[int, float] | None,
     if not planted:
         return None
     return JointTerms({k: v for name, values in planted.items() for k, v in TERMS[name].plant(values, n).items()})
+
+
+#: what the probe of a contact campaign touches
+CONTACTS = ("points", "planes")
+
+
+def _reach(robot: Robot, targets: np.ndarray, q0: np.ndarray, lim: np.ndarray, iterations: int = 60,
+           tolerance: float = 1e-7) -> tuple[np.ndarray, np.ndarray]:
+    """Joints (K, n) that put ``robot``'s tool point on ``targets`` (K, 3) mm, by damped least
+    squares from the starts q0 (a redundant arm keeps near its start, so varied starts give
+    varied configurations); and which reached within ``tolerance`` mm inside the ranges."""
+    from .model.jointspace import joint_jacobian
+
+    q = q0.copy()
+    for _ in range(iterations):
+        e = targets - robot.positions(q)
+        if np.max(np.abs(e)) < tolerance:
+            break
+        J = joint_jacobian(robot, q, False, 1.0)  # (K, 3, n)
+        A = J @ np.swapaxes(J, 1, 2) + 1e-6 * np.eye(3)
+        q = np.clip(q + np.einsum("kji,kj->ki", J, np.linalg.solve(A, e[..., None])[..., 0]), lim[:, 0], lim[:, 1])
+    e = np.linalg.norm(targets - robot.positions(q), axis=1)
+    return q, (e < tolerance) & np.all((q >= lim[:, 0]) & (q <= lim[:, 1]), axis=1)
+
+
+def _setup(truth: Robot, robot: Robot, rng, middle: np.ndarray, lim: np.ndarray, joint_range, contact: str,
+           per_group: int, spacing: float, noise: float, plane_size: float) -> dict[str, np.ndarray] | None:
+    """One setup's contacts: {label: joints (per_group, n)}, or None when some cannot be reached."""
+    centre = truth.positions(rng.uniform(middle[:, 0], middle[:, 1], (1, robot.n_joints)))[0]
+    if contact == "points":
+        u = rng.normal(size=3)
+        u[2] *= 0.2  # a tool lying on a table: its sockets side by side
+        u /= np.linalg.norm(u)
+        groups = {"A": np.tile(centre, (per_group, 1)), "B": np.tile(centre + spacing * u, (per_group, 1))}
+    else:
+        n = rng.normal(size=3)
+        n /= np.linalg.norm(n)
+        a = np.cross(n, [1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0])
+        a /= np.linalg.norm(a)
+        b = np.cross(n, a)
+        r, t = 0.5 * plane_size * np.sqrt(rng.uniform(size=per_group)), rng.uniform(0, 2 * math.pi, per_group)
+        groups = {"P": centre + (r * np.cos(t))[:, None] * a + (r * np.sin(t))[:, None] * b}
+    out = {}
+    for label, points in groups.items():
+        found: dict[int, np.ndarray] = {}
+        for _ in range(6):  # three starts a contact, until every contact of the group is reached
+            pending = [k for k in range(per_group) if k not in found]
+            if not pending:
+                break
+            goals = np.repeat(points[pending], 3, axis=0)
+            goals = goals + (rng.normal(0.0, noise, goals.shape) if noise > 0 else 0.0)
+            q, ok = _reach(truth, goals, random_joints(robot, len(goals), rng, joint_range), lim)
+            q, ok = q.reshape(len(pending), 3, -1), ok.reshape(len(pending), 3)
+            for k, row_q, row_ok in zip(pending, q, ok):
+                if row_ok.any():
+                    found[k] = row_q[int(np.argmax(row_ok))]
+        if len(found) < per_group:
+            return None
+        out[label] = np.array([found[k] for k in range(per_group)])
+    return out
+
+
+def simulate_contacts(robot: Robot, per_group: int, *, setups: int = 4, contact: str = "points",
+                      spacing: float = 50.0, deviations: str | dict[str, float] = "none", noise: float = 0.0,
+                      seed: int | None = 0, tool: Sequence[float] | None = None, joint_range=None,
+                      plane_size: float = 200.0) -> Simulation:
+    """A campaign without a tracker on a robot with planted deviations: the tool point (a ball)
+    touches points or planes whose place is unknown, and only the joints are recorded.
+
+    ``points``: each of ``setups`` placements of a two-socket tool, sockets ``A`` and ``B``
+    ``spacing`` mm apart somewhere the robot reaches, each touched in ``per_group``
+    configurations.  ``planes``: each setup one plane ``P`` (a random normal, through a point
+    the robot reaches) touched at ``per_group`` points spread over a disc of ``plane_size`` mm.
+    noise: σ per axis (mm) of where the ball actually sits (play in the socket, the probe's
+    seat), the floor such data can reach.  The joints are the true robot's (damped least
+    squares from random starts inside the ranges, kept when they reach within 1e-7 mm); tool: the
+    true flange → ball (x, y, z mm), replacing the robot's own.
+    """
+    opt.choice(contact, CONTACTS, "contact", "contact")
+    per_group = opt.integer(per_group, "poses", minimum=2 if contact == "points" else 3)
+    setups = opt.integer(setups, "setups", minimum=1)
+    opt.number(noise, "noise", minimum=0.0)
+    opt.number(spacing, "spacing", minimum=0.0, strict=True)
+    rng = np.random.default_rng(seed)
+    space = ParameterSpace.of(robot)
+    planted = planted_deviations(robot, deviations, rng) if isinstance(deviations, str) else dict(deviations)
+    truth = space.apply(space.vector(planted))
+    if tool is not None:
+        truth = truth.replace(tool=frame_from_values(tool))
+    lim = joint_ranges(robot, joint_range)
+    q_rows, labels, where = [], [], []
+    middle = lim.mean(axis=1)[:, None] + 0.6 * (lim - lim.mean(axis=1)[:, None])  # places well inside the reach
+    for s in range(setups):
+        for _ in range(10):  # another place for a setup whose contacts the robot cannot all reach
+            reached = _setup(truth, robot, rng, middle, lim, joint_range, contact, per_group, spacing, noise,
+                             plane_size)
+            if reached is not None:
+                break
+        else:
+            raise InputError(f"the robot reaches no place where all {per_group} contacts of a setup fit in ten "
+                             "tries: widen the joint ranges, lower --spacing or --poses", option="poses")
+        for label, q in reached.items():
+            q_rows.append(q)
+            labels += [label] * per_group
+            where += [f"S{s + 1}"] * per_group
+    q = np.vstack(q_rows)
+    kind = {"point": tuple(labels)} if contact == "points" else {"plane": tuple(labels)}
+    meas = Measurements(q=q, position=np.full((len(q), 3), np.nan), source="<simulated contacts>", setup=tuple(where),
+                        **kind)
+    return Simulation(meas, truth, planted)

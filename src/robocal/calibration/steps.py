@@ -131,10 +131,10 @@ def load_inputs(robot, data, validate, config: CalibrationConfig, columns=None) 
     if not (meas.full_pose and config.use_orientation):
         meas = meas.position_only()
         val = None if val is None else val.position_only()
-    if config.point_distance or meas.constraints is not None or (val is not None and val.constraints is not None):
+    if config.point_distance:  # stated here; measurements given as objects may carry their own
         meas = meas.with_distances(config.point_distance, config.distance_sigma)
-        val = None if val is None else val.with_distances(
-            config.point_distance if val.constraints is not None else (), config.distance_sigma)
+        if val is not None and val.constraints is not None:
+            val = val.with_distances(config.point_distance, config.distance_sigma)
     meas = _instrument_sigmas(meas, config, notes)
     meas = _excluded(meas, config.exclude, notes)
     if config.payload is not None:  # a stated payload where the files have no column

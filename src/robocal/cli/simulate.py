@@ -42,6 +42,12 @@ def simulate_cmd(
         None, "--drift", help="planted drift J=DEG_PER_H[,…]: joint J's zero moves linearly in time (a time column "
         "is written)"),
     interval: float = typer.Option(10.0, "--interval", help="seconds between poses, for --drift"),
+    contact: str | None = typer.Option(None, "--contact", help="points | planes: no tracker, the tool point touches "
+                                       "unknown points (two sockets a setup) or planes; --poses per point or plane, "
+                                       "--noise the play"),
+    setups: int = typer.Option(4, "--setups", help="placements of the artefact, with --contact"),
+    spacing: float = typer.Option(50.0, "--spacing", help="distance of the two sockets A and B, mm, with --contact "
+                                  "points"),
     base_link: str | None = base_link_option(),
     tip_link: str | None = tip_link_option(),
     out: Path = typer.Option(..., "--out", help="measurement CSV to write"),
@@ -62,12 +68,28 @@ def simulate_cmd(
 
     r = load_robot(robot, base_link=base_link, tip_link=tip_link)
     rng = None if joint_range is None else tuple(math.radians(v) for v in opt.floats(joint_range, "range", (2,)))
-    sim = simulate(r, poses, deviations=errors, noise=noise, angle_noise=math.radians(angle_noise),
+    if contact is not None:
+        from ..simulation import simulate_contacts
+
+        others = {"--angle-noise": angle_noise, "--joint-noise": joint_noise, "--joint-noise-uniform":
+                  joint_noise_uniform, "--base": base, "--compliance": compliance, "--harmonic": harmonic,
+                  "--backlash": backlash, "--drift": drift}
+        given = [k for k, v in others.items() if v]
+        if given:
+            from ..exceptions import InputError
+
+            raise InputError(f"{given[0]} is for tracker campaigns: a contact campaign plants geometry, a tool and "
+                             "the play (--noise)", option="contact")
+        sim = simulate_contacts(r, poses, setups=setups, contact=contact, spacing=spacing, deviations=errors,
+                                noise=noise, seed=seed, tool=opt.frame_values(tool, "tool"), joint_range=rng)
+    else:
+        sim = simulate(r, poses, deviations=errors, noise=noise, angle_noise=math.radians(angle_noise),
                    joint_noise=math.radians(joint_noise), joint_noise_uniform=math.radians(joint_noise_uniform),
-                   measure=measure, seed=seed, joint_range=rng, base=opt.frame_values(base, "base"),
-                   tool=opt.frame_values(tool, "tool"), compliance=opt.joint_values(compliance, "compliance"),
-                   harmonics=opt.harmonic_specs(harmonic), backlash=_degrees(opt.joint_values(backlash, "backlash")),
-                   drift=_degrees(opt.joint_values(drift, "drift")), pose_interval=interval)
+                       measure=measure, seed=seed, joint_range=rng, base=opt.frame_values(base, "base"),
+                       tool=opt.frame_values(tool, "tool"), compliance=opt.joint_values(compliance, "compliance"),
+                       harmonics=opt.harmonic_specs(harmonic),
+                       backlash=_degrees(opt.joint_values(backlash, "backlash")),
+                       drift=_degrees(opt.joint_values(drift, "drift")), pose_interval=interval)
     texts = {out: measurements_to_csv(sim.measurements, prismatic=r.prismatic)}
     if truth is not None:
         planted = ", ".join(f"{k}={v:+.6g}" for k, v in sim.deviations.items() if v) or "none"

@@ -566,10 +566,13 @@ def measurements_to_csv(meas: Measurements, *, extra: Mapping[str, Sequence] | N
               (list(POSITION_SIGMA), meas.sigma_position),
               (list(ORIENTATION_SIGMA), None if meas.sigma_orientation is None or meas.rotation is None
                else np.degrees(meas.sigma_orientation))]
+    if np.all(np.isnan(meas.position)):  # every row touched a point or plane: nothing measured
+        groups = groups[1:]
     groups = [(names, np.asarray(v, float)) for names, v in groups if v is not None]
+    extra = {**{k: v for k, v in (("point", meas.point), ("plane", meas.plane), ("setup", meas.setup))
+                if v is not None}, **dict(extra or {})}
     header = (["pose_id"] if meas.pose_ids is not None else []) + (["target"] if meas.targets is not None else [])
     header += [f"q{i + 1}" for i in range(n)] + [h for names, _ in groups for h in names]
-    extra = dict(extra or {})
     header += list(extra)
     qdeg = joints_to_file(meas.q, prismatic)
     out = io.StringIO()
@@ -580,7 +583,7 @@ def measurements_to_csv(meas: Measurements, *, extra: Mapping[str, Sequence] | N
         if meas.targets is not None:
             row.append(meas.targets[j])
         row += [repr(float(v)) for v in qdeg[j]]
-        row += [repr(float(v)) for _, values in groups for v in values[j]]
+        row += ["" if np.isnan(v) else repr(float(v)) for _, values in groups for v in values[j]]
         row += [extra[k][j] for k in extra]
         w.writerow(row)
     return out.getvalue()
