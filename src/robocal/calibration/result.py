@@ -128,8 +128,9 @@ class CalibrationResult:
     def headline(self) -> tuple[str, str, Metrics]:
         """The figure to lead with: (key, label, metrics): accuracy on the validation poses when
         given, else the cross-validated prediction, else (a model returned unchanged) the fit."""
-        for key, label in (("validation_after", "on the validation poses"),
-                           ("predicted", "predicted on new poses (5-fold cross-validation of the calibration poses)")):
+        held = "setups (5-fold cross-validation by setup: their points are new unknowns)" if self.contact else \
+            "poses (5-fold cross-validation of the calibration poses)"
+        for key, label in (("validation_after", "on the validation poses"), ("predicted", f"predicted on new {held}")):
             if key in self.metrics:
                 return key, label, self.metrics[key]
         return "after", "the fit itself (in-sample: not a prediction)", self.metrics["after"]
@@ -159,7 +160,8 @@ class CalibrationResult:
         """One line: the honest figure first, the fit beside it, labelled as what it is."""
         key, label, m = self.headline()
         fit = self.metrics["after"].position
-        text = f"position RMS {m.position['rms']:.4f} mm, max {m.position['max']:.4f} mm {label}"
+        what = "position RMS" if not self.contact else "point spread RMS"  # rows that touched points or planes
+        text = f"{what} {m.position['rms']:.4f} mm, max {m.position['max']:.4f} mm {label}"
         if key != "after":
             text += f"; the fit itself {fit['rms']:.4f} mm (in-sample)"
         return text

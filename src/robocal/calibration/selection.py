@@ -406,6 +406,9 @@ def fit_model(inputs: Inputs, config: CalibrationConfig, progress=None, stages=N
     say = stages or (lambda step, steps, text: None)
     if config.model != "auto":
         terms = config.model_terms
+        if "residual" in terms and meas.constraints is not None:
+            raise InputError("a residual process learns corrections of measured positions: rows that touched points "
+                             "or planes measure none; calibrate the parametric model alone", option="model")
         if "residual" in terms and len(set(pose_groups(meas))) < MIN_RESIDUAL_POSES:
             raise InputError(f"a residual process learns from the poses what the parametric model leaves: "
                              f"{len(set(pose_groups(meas)))} poses are too few (at least {MIN_RESIDUAL_POSES}); "
@@ -425,7 +428,8 @@ def fit_model(inputs: Inputs, config: CalibrationConfig, progress=None, stages=N
         return Chosen(model_name(terms), fit, residual, notes=spent_dof(fit, residual), geometric=geometric,
                       prediction=prediction, geometric_prediction=geometric_prediction)
     groups = pose_groups(meas)
-    residuals = groups.max() + 1 >= MIN_RESIDUAL_POSES
+    # a residual process corrects measured positions: rows that touched points or planes have none
+    residuals = groups.max() + 1 >= MIN_RESIDUAL_POSES and meas.constraints is None
     ladder: list[tuple[Candidate, CrossValidation]] = []
     # at most: geometry, each term alone, then each further term on the one kept so far
     k = len(TRIAL_ORDER)

@@ -48,6 +48,22 @@ def _metrics_table(columns: dict[str, Metrics]) -> str:
     return f"<table><tr><th>error</th>{head}</tr>{body}</table>"
 
 
+def _contact(result: CalibrationResult) -> list[str]:
+    """Data whose rows touched points or planes: what they are judged by, before and after."""
+    if not result.contact:
+        return []
+    keys = list(dict.fromkeys(k for figures in result.contact.values() for k in figures))
+    head = "".join(f"<th>{html.escape(k.replace('_', ' '))} (mm)</th>" for k in keys)
+    rows = "".join(f"<tr><td>{html.escape(name.replace('_', ' '))}</td>"
+                   + "".join(f"<td>{figures[k]:.4f}</td>" if k in figures else "<td>—</td>" for k in keys) + "</tr>"
+                   for name, figures in result.contact.items())
+    return ["<p>The rows touched points or planes whose place is unknown: the position errors above are each "
+            "row's offset from its point's (plane's) best fit, its <b>point spread</b>; the distance error is how "
+            "far the two points of a setup miss their stated distance.  The frame the robot stands in is not "
+            "observable from them (the parameters table says what else is not).</p>",
+            f"<table><tr><th>set</th>{head}</tr>{rows}</table>"]
+
+
 def _lead(result: CalibrationResult) -> str:
     """The honest figure first: validation, else the cross-validated prediction; the fit labelled."""
     return f"<p class='lead'>{html.escape(result.headline_text()[0].upper() + result.headline_text()[1:])}.</p>"
@@ -123,9 +139,15 @@ def _error_figures(result: CalibrationResult) -> list[str]:
     where = val if val is not None else meas
     label = "validation" if val is not None else "calibration"
     after = _norms(result.robot, where)
-    in_base = _in_base(result.robot, where.position)
-    parts.append(f"<h2>Where the error is</h2><p>Measured points of the {label} poses in the robot's base frame, "
-                 "coloured by the calibrated model's position error (the colour scale runs to the largest; the "
+    points = where.position
+    if where.constraints is not None:  # a contact row measured no point: the calibrated model's is drawn
+        points = np.where(where.constraints.rows[:, None],
+                          result.robot.positions(where.q, where.targets, where.inputs), points)
+    in_base = _in_base(result.robot, points)
+    parts.append(f"<h2>Where the error is</h2><p>Measured points of the {label} poses in the robot's base frame "
+                 + ("(where a row touched a point or plane, the calibrated model's tool point), " if
+                    where.constraints is not None else "")
+                 + "coloured by the calibrated model's position error (the colour scale runs to the largest; the "
                  "largest errors are drawn on top).</p>")
     parts.append(_img(figures.workspace_errors(in_base, after, f"{label} poses after calibration (base frame)")))
     parts += _uncertainty_map(result)
@@ -321,6 +343,7 @@ def calibration_html(result: CalibrationResult, command: str | None = None) -> s
     parts += _said(result)
     parts += ["<h2>What to do next</h2>"] + [f"<p class='next'>{s}</p>" for s in next_steps(result)]
     cols = result.accuracy_columns()
+    contact = _contact(result)
     parts.append("<h2>Accuracy</h2><p>“Before” is the nominal geometry with the registered frames; “after (fit)” "
                  "the calibrated model on the poses it was fitted to, which flatters it; "
                  + ("“validation” the poses kept out of the fit. " if result.validation else
@@ -330,6 +353,7 @@ def calibration_html(result: CalibrationResult, command: str | None = None) -> s
                  + (f"; validation: {html.escape(result.validation.describe())}" if result.validation else "")
                  + ".</p>")
     parts.append(_metrics_table(cols))
+    parts += contact
     parts += _per_target(result)
     parts += _error_figures(result)
     parts += _worst(result)
