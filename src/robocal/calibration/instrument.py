@@ -220,3 +220,52 @@ def instrument_fit(problem, x: np.ndarray, source: str, used: tuple[float, float
     tau = beyond_instrument(problem, x, used)
     return InstrumentFit(source, chi2, dof, tau.tau_position, tau.tau_orientation, _spread(meas.sigma_position),
                          _spread(meas.sigma_orientation) if use_r else None)
+
+
+@dataclass(frozen=True)
+class KindWeights:
+    """Tracker rows and rows that touched points or planes, each weighed by its own σ (mm): the
+    tracker's noise and the probe's seat in a socket are not one scatter.  The interface of
+    :class:`InstrumentWeights` (relative factors per residual), so the problem weighs by it."""
+
+    tracker: float
+    contact: float
+
+    @property
+    def ref(self) -> float:
+        return float(np.sqrt(0.5 * (self.tracker**2 + self.contact**2)))
+
+    def factors(self, meas: Measurements) -> tuple[np.ndarray | None, np.ndarray | None]:
+        c = meas.constraints
+        rows = np.zeros(meas.n_poses, bool) if c is None else c.rows  # a subset may hold one kind only
+        f = np.where(rows, self.contact, self.tracker) / self.ref
+        return np.repeat(f[:, None], 3, axis=1), None
+
+    def settled(self, other, meas: Measurements) -> bool:
+        if not isinstance(other, KindWeights):
+            return False
+        return abs(self.tracker / other.tracker - 1.0) <= WEIGHTS_SETTLED and \
+            abs(self.contact / other.contact - 1.0) <= WEIGHTS_SETTLED
+
+    def sentence(self) -> str:
+        return (f"tracker rows σ {self.tracker:.3g} mm, rows that touched points or planes σ {self.contact:.3g} mm "
+                "(each estimated from its own residuals)")
+
+
+def kind_weights(problem, x: np.ndarray) -> KindWeights:
+    """Each kind of rows' σ (mm) from its residuals at x, with the degrees of freedom the fit used
+    in its rows (the hat matrix's trace over them) and, for contact rows, the eliminated points
+    and planes."""
+    c = problem.constraints
+    dp, _ = problem.errors(x)
+    J = problem.residual_jacobian(x)
+    rows = np.repeat(c.rows, 3)
+    n_pos = problem.n_position_rows()
+    Jp = J[:n_pos]
+    inv = np.linalg.pinv(J.T @ J)
+    used = {kind: float(np.sum((Jp[mask].T @ Jp[mask]) * inv.T)) for kind, mask in (("contact", rows),
+                                                                                     ("tracker", ~rows))}
+    rss_c, rss_t = float(np.sum(dp[c.rows] ** 2)), float(np.sum(dp[~c.rows] ** 2))
+    dof_c = 3 * int(c.rows.sum()) - used["contact"] - c.n_unknowns
+    dof_t = 3 * int((~c.rows).sum()) - used["tracker"]
+    return KindWeights(float(np.sqrt(rss_t / max(dof_t, 1.0))), float(np.sqrt(rss_c / max(dof_c, 1.0))))

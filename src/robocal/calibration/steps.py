@@ -50,7 +50,16 @@ from .identifiability import (
     Reason,
     analyse,
 )
-from .instrument import MAX_ROUNDS, Instrument, InstrumentFit, beyond_instrument, instrument_fit, with_instrument
+from .instrument import (
+    MAX_ROUNDS,
+    Instrument,
+    InstrumentFit,
+    KindWeights,
+    beyond_instrument,
+    instrument_fit,
+    kind_weights,
+    with_instrument,
+)
 from .methods import Estimate, fit_lm, optimize
 from .noise import (
     LINEAR_CHI2,
@@ -240,6 +249,31 @@ def weigh_instrument(est: Estimate, config: CalibrationConfig,
                 break
     return est, noise, instrument_fit(est.problem, est.x, meas.sigma_source or "σ per point",
                                       leverage_split(est.problem, est.x))
+
+
+def weigh_kinds(est: Estimate, config: CalibrationConfig, noise: NoiseEstimate) -> tuple[Estimate, NoiseEstimate,
+                                                                                         list[str]]:
+    """Step 8c, tracker rows beside rows that touched points or planes: each kind weighed by its
+    own σ, estimated from its residuals, and the fit repeated until they settle."""
+    meas = est.problem.meas
+    c = meas.constraints
+    if c is None or c.only or meas.sigma_position is not None or noise.source == "stated" or \
+            not (config.least_squares and est.optimization.status == "converged"):
+        return est, noise, []
+    for _ in range(MAX_ROUNDS):
+        problem = est.problem
+        weights = kind_weights(problem, est.x)
+        if weights.settled(problem.setup.instrument, meas):
+            break
+        problem = replace(problem.setup, instrument=weights, sigma_position=weights.ref).problem(problem.names)
+        lm = fit_lm(problem, est.x, config)
+        est = Estimate(problem, est.optimization.then(lm, method=est.optimization.method, message=(
+            f"{est.optimization.message}; each kind of rows weighed by its σ: {lm.message}"),
+            history=est.optimization.history), lm.x, est.reexpression_gap_mm)
+        if lm.status != "converged":
+            break
+    weights = est.problem.setup.instrument
+    return est, noise, [] if not isinstance(weights, KindWeights) else [f"weighed by kind: {weights.sentence()}"]
 
 
 def complete_model(robot: Robot, config: CalibrationConfig) -> Robot:
@@ -721,6 +755,8 @@ def fit_parametric(inputs: Inputs, config: CalibrationConfig, spec: TermSpec,
         if refined is not est:  # parameters were added: their weights are settled again
             est, noise = reweigh(refined, config)
         est, noise, instrument = weigh_instrument(est, config, noise)
+        est, noise, said = weigh_kinds(est, config, noise)
+        notes += said
         judged = judge(est, config, noise)
     return Fit(setup, candidates, ident, est, screening, noise, judged.goodness, judged.uncertainty,
                judged.covariance, notes + judged.notes, instrument)
