@@ -160,7 +160,8 @@ class CalibrationResult:
         """One line: the honest figure first, the fit beside it, labelled as what it is."""
         key, label, m = self.headline()
         fit = self.metrics["after"].position
-        what = "position RMS" if not self.contact else "point spread RMS"  # rows that touched points or planes
+        what = "position RMS" if not self.contact else "point spread RMS" if any(  # rows that touched points
+            "point_spread_rms" in f for f in self.contact.values()) else "distance from the planes RMS"  # or planes
         text = f"{what} {m.position['rms']:.4f} mm, max {m.position['max']:.4f} mm {label}"
         if key != "after":
             text += f"; the fit itself {fit['rms']:.4f} mm (in-sample)"
