@@ -60,9 +60,13 @@ def plan_cmd(
     fov: float = typer.Option(90.0, "--fov", help="the reflector's acceptance cone, full angle (deg), with --tracker"),
     model_error: float = typer.Option(0.0, "--model-error", help="σ per axis (mm) of what the model cannot take "
                                       "(e.g. an earlier calibration's scatter beyond the instrument), stated apart"),
+    socket: list[str] | None = typer.Option(None, "--socket", help="x,y,z (mm, the robot's base frame) of a socket "
+                                            "the tool point (a ball) will touch: --poses configurations for each, "
+                                            "for calibration without a tracker (repeatable)"),
     base_link: str | None = base_link_option(),
     tip_link: str | None = tip_link_option(),
-    out: Path = typer.Option(..., "--out", help="measurement-file skeleton to write (pose_id, q1..qn)"),
+    out: Path = typer.Option(..., "--out", help="measurement-file skeleton to write (pose_id, q1..qn; with --socket "
+                                                "q1..qn, point, setup)"),
     as_json: bool = json_flag("the plan report"),
     report: Path | None = summary_option("the plan report"),
     quiet: bool = quiet_flag(),
@@ -93,6 +97,9 @@ def plan_cmd(
     at = None if tracker is None else np.array(opt.floats(tracker, "tracker", (3,)))
     opt.number(fov, "fov", minimum=0.0, strict=True)
     opt.number(model_error, "model_error", minimum=0.0)
+    if socket:
+        _plan_sockets(r, socket, poses, candidates, seed, jr, out, report, as_json, quiet)
+        return
     p = plan_poses(r, poses, candidates=candidates, criterion=criterion, measure=measure, frames=frames,
                    joint_range=jr, noise=noise, angle_noise=math.radians(angle_noise), seed=seed, workspace=box,
                    tracker=at, fov=fov, model_error=model_error)
@@ -108,6 +115,35 @@ def plan_cmd(
     elif not quiet:
         _print_plan(p, r, poses, candidates, criterion, measure, noise, angle_noise)
         console().print(f"wrote {out}")
+
+
+def _plan_sockets(r, sockets, poses, candidates, seed, jr, out, report, as_json, quiet) -> None:
+    """Configurations to record at each socket (see :mod:`robocal.plan.contacts`)."""
+    import json
+
+    from .. import options as opt
+    from ..io.atomic import atomic_write, together
+    from ..io.measurements import joints_to_file
+    from ..plan.contacts import plan_contacts
+    from .common import console, print_json
+
+    places = [opt.floats(s, "socket", (3,)) for s in sockets]
+    p = plan_contacts(r, places, poses, candidates=min(candidates, 500), seed=seed, joint_range=jr)
+    lines = [",".join(f"q{i + 1}" for i in range(r.n_joints)) + ",point,setup"]
+    lines += [",".join(f"{v:.6f}" for v in joints_to_file(q, r.prismatic)) + f",socket{k + 1},S1"
+              for q, k in zip(p.q, p.socket)]
+    document = p.summary()
+    with together():
+        atomic_write(out, "\n".join(lines) + "\n")
+        if report is not None:
+            atomic_write(report, json.dumps(document, indent=1) + "\n")
+    if as_json:
+        print_json(document)
+    elif not quiet:
+        console().print(f"{len(p.q)} configurations at {len(places)} socket(s) ({', '.join(map(str, p.reachable))} "
+                        f"distinct reaching configurations drawn): log det of the information per parameter "
+                        f"{p.value:.3f} against {document['random_median']:.3f} for the median of "
+                        f"{len(p.random_values)} random choices; wrote {out}")
 
 
 def register(app: typer.Typer) -> None:
