@@ -22,6 +22,8 @@ from ..exceptions import InputError
 #: a number token, whole: not the tail of a name (P1), nor cut short by a letter or a dot (1.5x)
 NUMBER = r"(?<![\w.])[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?(?![\w.])"
 _NUMBER = re.compile(NUMBER)
+#: a number with the spaces around it, as list items are written (``[ 1.5, -2 ]``)
+SPACED_NUMBER = r"\s*" + NUMBER + r"\s*"
 
 
 class Field(NamedTuple):

@@ -32,7 +32,7 @@ from ..math.se3 import homogeneous
 from ..math.so3 import quaternion_matrix
 from .language import DECIMALS, Language, keep_on_boundary, quaternion, set_number, set_text
 from .program import (
-    NUMBER,
+    SPACED_NUMBER,
     Field,
     Lines,
     Program,
@@ -44,7 +44,7 @@ from .program import (
     split_top,
 )
 
-_N = r"\s*" + NUMBER + r"\s*"
+_N = SPACED_NUMBER
 _LIST = lambda k: r"\[" + ",".join([_N] * k) + r"\]"  # noqa: E731
 ROBTARGET = re.compile(r"\[\s*" + _LIST(3) + r"\s*,\s*" + _LIST(4) + r"\s*,\s*" + _LIST(4) + r"\s*,\s*" + _LIST(6)
                        + r"\s*\]")

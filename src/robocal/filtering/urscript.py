@@ -26,7 +26,7 @@ from ..exceptions import InputError
 from ..math.se3 import homogeneous
 from .language import DECIMALS, Language, rotation_vector, set_number
 from .program import (
-    NUMBER,
+    SPACED_NUMBER,
     Field,
     Lines,
     Program,
@@ -38,7 +38,7 @@ from .program import (
     split_top,
 )
 
-_N = r"\s*" + NUMBER + r"\s*"
+_N = SPACED_NUMBER
 POSE = re.compile(r"\bp\[(" + ",".join([_N] * 6) + r")\]")
 JOINTS = re.compile(r"(?<![\w\]])\[(" + ",".join([_N] * 6) + r")\]")
 _ASSIGN = re.compile(r"(?:\bglobal\s+|\blocal\s+)?\b([A-Za-z_]\w*)\s*=(?!=)\s*")

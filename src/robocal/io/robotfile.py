@@ -287,10 +287,7 @@ def _clock(table, arrays: dict, source: str) -> tuple[str, float] | None:
         return None
     if not isinstance(table, dict):
         raise InputError("expected a [drift] table with clock and reference", source=source, where="key 'drift'")
-    unknown = set(table) - DRIFT_KEYS
-    if unknown:
-        raise InputError(f"unknown key '{sorted(unknown)[0]}' (allowed: {', '.join(sorted(DRIFT_KEYS))})",
-                         source=source, where="[drift]")
+    _known_keys(table, DRIFT_KEYS, source, "[drift]")
     clock = table.get("clock", "s")
     if clock not in ("s", "row"):
         raise InputError(f"clock {clock!r} is not s (a time column, seconds) or row (row numbers of the "
@@ -414,14 +411,19 @@ def _check_covariance_names(robot: Robot, covariance: ParameterCovariance, sourc
                          source=source, where="[uncertainty] parameters")
 
 
+def _known_keys(table: dict, allowed: set[str], source: str, where: str) -> None:
+    """A table's keys must be among ``allowed``: a misspelt one would be ignored."""
+    unknown = set(table) - allowed
+    if unknown:
+        raise InputError(f"unknown key {sorted(unknown)[0]!r} (allowed: {', '.join(sorted(allowed))})", source=source,
+                         where=where)
+
+
 def _coupling(table, n: int, source: str) -> tuple[tuple[int, int, float], ...]:
     """``[controller] coupling = [{joint = 3, plus = 2, factor = 1.0}, …]`` (1-based joints)."""
     if not isinstance(table, dict):
         raise InputError("expected a table", source=source, where="key 'controller'")
-    unknown = set(table) - CONTROLLER_KEYS
-    if unknown:
-        raise InputError(f"unknown key {sorted(unknown)[0]!r} (expected {', '.join(sorted(CONTROLLER_KEYS))})",
-                         source=source, where="table [controller]")
+    _known_keys(table, CONTROLLER_KEYS, source, "table [controller]")
     items = table.get("coupling", [])
     if not isinstance(items, list) or not all(isinstance(c, dict) for c in items):
         raise InputError("expected a list of tables {joint = J, plus = K, factor = F}", source=source,
