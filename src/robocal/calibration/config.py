@@ -21,8 +21,10 @@ METHODS = tuple(_REGISTRY)
 OBJECTIVES = ("sum_squares", "sum_norms")
 #: IPSO's start: a Halton sequence scrambled with the seed, or the plain sequence
 HALTON = ("scrambled", "plain")
+#: the learned corrections a model may hold on top of its parametric part (MODEL §4, §10)
+LEARNED = ("trees", "residual")
 #: what a model may hold beyond geometry (MODEL §4); ``auto`` chooses among them by cross-validation
-MODEL_TERMS = (*TERMS, "residual")
+MODEL_TERMS = (*TERMS, *LEARNED)
 #: named candidate sets: every joint parameter of the convention, or a paper's 24
 PARAMETER_SETS = ("auto", "all", "wen2019", "kou2022")
 
@@ -200,7 +202,7 @@ class CalibrationConfig:
         set_(self, "model", model.name)
         set_(self, "harmonics", model.harmonics)
         set_(self, "payload", model.payload)
-        if not self.spec.least_squares and (self.model == "auto" or self.model_terms - {"residual"}):
+        if not self.spec.least_squares and (self.model == "auto" or self.model_terms - set(LEARNED)):
             raise InputError(f"joint terms ({self.model}) are fitted by lm or hybrid, not {self.method}",
                              option="model")
 

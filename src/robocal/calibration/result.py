@@ -66,14 +66,17 @@ class LadderRow:
 @dataclass(frozen=True)
 class BudgetRow:
     """One stage of the error budget: the validation position RMS (mm) with it, and what it
-    removed from the stage before (None for the first)."""
+    removed from the stage before (None for the first); axes_mm: the RMS of each axis (x, y, z
+    of the measuring frame, mm), where the stage is a model."""
 
     model: str
     validation_rms_mm: float
     removed_mm: float | None
+    axes_mm: tuple[float, float, float] | None = None
 
     def to_dict(self) -> dict:
-        return {"model": self.model, "validation_rms_mm": self.validation_rms_mm, "removed_mm": self.removed_mm}
+        out = {"model": self.model, "validation_rms_mm": self.validation_rms_mm, "removed_mm": self.removed_mm}
+        return out if self.axes_mm is None else {**out, "axes_rms_mm": dict(zip("xyz", self.axes_mm))}
 
 
 @dataclass

@@ -7,7 +7,10 @@ calibration data (K = 5, folds by ``pose_id``, so the reflectors of one pose sta
 2. each joint term of :data:`robocal.model.terms.TERMS` added alone (harmonics, compliance,
    backlash: the cheaper first); the best is kept if it beats geometry;
 3. each remaining term added to the one kept, and so on until no addition wins;
-4. + residual (a Gaussian process) on the parametric model chosen, and on geometry alone.
+4. + residual (a Gaussian process) and + trees (gradient-boosted trees,
+   :mod:`robocal.calibration.trees`) on the parametric model chosen, and on geometry alone;
+   and, where the trees predict better than the process and both better than their parametric
+   model, the trees with a process on what they leave (``trees+residual``).
 
 Forward selection keeps the number of fits linear-ish in the number of terms (at most
 1 + k(k+1)/2 parametric fits for k terms) where every combination would be 2^k.
@@ -17,8 +20,9 @@ fit (same parameters, same noise weights), and predicts the held-out poses.  The
 cross-validated position RMS wins, unless a simpler model ties with it: within :data:`TIE`,
 or not worse on the held-out poses by a paired test at :data:`SIGNIFICANCE` (on noise alone
 the best of several candidates is better than geometry by luck, and a 1 % margin is within it).
-Simpler means fewer terms (the model kept so far, against each addition); a residual process is
-the least simple.
+Simpler means fewer terms (the model kept so far, against each addition); a learned correction
+is less simple than any parametric model, the trees than the process (they take more from the
+data), and the two stacked the least.
 """
 
 from __future__ import annotations
@@ -29,17 +33,19 @@ import numpy as np
 
 from ..backend import SERIAL, worker_pool
 from ..exceptions import InputError
+from ..model.corrections import Correction, Stacked
 from ..model.measurements import Measurements
 from ..model.metrics import Metrics, pose_errors
-from ..model.residual import ResidualModel
 from ..model.robot import Robot
 from ..model.terms import TERMS
-from .config import CalibrationConfig
+from ..model.trees import TreeResidual
+from .config import LEARNED, CalibrationConfig
 from .methods import fit_lm
 from .residual import HYPER_POINTS, MAX_POINTS, fit_residual, tune_kernels
 from .result import BudgetRow, LadderRow
 from .steps import Fit, Inputs, fit_parametric, term_spec
 from .timing import stage, staged
+from .trees import Settings, TreeCandidate, choose_settings, fit_trees
 
 #: the joint terms in the order ``auto`` tries them (each term's ``rung``: the cheaper first)
 TRIAL_ORDER: tuple[str, ...] = tuple(sorted(TERMS, key=lambda t: TERMS[t].rung))
@@ -71,8 +77,13 @@ MAX_DOF_SHARE = 0.5
 
 
 def model_name(terms) -> str:
-    terms = [t for t in (*TERMS, "residual") if t in terms]
+    terms = [t for t in (*TERMS, *LEARNED) if t in terms]
     return "+".join(terms) if terms else "geometric"
+
+
+def learned_of(name: str) -> str:
+    """The learned part of a model's name (``trees``, ``residual``, ``trees+residual``; '' for none)."""
+    return "+".join(t for t in LEARNED if t in name.split("+"))
 
 
 @dataclass
@@ -82,7 +93,7 @@ class Chosen:
 
     name: str
     fit: Fit
-    residual: ResidualModel | None = None
+    residual: Correction | None = None
     table: list[LadderRow] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
     geometric: Fit | None = None
@@ -102,13 +113,15 @@ class Chosen:
                  ("geometric calibration", self.geometric.robot)]
         parametric = calibrated.replace(residual=None)
         if self.fit is not self.geometric:
-            steps.append((f"+ {self.name.replace('+residual', '').replace('residual', '') or 'terms'}", parametric))
+            steps.append((f"+ {'+'.join(t for t in self.name.split('+') if t in TERMS) or 'terms'}", parametric))
         if calibrated.residual is not None:
-            steps.append(("+ residual", calibrated))
+            steps.append((f"+ {learned_of(self.name) or 'residual'}", calibrated))
         rows, last = [], None
         for label, robot in steps:
-            rms = Metrics.of(robot, validation).position["rms"]
-            rows.append(BudgetRow(label, rms, None if last is None else last - rms))
+            dp = pose_errors(robot, validation)[0]
+            rms = float(np.sqrt(np.mean(np.sum(dp ** 2, axis=1))))
+            rows.append(BudgetRow(label, rms, None if last is None else last - rms,
+                                  tuple(float(v) for v in np.sqrt(np.mean(dp ** 2, axis=0)))))
             last = rms
         sigma = validation.sigma_position if validation.sigma_position is not None else \
             self.fit.setup.meas.sigma_position
@@ -267,6 +280,30 @@ def _rung(piece) -> tuple[Fit, CrossValidation]:
     return fit, cross_validate(fit, config)
 
 
+@dataclass
+class FoldData:
+    """What a learned correction is fitted to: the poses' commanded joints q (m, n) rad, what the
+    parametric fit leaves there e (m, 3 or 6), and per outer fold (held-out indices, what the
+    fold's own parametric refit leaves on its training poses (m_train, 3 or 6))."""
+
+    q: np.ndarray
+    e: np.ndarray
+    folds: list[tuple[np.ndarray, np.ndarray]]
+    groups: np.ndarray | None = None
+
+    @classmethod
+    def of(cls, fit: Fit, cv: CrossValidation) -> FoldData:
+        meas, e = residual_errors(fit, fit.estimate.x)
+        folds = []
+        for test, x in zip(cv.folds, cv.estimates):
+            train = np.setdiff1d(np.arange(len(cv.errors)), test)
+            folds.append((test, residual_errors(fit, x, train)[1]))
+        return cls(meas.q, e, folds, pose_groups(meas))
+
+    def train(self, test: np.ndarray) -> np.ndarray:
+        return np.setdiff1d(np.arange(len(self.q)), test)
+
+
 def _fold_prediction(q_train, e_train, q_test, seed, kernels) -> np.ndarray:
     """One fold: the process re-tuned on the fold's training poses from the given kernels, and
     its prediction at the held-out joints."""
@@ -281,10 +318,10 @@ def _piece(piece):
 
 
 @staged("model")
-def cross_validate_residuals(ladder: list[tuple[Fit, CrossValidation]], seed: int | None,
+def cross_validate_residuals(ladder: list[tuple[FoldData, CrossValidation]], seed: int | None,
                              pool: worker_pool = SERIAL) -> list[tuple[np.ndarray, tuple]]:
-    """For each parametric fit (with its cross-validation), the held-out position errors (m, 3)
-    mm of the fit plus a residual process, and the position kernel tuned on all the poses.
+    """For each parametric fit (its :class:`FoldData` and cross-validation), the held-out position
+    errors (m, 3) mm of the fit plus a residual process, and the position kernel tuned on all the poses.
 
     Each fold tunes its own kernel on its training poses, so that the held-out poses judge a
     process that never saw them: a kernel tuned on all the poses and only conditioned per fold
@@ -298,29 +335,67 @@ def cross_validate_residuals(ladder: list[tuple[Fit, CrossValidation]], seed: in
     (the same poses, residuals of a nearby model: a warm start, not a shortcut, it runs to
     convergence) and is tuned on the workers beside the previous fit's folds.
     """
-    prepared = []
-    for fit, cv in ladder:
-        meas, e = residual_errors(fit, fit.estimate.x)
-        folds = []
-        for test, x in zip(cv.folds, cv.estimates):
-            train = np.setdiff1d(np.arange(len(cv.errors)), test)
-            train_meas, e_train = residual_errors(fit, x, train)
-            folds.append((train_meas.q, e_train[:, :3], meas.q[test]))
-        prepared.append((meas.q, e[:, :3], folds))
-    kernels = tune_kernels(prepared[0][0], prepared[0][1], seed, pool=pool)
+    kernels = tune_kernels(ladder[0][0].q, ladder[0][0].e[:, :3], seed, pool=pool)
     out = []
-    for i, ((_, cv), (_, _, folds)) in enumerate(zip(ladder, prepared)):
-        pieces = [("fold", (*fold, seed, kernels)) for fold in folds]
+    for i, (data, cv) in enumerate(ladder):
+        pieces = [("fold", (data.q[data.train(test)], e_train[:, :3], data.q[test], seed, kernels))
+                  for test, e_train in data.folds]
         if i + 1 < len(ladder):  # the longest piece first, so that no worker waits for it at the end
-            pieces.insert(0, ("tune", (prepared[i + 1][0], prepared[i + 1][1], seed, kernels)))
+            pieces.insert(0, ("tune", (ladder[i + 1][0].q, ladder[i + 1][0].e[:, :3], seed, kernels)))
         done = pool.map(_piece, pieces)
         corrected = np.array(cv.errors, copy=True)
-        for test, prediction in zip(cv.folds, done[len(done) - len(folds):]):
+        for (test, _), prediction in zip(data.folds, done[len(done) - len(data.folds):]):
             corrected[test] -= prediction
         out.append((corrected, kernels))
         if i + 1 < len(ladder):
             kernels = done[0]
     return out
+
+
+def instrument_noise(meas: Measurements) -> float:
+    """The trace (mm²) of the instrument's stated position noise, averaged over the poses (0 unstated)."""
+    s = meas.sigma_position
+    return 0.0 if s is None else float(np.mean(np.sum(np.asarray(s, float) ** 2, axis=1)))
+
+
+@staged("model")
+def cross_validate_trees(data: FoldData, cv: CrossValidation, meas: Measurements, seed: int | None,
+                         pool: worker_pool = SERIAL, settings: Settings | None = None) -> TreeCandidate:
+    """The position trees of a parametric fit on all its poses and its held-out errors
+    (:func:`robocal.calibration.trees.fit_trees`), with ``settings`` or those the inner
+    cross-validation chooses on its poses."""
+    settings = settings or choose_settings(data.q, data.e, data.groups, seed, pool)
+    return fit_trees(data.q, data.e, data.folds, cv.errors, instrument_noise(meas), settings, seed, pool)
+
+
+def _leftover(data: FoldData, trees: TreeCandidate, model: TreeResidual | None) -> FoldData:
+    """What the trees leave of the parametric residuals: ``model``'s on all the poses (when
+    given), and fold by fold each fold's trees on its own training poses."""
+    e = data.e.copy()
+    if model is not None:
+        raw = model.raw(data.q)
+        e[:, :raw.shape[1]] -= raw
+    folds = []
+    for (test, e_train), raw in zip(data.folds, trees.fold_predictions):
+        left = e_train.copy()
+        left[:, :3] -= raw[data.train(test)]
+        folds.append((test, left))
+    return FoldData(data.q, e, folds, data.groups)
+
+
+@staged("model")
+def cross_validate_stacked(data: FoldData, trees: TreeCandidate, kernels: tuple, seed: int | None,
+                           pool: worker_pool = SERIAL) -> np.ndarray:
+    """The held-out position errors (m, 3) mm of trees with a process on what they leave: each
+    fold's process re-tuned (from ``kernels``, the process's of the same parametric fit) on what
+    the fold's trees leave on its training poses, and added to the trees' held-out correction."""
+    left = _leftover(data, trees, None)
+    pieces = [("fold", (data.q[data.train(test)], e_train[:, :3], data.q[test], seed, kernels))
+              for test, e_train in left.folds]
+    corrected = np.array(trees.errors, copy=True)
+    for (test, _), prediction in zip(left.folds, pool.map(_piece, pieces)):
+        corrected[test] -= prediction
+    return corrected
 
 
 def rms(errors: np.ndarray) -> float:
@@ -344,18 +419,25 @@ def worse_p_value(simple: np.ndarray, best: np.ndarray, groups: np.ndarray) -> f
 
 @dataclass
 class Candidate:
-    """One rung of the ladder: its terms, whether a residual process is added, its parametric
-    fit, and its held-out errors."""
+    """One rung of the ladder: its terms, its learned correction ('', ``residual``, ``trees``,
+    ``trees+residual``), its parametric fit, its held-out errors, and what its correction's
+    fit on all the poses starts from (the process's kernels, the trees)."""
 
     terms: tuple[str, ...]
-    residual: bool
+    learned: str
     fit: Fit
     errors: np.ndarray
     kernels: tuple | None = None
+    trees: TreeCandidate | None = None
+    data: FoldData | None = None
+
+    @property
+    def residual(self) -> bool:
+        return bool(self.learned)
 
     @property
     def name(self) -> str:
-        return model_name(self.terms + (("residual",) if self.residual else ()))
+        return model_name(self.terms + tuple(self.learned.split("+")))
 
     @property
     def cv_rms(self) -> float:
@@ -377,26 +459,82 @@ def choose(candidates: list[Candidate], groups: np.ndarray) -> Candidate:
     return best
 
 
+def _in_base(correction, fit: Fit):
+    """The correction with its axes: the measuring axes, seen from the fit's base."""
+    return replace(correction, axes=fit.robot.base[:3, :3].T.copy())
+
+
 @staged("model")
 def residual_on_all(fit: Fit, seed: int | None, kernels: tuple | None = None,
-                    pool: worker_pool = SERIAL) -> ResidualModel:
-    """The residual model of a fit on all its poses (the position kernel reused when given)."""
+                    pool: worker_pool = SERIAL, errors: np.ndarray | None = None, iterations: int | None = None):
+    """The residual process of a fit on all its poses (the position kernel reused when given;
+    re-tuned from it for ``iterations``), learnt from ``errors`` (m, 3 or 6) when given, else
+    from what the fit leaves."""
     meas, e = residual_errors(fit, fit.estimate.x)
-    model = fit_residual(meas.q, e, seed, kernels, pool=pool)[0]
-    return replace(model, axes=fit.robot.base[:3, :3].T.copy())  # the measuring axes, seen from the base
+    model = fit_residual(meas.q, e if errors is None else errors, seed, kernels, iterations=iterations, pool=pool)[0]
+    return _in_base(model, fit)
 
 
-def spent_dof(fit: Fit, residual: ResidualModel | None) -> list[str]:
+#: L-BFGS-B iterations with which a process stacked on trees re-tunes, on all the poses, the
+#: kernel of the process on the parametric fit alone
+STACK_TUNING = 50
+
+
+def learned_on_all(c: Candidate, seed: int | None, pool: worker_pool = SERIAL) -> Correction | None:
+    """The chosen candidate's correction, fitted on all its poses."""
+    if c.learned == "residual":
+        return residual_on_all(c.fit, seed, c.kernels, pool)
+    if "trees" in c.learned:
+        trees = _in_base(c.trees.model(c.data.q, c.data.e, c.data.groups, seed, pool), c.fit)
+        if c.learned == "trees":
+            return trees
+        left = _leftover(c.data, c.trees, trees)
+        process = residual_on_all(c.fit, seed, c.kernels, pool, errors=left.e, iterations=STACK_TUNING)
+        return Stacked(trees.with_inside(0.0), process)
+    return None
+
+
+def spent_dof(fit: Fit, residual: Correction | None) -> list[str]:
     """A loud note when the model spends most of the data on its unknowns: its figures on the
     calibration poses are then fitted, not measured accuracy."""
     n_data = fit.estimate.problem.n_residuals
-    used = fit.n_params + (0.0 if residual is None else residual.dof)
+    dof = 0.0 if residual is None else float(np.nan_to_num(residual.dof))
+    used = fit.n_params + dof
     if not used > MAX_DOF_SHARE * n_data:
         return []
-    process = "" if residual is None else f" ({residual.dof:.0f} of them the residual process's)"
+    process = "" if residual is None else f" ({dof:.0f} of them the learned correction's)"
     return [f"the model spends {used:.0f} degrees of freedom{process} on {n_data} measured values: its figures on "
             "the calibration poses are fitted, not its accuracy; judge it on other poses (validation data) and "
             "measure more poses"]
+
+
+def learned_candidates(bases: list[tuple[Candidate, CrossValidation]], meas: Measurements, seed: int | None,
+                       pool: worker_pool, say=None) -> list[Candidate]:
+    """The learned corrections on each parametric base: a process, trees, and where both improve
+    on their base, the trees with a process on what they leave, on the base of the better."""
+    say = say or (lambda text: None)
+    data = [FoldData.of(c.fit, cv) for c, cv in bases]
+    say(f"{', '.join(model_name(c.terms + ('residual',)) for c, _ in bases)}: kernels and {K_FOLDS} folds")
+    processes = [Candidate(c.terms, "residual", c.fit, errors, kernels, data=d) for (c, _), d, (errors, kernels) in
+                 zip(bases, data, cross_validate_residuals([(d, cv) for d, (_, cv) in zip(data, bases)], seed, pool))]
+    say(f"{', '.join(model_name(c.terms + ('trees',)) for c, _ in bases)}: inner cross-validation and {K_FOLDS} folds")
+    trees = []
+    # the settings chosen on the parametric model kept (the last base), and used on geometry alone too
+    settings = choose_settings(data[-1].q, data[-1].e, data[-1].groups, seed, pool)
+    for (c, cv), d in zip(bases, data):
+        candidate = cross_validate_trees(d, cv, meas, seed, pool, settings)
+        trees.append(Candidate(c.terms, "trees", c.fit, candidate.errors, trees=candidate, data=d))
+    out = processes + trees
+    # a process on what the trees leave, where the trees predict better than the process and both
+    # better than their parametric model: on the trees' own poses what they leave is small (they
+    # fit them closely), so a process there can add to trees that lead, not lift trees that trail
+    both = [(p, t) for (c, _), p, t in zip(bases, processes, trees) if t.cv_rms <= p.cv_rms < c.cv_rms]
+    if both:
+        p, t = min(both, key=lambda pair: pair[1].cv_rms)
+        say(f"{model_name(t.terms + ('trees', 'residual'))}: {K_FOLDS} folds")
+        errors = cross_validate_stacked(t.data, t.trees, p.kernels, seed, pool)
+        out.append(Candidate(t.terms, "trees+residual", t.fit, errors, p.kernels, t.trees, t.data))
+    return out
 
 
 def fit_model(inputs: Inputs, config: CalibrationConfig, progress=None, stages=None) -> Chosen:
@@ -406,37 +544,48 @@ def fit_model(inputs: Inputs, config: CalibrationConfig, progress=None, stages=N
     say = stages or (lambda step, steps, text: None)
     if config.model != "auto":
         terms = config.model_terms
-        if "residual" in terms and meas.constraints is not None:
-            raise InputError("a residual process learns corrections of measured positions: rows that touched points "
-                             "or planes measure none; calibrate the parametric model alone", option="model")
-        if "residual" in terms and len(set(pose_groups(meas))) < MIN_RESIDUAL_POSES:
-            raise InputError(f"a residual process learns from the poses what the parametric model leaves: "
-                             f"{len(set(pose_groups(meas)))} poses are too few (at least {MIN_RESIDUAL_POSES}); "
-                             "measure more, or calibrate the parametric model alone", option="model")
+        learned = "+".join(t for t in LEARNED if t in terms)
+        if learned and meas.constraints is not None:
+            raise InputError(f"a learned correction ({learned}) learns corrections of measured positions: rows that "
+                             "touched points or planes measure none; calibrate the parametric model alone",
+                             option="model")
+        if learned and len(set(pose_groups(meas))) < MIN_RESIDUAL_POSES:
+            raise InputError(f"a learned correction ({learned}) learns from the poses what the parametric model "
+                             f"leaves: {len(set(pose_groups(meas)))} poses are too few (at least "
+                             f"{MIN_RESIDUAL_POSES}); measure more, or calibrate the parametric model alone",
+                             option="model")
         fit = fit_parametric(inputs, config, term_spec(terms, meas, config), progress)
         residual = None
         cv, prediction = predict(fit, config)  # how it predicts poses it has not seen, with or without validation
         parametric_prediction = prediction
-        with worker_pool() as pool:
-            if "residual" in terms:
-                residual = residual_on_all(fit, config.seed, pool=pool)
-                prediction = cv.metrics(cross_validate_residuals([(fit, cv)], config.seed, pool)[0][0])
+        if learned:
+            with worker_pool() as pool:
+                data = FoldData.of(fit, cv)
+                candidate = Candidate(tuple(sorted(terms - set(LEARNED))), learned, fit, cv.errors, data=data)
+                if "residual" in learned:
+                    candidate.errors, candidate.kernels = cross_validate_residuals([(data, cv)], config.seed, pool)[0]
+                if "trees" in learned:
+                    candidate.trees = cross_validate_trees(data, cv, meas, config.seed, pool)
+                    candidate.errors = candidate.trees.errors if learned == "trees" else \
+                        cross_validate_stacked(data, candidate.trees, candidate.kernels, config.seed, pool)
+                residual = learned_on_all(candidate, config.seed, pool)
+                prediction = cv.metrics(candidate.errors)
         geometric = fit
-        if terms - {"residual"}:  # the guard's comparison, and the error budget
+        if terms - set(LEARNED):  # the guard's comparison, and the error budget
             geometric = fit_parametric(inputs, config, term_spec((), meas, config))
         geometric_prediction = parametric_prediction if geometric is fit else predict(geometric, config)[1]
         return Chosen(model_name(terms), fit, residual, notes=spent_dof(fit, residual), geometric=geometric,
                       prediction=prediction, geometric_prediction=geometric_prediction)
     groups = pose_groups(meas)
-    # a residual process corrects measured positions: rows that touched points or planes have none
+    # a learned correction corrects measured positions: rows that touched points or planes have none
     residuals = groups.max() + 1 >= MIN_RESIDUAL_POSES and meas.constraints is None
     ladder: list[tuple[Candidate, CrossValidation]] = []
     # at most: geometry, each term alone, then each further term on the one kept so far
     k = len(TRIAL_ORDER)
     steps = 1 + k * (k + 1) // 2 + (2 if residuals else 0)
-    # what a stage tells the terminal is work done, in parametric fits: a residual candidate (its
-    # tunings on up to 1000 poses and its folds) is about 8 of them on a thousand poses
-    process = max(1.0, 8.0 * (min(len(set(groups)), HYPER_POINTS) / 1000) ** 2)
+    # what a stage tells the terminal is work done, in parametric fits: the learned candidates
+    # (their tunings on up to 1000 poses and their folds) are about 12 of them on a thousand poses
+    process = max(1.0, 12.0 * (min(len(set(groups)), HYPER_POINTS) / 1000) ** 2)
     work = steps - 2 + 2 * process if residuals else steps
 
     def rungs(wanted: list[tuple[str, ...]], parent: Candidate, pool: worker_pool) -> list[Candidate]:
@@ -450,7 +599,7 @@ def fit_model(inputs: Inputs, config: CalibrationConfig, progress=None, stages=N
             with stage("model"):  # a fit on a worker counts here, its own stages there
                 fitted = pool.map(_rung, [(inputs, rung_config, term_spec(t, meas, config), parent.fit) for t in new])
             for t, (fit, cv) in zip(new, fitted):
-                ladder.append((Candidate(t, False, fit, cv.errors), cv))
+                ladder.append((Candidate(t, "", fit, cv.errors), cv))
                 done[t] = ladder[-1][0]
         return [done[t] for t in wanted]
 
@@ -462,7 +611,7 @@ def fit_model(inputs: Inputs, config: CalibrationConfig, progress=None, stages=N
     say(0, work, f"model 1/{steps}: geometric, fit and {K_FOLDS} folds")
     geometric = fit_parametric(inputs, config, term_spec((), meas, config), progress)
     geometric_cv = cross_validate(geometric, config)
-    ladder.append((Candidate((), False, geometric, geometric_cv.errors), geometric_cv))
+    ladder.append((Candidate((), "", geometric, geometric_cv.errors), geometric_cv))
     parametric = ladder[0][0]
     with worker_pool() as pool:
         while True:
@@ -472,20 +621,16 @@ def fit_model(inputs: Inputs, config: CalibrationConfig, progress=None, stages=N
             if kept is parametric:
                 break
             parametric = kept
-        # the residual process on the chosen parametric model, and on geometry alone: a process
-        # can take structure that joint terms would have taken more coarsely
+        # the learned corrections on the chosen parametric model, and on geometry alone: they can
+        # take structure that joint terms would have taken more coarsely
         candidates = [c for c, _ in ladder]
         on = [(c, cv) for c, cv in ladder if residuals and c.terms in dict.fromkeys((parametric.terms, ()))]
         if on:
-            names = ", ".join(model_name(c.terms + ("residual",)) for c, _ in on)
-            say(len(candidates), len(candidates) + process * len(on),
-                f"models {len(candidates) + 1}–{len(candidates) + len(on)}:"
-                f" {names}, kernels and {K_FOLDS} folds")
-            for (c, _), (errors, kernels) in zip(on, cross_validate_residuals([(c.fit, cv) for c, cv in on],
-                                                                               config.seed, pool)):
-                candidates.append(Candidate(c.terms, True, c.fit, errors, kernels))
+            done = len(candidates)
+            candidates += learned_candidates(on, meas, config.seed, pool,
+                                             lambda text: say(done, done + process * len(on), f"learned: {text}"))
         chosen = choose(candidates, groups)
-        residual = residual_on_all(chosen.fit, config.seed, chosen.kernels, pool) if chosen.residual else None
+        residual = learned_on_all(chosen, config.seed, pool)
 
     def on_validation(c: Candidate) -> float | None:
         """What each candidate does on the validation poses, beside what cross-validation said."""
@@ -494,14 +639,16 @@ def fit_model(inputs: Inputs, config: CalibrationConfig, progress=None, stages=N
         robot = c.fit.robot.replace(residual=residual if c.residual else None)
         return float(Metrics.of(robot, inputs.validation).position["rms"])
 
-    rows = [LadderRow(c.name, c.cv_rms, c.fit.n_params, int(min(len(c.errors), MAX_POINTS)) if c.residual else None,
+    rows = [LadderRow(c.name, c.cv_rms, c.fit.n_params,
+                      int(min(len(c.errors), MAX_POINTS)) if "residual" in c.learned else None,
                       on_validation(c)) for c in candidates]
     notes = [f"model auto: {chosen.name} (cross-validated position RMS {chosen.cv_rms:.4g} mm; geometric "
              f"{candidates[0].cv_rms:.4g} mm; a richer model is kept only if it predicts held-out poses "
              f"better, paired test p < {SIGNIFICANCE:g})"]
     chosen_cv = next(cv for c, cv in ladder if c.fit is chosen.fit)
-    return Chosen(chosen.name, chosen.fit, residual, rows, notes, geometric=candidates[0].fit,
-                  prediction=chosen_cv.metrics(chosen.errors), geometric_prediction=geometric_cv.metrics())
+    return Chosen(chosen.name, chosen.fit, residual, rows, notes + spent_dof(chosen.fit, residual),
+                  geometric=candidates[0].fit, prediction=chosen_cv.metrics(chosen.errors),
+                  geometric_prediction=geometric_cv.metrics())
 
 
 @staged("evaluate")

@@ -41,12 +41,15 @@ CLI_ONLY = ("robot", "data", "validate", "out", "export", "report", "column", "b
 
 def _print_summary(result, robot_name: str, data: Path) -> None:
     from ..report.tables import (
+        BUDGET_COLUMNS,
         FRAME_COLUMNS,
+        LEARNED_COLUMNS,
         PARAMETER_COLUMNS,
         budget_rows,
         frame_rows,
         ladder_columns,
         ladder_rows,
+        learned_rows,
         noise_line,
         parameter_rows,
     )
@@ -73,9 +76,11 @@ def _print_summary(result, robot_name: str, data: Path) -> None:
         out.print(table("model selection: 5-fold cross-validated position RMS (mm) on the calibration poses",
                         columns, rows, text_columns=(0, len(columns) - 1)))
     if result.error_budget:
-        rows = budget_rows(result)
-        out.print(table("error budget on the validation poses: position RMS (mm)", ("model", "RMS", "removed"),
-                        rows, text_columns=(0,)))
+        out.print(table("error budget on the validation poses: position RMS (mm), and per axis", BUDGET_COLUMNS,
+                        budget_rows(result), text_columns=(0,)))
+    if learned_rows(result):
+        out.print(table("what the trees take on the calibration poses, and the joints they split on most",
+                        LEARNED_COLUMNS, learned_rows(result), text_columns=(0, 2)))
     out.print(noise_line(result))
     ident, opt = result.identifiability, result.optimization
     out.print(f"model {result.model}: " + f"{len(result.names)} parameters identified, {len(ident.dropped)} dropped"

@@ -26,10 +26,10 @@ from ..exceptions import InputError, RobocalWarning
 from ..math.se3 import frame_from_values
 from ..math.so3 import matrix_to_rpy
 from ..model import urdf
+from ..model.corrections import Correction, correction_from_dict
 from ..model.covariance import ParameterCovariance
 from ..model.kinematics import CONVENTIONS, prismatic_mask
 from ..model.region import Region
-from ..model.residual import ResidualModel
 from ..model.robot import Robot
 from ..model.terms import TERMS, FileKey, JointTerms
 from .atomic import atomic_write, read_text
@@ -312,18 +312,18 @@ def _sibling(value, key: str, kind: str, source: str, directory: Path | None, pu
     return path
 
 
-def _residual(value, n: int, source: str, directory: Path | None) -> ResidualModel:
+def _residual(value, n: int, source: str, directory: Path | None) -> Correction:
     path = _sibling(value, "residual", "residual-model file", source, directory)
     import json
 
     try:
-        model = ResidualModel.from_dict(json.loads(read_text(path, "residual-model file")))
+        model = correction_from_dict(json.loads(read_text(path, "residual-model file")))
     except InputError:
         raise
     except (ValueError, KeyError, TypeError) as exc:
         raise InputError(f"not a robocal residual model ({exc.__class__.__name__}: {exc})", source=path) from None
-    if model.X.ndim != 2 or model.X.shape[1] != n:
-        raise InputError(f"residual model is for {model.X.shape[-1]} joints, the robot has {n}", source=path)
+    if model.n_joints != n:
+        raise InputError(f"residual model is for {model.n_joints} joints, the robot has {n}", source=path)
     return model
 
 
@@ -589,7 +589,7 @@ def robot_to_toml(robot: Robot, comment: str | None = None, residual_file: str |
     lines = [f"# {c}" for c in comment.splitlines()] if comment else []
     lines += [f"name = {_quote(robot.name)}", f'convention = "{robot.convention}"']
     if robot.residual is not None:
-        lines.append(f"residual = {_quote(residual_file)}  # Gaussian-process correction of the pose"
+        lines.append(f"residual = {_quote(residual_file)}  # learned correction of the pose ({robot.residual.kind})"
                      if residual_file else "# this robot's residual model was not saved with it")
     lines.append("")
     for i in range(robot.n_joints):

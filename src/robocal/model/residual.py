@@ -53,6 +53,15 @@ def rbf(a: np.ndarray, b: np.ndarray, length_scales: np.ndarray, amplitude: floa
     return amplitude * np.exp(-0.5 * np.maximum(sq, 0.0))
 
 
+def apply_correction(d: np.ndarray, axes: np.ndarray, R: np.ndarray, p: np.ndarray, base_rotation: np.ndarray):
+    """p ← p + R_b R_o δp and, with orientations, R ← Exp(R_b R_o δr) R (see :mod:`robocal.model.residual`)."""
+    turn = base_rotation @ axes
+    p = p + d[:, :3] @ turn.T
+    if d.shape[1] == 6:
+        R = exp_so3(d[:, 3:] @ turn.T) @ R
+    return R, p
+
+
 @dataclass(frozen=True, eq=False)
 class Block:
     """One kernel and the outputs it predicts: alpha (N, t) dual coefficients; length_scales (n,)
@@ -136,9 +145,15 @@ class ResidualModel:
     blocks: tuple[Block, ...]
     axes: np.ndarray = field(default_factory=lambda: np.eye(3))
 
+    kind = "residual"
+
     @property
     def outputs(self) -> int:
         return sum(b.alpha.shape[1] for b in self.blocks)
+
+    @property
+    def n_joints(self) -> int:
+        return int(self.X.shape[1])
 
     @property
     def dof(self) -> float:
@@ -167,12 +182,7 @@ class ResidualModel:
     def correct(self, q: np.ndarray, R: np.ndarray, p: np.ndarray, base_rotation: np.ndarray):
         """The pose (R (m, 3, 3), p (m, 3) mm, measuring frame) with the correction at q added;
         base_rotation (3, 3): the robot base's orientation in the measuring frame."""
-        d = self.predict(q)
-        turn = base_rotation @ self.axes
-        p = p + d[:, :3] @ turn.T
-        if d.shape[1] == 6:
-            R = exp_so3(d[:, 3:] @ turn.T) @ R
-        return R, p
+        return apply_correction(self.predict(q), self.axes, R, p, base_rotation)
 
     def summary(self) -> dict:
         """What the result JSON says of the model (the model itself goes to a file of its own)."""

@@ -8,12 +8,12 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..math.se3 import homogeneous
+from .corrections import Correction
 from .covariance import ParameterCovariance
 from .dh import ALPHA, BETA, THETA, A, D
 from .kinematics import chain_pose, check_convention, geometry_width, prismatic_mask
 from .kinematics import reach as chain_reach
 from .region import Region
-from .residual import ResidualModel
 from .terms import JointInputs, JointTerms, joint_offsets
 
 
@@ -27,7 +27,7 @@ class Robot:
     (4×4, mm).  tool: flange → measured point (4×4).  targets: further named tool frames,
     one per reflector on the flange (the unnamed target "" is ``tool``).  terms: joint terms
     beyond geometry (:mod:`robocal.model.terms`); residual: a learned correction of the pose
-    in the measuring frame (:mod:`robocal.model.residual`).  joint_names: as a URDF or robot
+    in the measuring frame (:mod:`robocal.model.corrections`).  joint_names: as a URDF or robot
     file names them; urdf: what a robot read from a URDF keeps of it for a faithful export
     (:class:`robocal.io.urdf.UrdfChain`).  region: the joint ranges of the data it was
     calibrated on (:mod:`robocal.model.region`); the whole model is used everywhere, its
@@ -49,7 +49,7 @@ class Robot:
     name: str = ""
     source: str = ""  # where it was loaded from (file path or "built-in NAME"), for messages
     terms: JointTerms | None = None
-    residual: ResidualModel | None = None
+    residual: Correction | None = None
     joint_names: tuple[str, ...] | None = None
     urdf: object | None = field(default=None, repr=False)
     region: Region | None = None

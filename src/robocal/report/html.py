@@ -15,11 +15,13 @@ from ..model.parameters import is_angle, is_frame
 from . import figures
 from .tables import (
     FRAME_COLUMNS,
+    LEARNED_COLUMNS,
     PARAMETER_COLUMNS,
     budget_rows,
     frame_rows,
     ladder_columns,
     ladder_rows,
+    learned_rows,
     noise_line,
     parameter_rows,
 )
@@ -191,7 +193,13 @@ def _model_tables(result: CalibrationResult) -> list[str]:
     if result.error_budget:
         rows = budget_rows(result)
         parts += ["<h2>Error budget</h2><p>Position RMS on the validation poses as each part of the model is "
-                  "added: what each removes.</p>", _table(("model", "validation RMS (mm)", "removed (mm)"), rows)]
+                  "added: what each removes, and the RMS of each axis of the measuring frame.</p>",
+                  _table(("model", "validation RMS (mm)", "removed (mm)", "x (mm)", "y (mm)", "z (mm)"), rows)]
+    if learned_rows(result):
+        parts += ["<h2>What the trees take</h2><p>The RMS of the tree correction over the calibration poses, per "
+                  "output, and the joints its splits used most (share of the split gain). Outside the joint "
+                  "configurations of its data the correction fades out and the model's uncertainty grows.</p>",
+                  _table(LEARNED_COLUMNS, learned_rows(result))]
     return parts
 
 

@@ -137,7 +137,33 @@ def ladder_columns(result: CalibrationResult) -> tuple[str, ...]:
     return ("model", "cv RMS", "parameters", *(("validation RMS",) if with_validation else ()), "")
 
 
+#: the columns of :func:`budget_rows`
+BUDGET_COLUMNS = ("model", "RMS", "removed", "x", "y", "z")
+
+
 def budget_rows(result: CalibrationResult) -> list[tuple[str, ...]]:
-    """The error budget as table rows: stage, validation RMS (mm), removed (mm)."""
-    return [(r.model, f"{r.validation_rms_mm:.4f}", "" if r.removed_mm is None else f"{r.removed_mm:.4f}")
-            for r in result.error_budget]
+    """The error budget as table rows: stage, validation RMS (mm), removed (mm), and the RMS of
+    each axis (mm)."""
+    return [(r.model, f"{r.validation_rms_mm:.4f}", "" if r.removed_mm is None else f"{r.removed_mm:.4f}",
+             *(("", "", "") if r.axes_mm is None else (f"{v:.4f}" for v in r.axes_mm))) for r in result.error_budget]
+
+
+#: the columns of :func:`learned_rows`
+LEARNED_COLUMNS = ("output", "taken (RMS)", "joints used most")
+
+
+def learned_rows(result: CalibrationResult) -> list[tuple[str, ...]]:
+    """What a tree correction takes on the calibration poses, per output (RMS: mm for x, y, z;
+    mdeg for rx, ry, rz), and the joints its splits used most (share of the split gain); none
+    for a model without trees."""
+    residual = result.robot.residual
+    trees = getattr(residual, "trees", residual)
+    if getattr(trees, "kind", "") != "trees" or trees.taken is None or trees.importance is None:
+        return []
+    rows = []
+    for k, (taken, share) in enumerate(zip(trees.taken, trees.importance)):
+        top = [j for j in np.argsort(-share)[:3] if share[j] >= 0.05]
+        value = f"{taken:.4f} mm" if k < 3 else f"{np.degrees(taken) * 1000:.3g} mdeg"
+        rows.append((("x", "y", "z", "rx", "ry", "rz")[k], value,
+                     ", ".join(f"J{j + 1} {100 * share[j]:.0f}%" for j in top)))
+    return rows

@@ -1,0 +1,259 @@
+"""Fitting the tree correction: gradient-boosted trees on the joint angles, judged by cross-validation.
+
+What the parametric model leaves at each pose, e = measured − model (mm; rad for orientations,
+in the measuring frame), is regressed on the commanded joint angles by scikit-learn's
+``HistGradientBoostingRegressor``, one per output, with squared loss, learning rate
+:data:`LEARNING_RATE` and at most :data:`MAX_LEAF_NODES` leaves a tree (small trees: a model that
+travels in a JSON file and predicts inside every inverse-kinematics step).  The smallest leaf
+(:data:`LEAF_SIZES`) and the number of trees (up to :data:`MAX_TREES`) are chosen by an inner
+:data:`INNER_FOLDS`-fold cross-validation on the poses it is given, the folds drawn with the seed
+and the whole curve over the number of trees read from one fit per fold (staged predictions).
+The orientation outputs take the leaf size chosen on the positions and their own number of trees.
+
+The candidate is judged like the Gaussian process (:mod:`robocal.calibration.selection`): each
+outer fold fits trees, with the settings chosen on all the poses, to what its own parametric
+refit leaves on its training poses and predicts the held-out ones.  Choosing two settings on all
+the poses lends the held-out figure a little optimism; the settings' curve is flat near its
+optimum (UR10 series C: 0.162–0.170 mm for 10–20 poses a leaf and 150–600 trees), and on pure
+noise the inner cross-validation keeps a handful of trees, which the paired test does not prefer
+to none.
+
+The same folds give the correction's support and uncertainty (:mod:`robocal.model.trees`): the
+held-out poses' distances to their fold's training poses (95th percentile: the reach), the
+held-out error of the correction less the instrument's noise, and the spread of the fold
+ensembles at every pose (delete-a-fold jackknife), the larger of the two kept as its error
+within the data.  Its degrees of freedom are Efron's covariance penalty, n (cv − fit)/(2 cv) per
+output (the optimism of the fit on its own poses).
+
+Every fit runs OpenMP on one thread: the pieces run on :class:`~robocal.backend.worker_pool`'s
+workers, and on a thousand poses one thread is faster than two (0.10 s against 0.12 s a fit).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..backend import SERIAL, worker_pool
+from ..model.trees import Ensemble, TreeResidual, fade
+
+LEARNING_RATE = 0.2
+MAX_TREES = 200
+MAX_LEAF_NODES = 15
+#: smallest leaves the inner cross-validation tries (poses); those above a quarter of a fold's training poses are not
+LEAF_SIZES = (10, 30)
+INNER_FOLDS = 3
+#: trees without gain on the held-out poses after which early stopping ends (orientations)
+PATIENCE = 20
+#: share of the held-out poses the reach of the correction covers
+REACH_QUANTILE = 95.0
+#: poses the support keeps (the nearest-pose distance is computed against them)
+MAX_SUPPORT = 2000
+
+
+@dataclass(frozen=True)
+class Settings:
+    """What the inner cross-validation chose: the smallest leaf (poses) and the number of trees
+    (the positions')."""
+
+    leaf: int
+    trees: int
+
+    def to_dict(self) -> dict:
+        return {"learning_rate": LEARNING_RATE, "max_leaf_nodes": MAX_LEAF_NODES, "min_samples_leaf": self.leaf,
+                "trees_position": self.trees}
+
+
+def _regressor(leaf: int, trees: int | None, seed: int | None):
+    """The regressor with ``trees`` trees, or (None) up to :data:`MAX_TREES` with early stopping
+    on a held-out fifth of the poses (:data:`PATIENCE` trees without gain)."""
+    from sklearn.ensemble import HistGradientBoostingRegressor
+
+    stop, trees = trees is None, MAX_TREES if trees is None else max(int(trees), 1)
+    # tol 0: the default 1e-7 is absolute, and an orientation's squared error in rad² is of that order
+    return HistGradientBoostingRegressor(learning_rate=LEARNING_RATE, max_iter=trees,
+                                         max_leaf_nodes=MAX_LEAF_NODES, min_samples_leaf=int(leaf), early_stopping=stop,
+                                         validation_fraction=0.2, n_iter_no_change=PATIENCE, scoring="loss", tol=0.0,
+                                         random_state=0 if seed is None else seed)
+
+
+def _one_thread():
+    """OpenMP on one thread for the block.  threadpoolctl limits the libraries loaded when it is
+    called, so scikit-learn's OpenMP runtime is loaded first: in a fresh worker a limit set before
+    it left every fit on every core, and two workers' busy-waiting threads made a 3 s inner
+    cross-validation take 60 s."""
+    import sklearn.ensemble  # noqa: F401  (its OpenMP runtime, so that the limit reaches it)
+    from threadpoolctl import threadpool_limits
+
+    return threadpool_limits(1, user_api="openmp")
+
+
+def _fitted(q, y, leaf, trees, seed) -> list:
+    """One fitted regressor per column of y."""
+    with _one_thread():
+        return [_regressor(leaf, trees, seed).fit(q, y[:, a]) for a in range(y.shape[1])]
+
+
+def _curve(piece) -> np.ndarray:
+    """An inner fold: the held-out squared error (summed over the outputs) after each tree."""
+    q_train, y_train, q_test, y_test, leaf, seed = piece
+    out = np.zeros(MAX_TREES)
+    with _one_thread():
+        for a in range(y_train.shape[1]):
+            model = _regressor(leaf, MAX_TREES, seed).fit(q_train, y_train[:, a])
+            staged = np.array(list(model.staged_predict(q_test)))  # (trees, m)
+            sq = np.sum((staged - y_test[None, :, a]) ** 2, axis=1)
+            out[:len(sq)] += sq
+            out[len(sq):] += sq[-1]
+    return out
+
+
+def _inner_folds(groups: np.ndarray, seed: int | None) -> list[np.ndarray]:
+    n = int(groups.max()) + 1
+    fold_of = np.empty(n, dtype=int)
+    fold_of[np.random.default_rng(seed).permutation(n)] = np.arange(n) % INNER_FOLDS
+    return [np.flatnonzero(fold_of[groups] == f) for f in range(INNER_FOLDS)]
+
+
+def _inner_curves(q, y, groups, seed, leaves, pool) -> np.ndarray:
+    """The inner cross-validated squared error (len(leaves), MAX_TREES) of y's trees, summed over
+    its outputs, the folds and the poses, for each leaf size and number of trees."""
+    groups = np.arange(len(q)) if groups is None else np.unique(groups, return_inverse=True)[1]
+    folds = _inner_folds(groups, seed)
+    train = [np.setdiff1d(np.arange(len(q)), test) for test in folds]
+    curves = pool.map(_curve, [(q[tr], y[tr], q[te], y[te], leaf, seed) for leaf in leaves
+                               for tr, te in zip(train, folds)])
+    return np.array([sum(curves[i * INNER_FOLDS:(i + 1) * INNER_FOLDS]) for i in range(len(leaves))])
+
+
+def choose_settings(q: np.ndarray, e: np.ndarray, groups: np.ndarray | None = None, seed: int | None = 0,
+                    pool: worker_pool = SERIAL) -> Settings:
+    """The leaf size and number of trees of the lowest inner cross-validated error of the
+    positions e (m, 3) mm at q; groups: the pose of each row (rows of one pose stay in one fold).
+    Leaves above a quarter of a fold's training poses are not tried."""
+    q, e = np.asarray(q, float), np.asarray(e, float)[:, :3]
+    smallest = len(q) - -(-len(q) // INNER_FOLDS)
+    leaves = [leaf for leaf in LEAF_SIZES if leaf <= max(smallest // 4, LEAF_SIZES[0])]
+    total = _inner_curves(q, e, groups, seed, leaves, pool)
+    best_leaf, best_trees = np.unravel_index(np.argmin(total), total.shape)
+    return Settings(leaves[best_leaf], int(best_trees) + 1)
+
+
+def _importance(models) -> np.ndarray:
+    """Each model's share of the split gain per joint, (models, n)."""
+    out = np.zeros((len(models), models[0].n_features_in_))
+    for k, model in enumerate(models):
+        for (predictor,) in model._predictors:
+            nodes = predictor.nodes
+            inner = ~nodes["is_leaf"].astype(bool)
+            np.add.at(out[k], nodes["feature_idx"][inner], np.maximum(nodes["gain"][inner], 0.0))
+        total = out[k].sum()
+        out[k] = out[k] / total if total > 0 else 0.0
+    return out
+
+
+def _ensembles(q, y, leaf: int, trees: int | None, seed) -> tuple[list[Ensemble], np.ndarray]:
+    """The ensembles of y's columns, and each one's joint importance (outputs, n); trees None:
+    as many as early stopping keeps."""
+    models = _fitted(q, y, leaf, trees, seed)
+    return [Ensemble.of_sklearn(m) for m in models], _importance(models)
+
+
+def _fold_piece(piece):
+    """An outer fold: the position trees fitted on the training poses, their raw prediction at
+    every pose (m, 3) and their joint importance (3, n)."""
+    q_train, e_train, q_all, settings, seed = piece
+    models = _fitted(q_train, e_train, settings.leaf, settings.trees, seed)
+    return np.stack([m.predict(q_all) for m in models], 1), _importance(models)
+
+
+@dataclass
+class TreeCandidate:
+    """The trees of one parametric fit, judged: the held-out position errors (m, 3) mm after
+    their correction, each fold's raw prediction at every pose (for a Gaussian process stacked on
+    them), the settings, and what the model fitted on all the poses will carry (its support's
+    metric and reach, its error inside and outside the data, its degrees of freedom)."""
+
+    errors: np.ndarray
+    fold_predictions: list[np.ndarray]
+    settings: Settings
+    scale: np.ndarray
+    reach: float
+    inside: float
+    prior: float
+    dof: float
+
+    def model(self, q: np.ndarray, e: np.ndarray, groups: np.ndarray | None, seed: int | None = 0,
+              pool: worker_pool = SERIAL) -> TreeResidual:
+        """The trees fitted on all the poses: e (m, 3) mm, or (m, 6) with orientations rad.  The
+        orientations' trees take the positions' leaf size; the choice of model does not judge
+        them, and their number is set by early stopping on a held-out fifth of the poses (drawn
+        with the seed): one fit, where an inner cross-validation took nine."""
+        q, e = np.asarray(q, float), np.asarray(e, float)
+        pieces = [(q, e[:, :3], self.settings.leaf, self.settings.trees, seed)]
+        hyper = self.settings.to_dict()
+        if e.shape[1] == 6:
+            pieces.append((q, e[:, 3:], self.settings.leaf, None, seed))
+        parts = pool.map(_ensembles_piece, pieces)
+        ensembles = [ens for part in parts for ens in part[0]]
+        importance = np.vstack([part[1] for part in parts])
+        if e.shape[1] == 6:
+            hyper["trees_orientation"] = [ens.n_trees for ens in parts[1][0]]
+        taken = np.sqrt(np.mean(np.stack([ens.predict(q) for ens in ensembles], 1) ** 2, axis=0))
+        keep = np.sort(np.random.default_rng(seed).permutation(len(q))[:MAX_SUPPORT])
+        return TreeResidual(tuple(ensembles), q[keep].copy(), self.scale, self.reach, self.inside, self.prior,
+                            dof=self.dof, importance=importance, taken=taken, hyper=hyper)
+
+
+def _ensembles_piece(piece):
+    return _ensembles(*piece)
+
+
+def metric_scale(q: np.ndarray, importance: np.ndarray) -> np.ndarray:
+    """Each joint's weight in the support's metric (rad⁻¹): √(share of the position trees' split
+    gain) / the joint's spread over the data."""
+    share = importance[:3].mean(axis=0)
+    spread = np.maximum(np.std(q, axis=0), 1e-6)
+    return np.sqrt(share) / spread
+
+
+def nearest(q: np.ndarray, X: np.ndarray, scale: np.ndarray) -> np.ndarray:
+    """The distance (m,) from each pose q to its nearest pose of X in the metric ``scale``."""
+    Ts, Xs = q * scale, X * scale
+    sq = np.sum(Ts * Ts, 1)[:, None] + np.sum(Xs * Xs, 1)[None, :] - 2.0 * Ts @ Xs.T
+    return np.sqrt(np.maximum(sq.min(axis=1), 0.0))
+
+
+def fit_trees(q: np.ndarray, e: np.ndarray, folds: list[tuple[np.ndarray, np.ndarray]], held_out: np.ndarray,
+              noise: float, settings: Settings, seed: int | None = 0, pool: worker_pool = SERIAL) -> TreeCandidate:
+    """The outer cross-validation of position trees with the settings on e (m, 3 or more;
+    positions mm first) at commanded joints q (m, n) rad.  folds: per outer fold (held-out pose
+    indices, what its parametric refit leaves on its training poses (m_train, 3 or more));
+    held_out: the parametric model's held-out errors (m, 3) mm; noise: the trace (mm²) of the
+    instrument's position noise (0 unknown).  The support's metric weighs the joints by the
+    folds' mean importance."""
+    q, e = np.asarray(q, float), np.asarray(e, float)[:, :3]
+    every = np.arange(len(q))
+    trains = [np.setdiff1d(every, test) for test, _ in folds]
+    done = pool.map(_fold_piece, [(q[train], e_train[:, :3], q, settings, seed)
+                                  for train, (_, e_train) in zip(trains, folds)])
+    raw = [d[0] for d in done]
+    scale = metric_scale(q, np.mean([d[1] for d in done], axis=0))
+    distances = [nearest(q[test], q[train], scale) for train, (test, _) in zip(trains, folds)]
+    reach = float(np.percentile(np.concatenate(distances), REACH_QUANTILE))
+    errors = np.array(held_out, float, copy=True)
+    for (test, _), prediction, d in zip(folds, raw, distances):
+        errors[test] -= fade(d, reach)[:, None] * prediction[test]
+    cv = float(np.mean(np.sum(errors ** 2, 1)))
+    spread = np.stack(raw)  # (K, m, 3): the fold ensembles at every pose
+    k = len(raw)
+    jackknife = float(np.mean((k - 1) / k * np.sum((spread - spread.mean(0)) ** 2, axis=(0, 2))))
+    inside = max(cv - noise, jackknife, 0.0)
+    prior = max(float(np.mean(np.sum(e ** 2, 1))) - noise, inside)
+    # each fold's misfit on its own training poses against the held-out misfit: the optimism
+    fit_mse = np.mean([np.mean((e_train[:, :3] - r[train]) ** 2, axis=0)
+                       for (_, e_train), r, train in zip(folds, raw, trains)], axis=0)
+    cv_mse = np.mean(errors ** 2, axis=0)
+    dof = float(np.sum(np.clip(len(q) * (cv_mse - fit_mse) / (2.0 * np.maximum(cv_mse, 1e-300)), 0.0, len(q))))
+    return TreeCandidate(errors, raw, settings, scale, reach, inside, prior, dof)

@@ -1,0 +1,251 @@
+"""A learned correction made of gradient-boosted regression trees on the joint angles.
+
+Where the parametric model leaves a sharp, configuration-dependent pattern (a cable pulling
+over one range of a joint, a bearing's run-out, a wrist's flex that changes with the elbow), a
+Gaussian process with a smooth kernel smooths it away; boosted trees split the joint space where
+the pattern changes.  One ensemble per output (δp: 3 mm; for full-pose data δr: 3 rad, in the
+measuring frame's axes as :mod:`robocal.model.residual` describes), fitted by
+:mod:`robocal.calibration.trees` with scikit-learn's ``HistGradientBoostingRegressor``.  A
+calibrated model carries the trees as plain arrays (:class:`Ensemble`) and predicts with numpy:
+using it needs no scikit-learn and no pickle.
+
+Trees do not extrapolate: outside their data each leaf's value is the value of the nearest
+region they saw, which on another campaign's configurations is a guess.  So the correction has a
+support, measured in the metric the trees use: the distance from a pose to the nearest training
+pose, each joint in units of its spread over the data and weighed by its share of the trees'
+splits (a joint they never split on does not count; :meth:`TreeResidual.distance`).  Within
+``reach`` (the distance within which the cross-validation's held-out poses lay, 95th
+percentile) the correction is whole; it fades linearly to nothing at twice that distance
+(:func:`fade`).  Its predicted variance (:meth:`TreeResidual.position_variance`) is the
+ensemble's own error inside (what cross-validation measured of the correction), returning to
+the prior (the mean square of what the parametric model left) outside.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from .residual import apply_correction
+
+#: poses the support's distance is computed on at once (bounds the (chunk, N) matrix)
+CHUNK = 1024
+
+
+def fade(distance: np.ndarray, reach: float) -> np.ndarray:
+    """The share of the correction kept at ``distance`` from the data: 1 within ``reach``, 0 beyond
+    twice it, linear between."""
+    return np.clip(2.0 - np.asarray(distance, float) / max(reach, 1e-12), 0.0, 1.0)
+
+
+@dataclass(frozen=True, eq=False)
+class Ensemble:
+    """One output's trees as flat arrays over all their nodes: feature (joint index, −1 at a
+    leaf), threshold (rad: a pose goes left when its joint ≤ threshold), left and right (absolute
+    node indices), value (the leaf's contribution, learning rate included), roots (each tree's
+    first node), baseline (the constant the trees add to), depth (the longest root-to-leaf path)."""
+
+    feature: np.ndarray
+    threshold: np.ndarray
+    left: np.ndarray
+    right: np.ndarray
+    value: np.ndarray
+    roots: np.ndarray
+    baseline: float
+    depth: int
+
+    def _walk(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The nodes as a walk needs them: a leaf splits on joint 0 at +inf and both its children
+        are itself, so every pose takes ``depth`` steps without a test of where it is; children
+        (2N,): node k's left child at 2k, its right at 2k + 1."""
+        if self.__dict__.get("_walk_arrays") is None:
+            leaf = self.feature < 0
+            index = np.arange(len(self.feature))
+            children = np.stack([np.where(leaf, index, self.left), np.where(leaf, index, self.right)], 1).ravel()
+            self.__dict__["_walk_arrays"] = (np.where(leaf, 0, self.feature), np.where(leaf, np.inf, self.threshold),
+                                             children)
+        return self.__dict__["_walk_arrays"]
+
+    def per_tree(self, X: np.ndarray) -> np.ndarray:
+        """Each tree's contribution (m, trees) at X (m, n): every pose through every tree at once,
+        one level a step."""
+        X = np.ascontiguousarray(X, float)
+        feature, threshold, children = self._walk()
+        flat = X.ravel()
+        offset = (np.arange(len(X)) * X.shape[1])[:, None]
+        node = np.broadcast_to(self.roots, (len(X), len(self.roots))).copy()
+        for _ in range(self.depth - 1):
+            node = children[2 * node + (flat[offset + feature[node]] > threshold[node])]
+        return self.value[node]
+
+    def predict(self, X: np.ndarray) -> np.ndarray:
+        """The sum of the trees at X (m, n) rad."""
+        return self.per_tree(X).sum(axis=1) + self.baseline
+
+    @property
+    def n_trees(self) -> int:
+        return len(self.roots)
+
+    def to_dict(self) -> dict:
+        return {"baseline": self.baseline, "roots": self.roots.tolist(), "feature": self.feature.tolist(),
+                "threshold": self.threshold.tolist(), "left": self.left.tolist(), "right": self.right.tolist(),
+                "value": self.value.tolist()}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> Ensemble:
+        feature = np.array(d["feature"], dtype=np.int64)
+        left, right = np.array(d["left"], dtype=np.int64), np.array(d["right"], dtype=np.int64)
+        threshold, value = np.array(d["threshold"], float), np.array(d["value"], float)
+        roots = np.array(d["roots"], dtype=np.int64)
+        n = len(feature)
+        if not (len(left) == len(right) == len(threshold) == len(value) == n) or n == 0:
+            raise ValueError("the arrays of an ensemble differ in length")
+        inner = feature >= 0
+        if np.any((left[inner] <= np.flatnonzero(inner)) | (right[inner] <= np.flatnonzero(inner))
+                  | (left[inner] >= n) | (right[inner] >= n)) or np.any((roots < 0) | (roots >= n)):
+            raise ValueError("an ensemble's node points outside its trees")
+        return cls(feature, threshold, left, right, value, roots, float(d["baseline"]), _depth(feature, left, right,
+                                                                                                roots))
+
+    @classmethod
+    def of_sklearn(cls, model) -> Ensemble:
+        """The trees of a fitted ``HistGradientBoostingRegressor`` (numerical features, no missing
+        values: commanded joints are neither)."""
+        parts, offset = [], 0
+        for (predictor,) in model._predictors:
+            nodes = predictor.nodes
+            leaf = nodes["is_leaf"].astype(bool)
+            parts.append((np.where(leaf, -1, nodes["feature_idx"]).astype(np.int64),
+                          nodes["num_threshold"].astype(float),
+                          np.where(leaf, -1, nodes["left"] + offset).astype(np.int64),
+                          np.where(leaf, -1, nodes["right"] + offset).astype(np.int64),
+                          np.where(leaf, nodes["value"], 0.0).astype(float), offset))
+            offset += len(nodes)
+        feature, threshold, left, right, value = (np.concatenate([p[k] for p in parts]) for k in range(5))
+        roots = np.array([p[5] for p in parts], dtype=np.int64)
+        return cls(feature, threshold, left, right, value, roots, float(np.ravel(model._baseline_prediction)[0]),
+                   _depth(feature, left, right, roots))
+
+
+def _depth(feature, left, right, roots) -> int:
+    """The longest root-to-leaf path of the trees (children always follow their parent)."""
+    level = np.zeros(len(feature), dtype=np.int64)
+    for i in np.flatnonzero(feature >= 0):  # parents come first, so one pass settles every level
+        level[left[i]] = level[right[i]] = level[i] + 1
+    return int(level.max()) + 1 if len(level) else 1
+
+
+@dataclass(frozen=True, eq=False)
+class TreeResidual:
+    """The tree correction: ensembles (3 outputs mm, or 6 with orientations rad); X (N, n)
+    training joints rad, scale (n,) the weight of each joint in the support's metric (rad⁻¹:
+    share of splits / spread); reach: the distance within which the correction is whole;
+    inside and prior: the trace of the position correction's error covariance (mm²) within its
+    data and where it has none; axes (3, 3) as :class:`~robocal.model.residual.ResidualModel`'s.
+    dof: degrees of freedom taken from the data; importance (outputs, n): each joint's share of
+    each output's split gain; taken (outputs,): the rms of each output's correction over the
+    training poses (mm; rad); hyper: the settings chosen by the inner cross-validation."""
+
+    ensembles: tuple[Ensemble, ...]
+    X: np.ndarray
+    scale: np.ndarray
+    reach: float
+    inside: float
+    prior: float
+    axes: np.ndarray = field(default_factory=lambda: np.eye(3))
+    dof: float = float("nan")
+    importance: np.ndarray | None = None
+    taken: np.ndarray | None = None
+    hyper: dict = field(default_factory=dict)
+
+    kind = "trees"
+
+    @property
+    def outputs(self) -> int:
+        return len(self.ensembles)
+
+    @property
+    def n_joints(self) -> int:
+        return int(self.X.shape[1])
+
+    def with_inside(self, inside: float) -> TreeResidual:
+        return replace(self, inside=float(inside))
+
+    def distance(self, q: np.ndarray) -> np.ndarray:
+        """The distance (m,) from each pose to its nearest training pose in the trees' metric:
+        √Σ_j (scale_j Δq_j)² (dimensionless)."""
+        q = np.atleast_2d(np.asarray(q, float)) * self.scale
+        X = self.X * self.scale
+        xx = np.sum(X * X, 1)
+        out = np.empty(len(q))
+        for start in range(0, len(q), CHUNK):
+            c = q[start:start + CHUNK]
+            sq = np.sum(c * c, 1)[:, None] + xx[None, :] - 2.0 * c @ X.T
+            out[start:start + CHUNK] = np.sqrt(np.maximum(sq.min(axis=1), 0.0))
+        return out
+
+    def weight(self, q: np.ndarray) -> np.ndarray:
+        """The share (m,) of the correction kept at each pose (:func:`fade` of its distance)."""
+        return fade(self.distance(q), self.reach)
+
+    def raw(self, q: np.ndarray) -> np.ndarray:
+        """The trees' own prediction (m, outputs), unfaded."""
+        q = np.atleast_2d(np.asarray(q, float))
+        return np.stack([e.predict(q) for e in self.ensembles], axis=1)
+
+    def predict(self, q: np.ndarray) -> np.ndarray:
+        """δ (m, 3 or 6) at commanded joints q (m, n) rad, faded outside the data."""
+        q = np.atleast_2d(np.asarray(q, float))
+        return self.weight(q)[:, None] * self.raw(q)
+
+    def position_variance(self, q: np.ndarray) -> np.ndarray:
+        """The trace (m,) mm² of the position correction's error covariance at q: ``inside``
+        where the correction is whole, ``prior`` where it has faded, in proportion between."""
+        w = self.weight(q)
+        return w * self.inside + (1.0 - w) * self.prior
+
+    def correct(self, q: np.ndarray, R: np.ndarray, p: np.ndarray, base_rotation: np.ndarray):
+        """The pose (R (m, 3, 3), p (m, 3) mm, measuring frame) with the correction at q added."""
+        return apply_correction(self.predict(q), self.axes, R, p, base_rotation)
+
+    def summary(self) -> dict:
+        names = ["x", "y", "z", "rx", "ry", "rz"][: self.outputs]
+        out = {"kind": "gradient-boosted trees on the joint angles", "points": int(len(self.X)),
+               "outputs": "position" if self.outputs == 3 else "position and orientation",
+               "trees_per_output": [e.n_trees for e in self.ensembles], "reach": self.reach,
+               "sigma_inside_mm": float(np.sqrt(self.inside)), "sigma_outside_mm": float(np.sqrt(self.prior)),
+               **({"effective_dof": self.dof} if np.isfinite(self.dof) else {}), **({"settings": self.hyper}
+                                                                                   if self.hyper else {})}
+        if self.taken is not None:
+            out["taken_rms"] = {n: float(v) for n, v in zip(names, self.taken)}
+        if self.importance is not None:
+            out["joint_importance"] = {n: [float(v) for v in row] for n, row in zip(names, self.importance)}
+        return out
+
+    def to_dict(self) -> dict:
+        return {"kind": "gradient-boosted trees on the joint angles (rad)", "X": self.X.tolist(),
+                "scale_per_rad": self.scale.tolist(), "reach": self.reach, "inside_mm2": self.inside,
+                "prior_mm2": self.prior, "axes_in_base": self.axes.tolist(),
+                **({"dof": self.dof} if np.isfinite(self.dof) else {}),
+                **({"importance": self.importance.tolist()} if self.importance is not None else {}),
+                **({"taken": self.taken.tolist()} if self.taken is not None else {}),
+                "settings": self.hyper, "ensembles": [e.to_dict() for e in self.ensembles]}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> TreeResidual:
+        X = np.array(d["X"], float)
+        scale = np.array(d["scale_per_rad"], float)
+        axes = np.array(d.get("axes_in_base", np.eye(3)), float)
+        ensembles = tuple(Ensemble.from_dict(e) for e in d["ensembles"])
+        if X.ndim != 2 or scale.shape != (X.shape[1],) or axes.shape != (3, 3) or len(ensembles) not in (3, 6):
+            raise ValueError("the shapes of X, scale_per_rad, axes_in_base or the number of ensembles do not agree")
+        if any(int(e.feature.max()) >= X.shape[1] for e in ensembles):
+            raise ValueError("a tree splits on a joint the model does not have")
+        importance = np.array(d["importance"], float) if "importance" in d else None
+        taken = np.array(d["taken"], float) if "taken" in d else None
+        values = [float(d["reach"]), float(d["inside_mm2"]), float(d["prior_mm2"])]
+        if not all(np.isfinite(values)) or min(values) < 0:
+            raise ValueError("reach, inside_mm2 and prior_mm2 must be finite and not negative")
+        return cls(ensembles, X, scale, *values, axes, float(d.get("dof", float("nan"))), importance, taken,
+                   dict(d.get("settings", {})))

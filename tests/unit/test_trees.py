@@ -1,0 +1,96 @@
+"""The tree correction: robocal's arrays predict what scikit-learn's trees predict, survive JSON,
+fade where their data end, and a broken file is refused."""
+
+import json
+
+import numpy as np
+import pytest
+from sklearn.ensemble import HistGradientBoostingRegressor
+
+from robocal.calibration.trees import choose_settings
+from robocal.model.corrections import Stacked, correction_from_dict
+from robocal.model.residual import Block, ResidualModel
+from robocal.model.trees import Ensemble, TreeResidual, fade
+
+
+def _step(q):
+    """A pattern a smooth kernel cannot follow: steps in joints 1 and 3 (mm)."""
+    return np.column_stack([0.3 * np.sign(q[:, 0] - 0.4) * (q[:, 2] > 0), 0.2 * (q[:, 0] > -1.0),
+                            0.1 * np.sign(q[:, 2])])
+
+
+def _ensembles(q, y, trees=60):
+    models = [HistGradientBoostingRegressor(learning_rate=0.2, max_iter=trees, max_leaf_nodes=15, min_samples_leaf=10,
+                                            early_stopping=False).fit(q, y[:, a]) for a in range(y.shape[1])]
+    return models, tuple(Ensemble.of_sklearn(m) for m in models)
+
+
+def test_the_arrays_predict_what_scikit_learn_predicts_and_survive_json(rng):
+    q = rng.uniform(-2, 2, (300, 6))
+    models, ensembles = _ensembles(q, _step(q) + rng.normal(0, 0.01, (300, 3)))
+    fresh = np.vstack([rng.uniform(-2, 2, (50, 6)), rng.uniform(-9, 9, (20, 6))])  # far out too: a leaf's value
+    for model, ensemble in zip(models, ensembles):
+        back = Ensemble.from_dict(json.loads(json.dumps(ensemble.to_dict())))
+        np.testing.assert_allclose(ensemble.predict(fresh), model.predict(fresh), rtol=0, atol=1e-12)
+        np.testing.assert_array_equal(back.predict(fresh), ensemble.predict(fresh))
+        # exact on a threshold: a pose equal to it goes left, as scikit-learn sends it
+        inner = np.flatnonzero(ensemble.feature >= 0)[:20]
+        on = np.tile(fresh[:1], (len(inner), 1))
+        on[np.arange(len(inner)), ensemble.feature[inner]] = ensemble.threshold[inner]
+        np.testing.assert_allclose(ensemble.predict(on), model.predict(on), rtol=0, atol=1e-12)
+
+
+def _model(q, rng, reach=0.5):
+    _, ensembles = _ensembles(q, _step(q))
+    return TreeResidual(ensembles, q, np.full(6, 1.0), reach, inside=0.01, prior=0.09,
+                        importance=np.full((3, 6), 1 / 6), taken=np.ones(3))
+
+
+def test_whole_within_its_reach_nothing_beyond_twice_it(rng):
+    q = rng.uniform(-2, 2, (300, 6))
+    model = _model(q, rng)
+    np.testing.assert_allclose(model.predict(q[:30]), model.raw(q[:30]))  # at its poses: whole
+    far = q[:30] + np.array([0, 0, 0, 0, 0, 5.0])  # joint 6 pushed 5 rad away: 5 > 2 × reach in this metric
+    assert np.all(model.distance(far) > 1.0)
+    np.testing.assert_array_equal(model.predict(far), 0.0)
+    np.testing.assert_allclose(model.position_variance(far), 0.09)  # the prior: nothing known there
+    np.testing.assert_allclose(model.position_variance(q[:30]), 0.01)
+    # between: linear in the distance, and so is the variance
+    d = np.array([0.0, 0.5, 0.75, 1.0, 1.5])
+    np.testing.assert_allclose(fade(d, 0.5), [1.0, 1.0, 0.5, 0.0, 0.0])
+
+
+def test_the_distance_is_the_nearest_pose_in_the_weighted_metric(rng):
+    q = rng.uniform(-2, 2, (200, 6))
+    model = TreeResidual(_model(q, rng).ensembles, q, np.array([2.0, 1.0, 0.0, 0.0, 0.5, 0.0]), 0.3, 0.0, 1.0)
+    fresh = rng.uniform(-3, 3, (40, 6))
+    brute = np.sqrt(np.min(np.sum(((fresh[:, None] - q[None]) * model.scale) ** 2, axis=2), axis=1))
+    np.testing.assert_allclose(model.distance(fresh), brute, rtol=1e-9, atol=1e-9)
+
+
+def test_sidecar_kinds_round_trip_and_a_broken_tree_is_refused(rng):
+    q = rng.uniform(-2, 2, (120, 6))
+    trees = _model(q, rng)
+    process = ResidualModel(q[:20], (Block(rng.normal(size=(20, 3)), np.ones(6), 1.0, np.zeros(3), np.ones(3),
+                                           noise=0.1),))
+    for model in (trees, Stacked(trees.with_inside(0.0), process)):
+        back = correction_from_dict(json.loads(json.dumps(model.to_dict())))
+        assert type(back) is type(model) and back.n_joints == 6
+        np.testing.assert_allclose(back.predict(q[:10]), model.predict(q[:10]), atol=1e-12)
+        np.testing.assert_allclose(back.position_variance(q[:10]), model.position_variance(q[:10]))
+    stacked = Stacked(trees.with_inside(0.0), process)
+    np.testing.assert_allclose(stacked.predict(q[:10]), trees.predict(q[:10]) + process.predict(q[:10]))
+    broken = trees.to_dict()
+    broken["ensembles"][0]["left"][broken["ensembles"][0]["roots"][1]] = 10 ** 7
+    with pytest.raises(ValueError, match="outside its trees"):
+        correction_from_dict(broken)
+    with pytest.raises(ValueError, match="unknown kind"):
+        correction_from_dict({"kind": "random forest"})
+
+
+def test_the_inner_cross_validation_keeps_few_trees_on_noise_and_many_on_structure(rng):
+    q = rng.uniform(-2, 2, (300, 6))
+    noise = choose_settings(q, rng.normal(0, 0.02, (300, 3)), seed=0)
+    wavy = np.column_stack([np.sin(3 * q[:, 0]) * np.cos(2 * q[:, 1]), np.cos(3 * q[:, 2]), q[:, 3] ** 2 / 4])
+    structure = choose_settings(q, wavy + rng.normal(0, 0.02, (300, 3)), seed=0)
+    assert noise.trees <= 10 < 50 <= structure.trees
