@@ -268,6 +268,7 @@ def w6_auto(repeats: int = 1, data: Path = UR10_DATA) -> list[Row]:
     user runs them; the ≤ 8× target is theirs) and as calls of the Python API in one process."""
     import tempfile
 
+    from ..calibration.selection import learned_of
     from ..io.measurements import load_measurements
 
     if not Path(data).is_file():
@@ -299,8 +300,8 @@ def w6_auto(repeats: int = 1, data: Path = UR10_DATA) -> list[Row]:
     t_auto = statistics.median(auto)
     return [
         Row(f"W6 --model auto, UR10 half split ({meas.n_poses} full poses)", t_auto, "s", "≤ 60 s", t_auto <= 60.0,
-            note=f"chose {result.model}; {sum('residual' not in m for m in tried)} parametric models × 5 folds, "
-                 f"{sum('residual' in m for m in tried)} residual processes"),
+            note=f"chose {result.model}; {sum(not learned_of(m) for m in tried)} parametric models × 5 folds, "
+                 f"{sum(bool(learned_of(m)) for m in tried)} learned corrections (processes, trees)"),
         Row("W6 --model auto without worker processes (ROBOCAL_WORKERS=1)", statistics.median(alone), "s", "—", None,
             note=f"the workers take {statistics.median(a / w for a, w in zip(alone, auto)):.2f}× less wall time"),
         Row("W6 geometric LM, same poses", statistics.median(geometric), "s", "—", None),
