@@ -23,7 +23,7 @@ from robocal.evaluation import evaluate
 from robocal.io.goals import Goals
 from robocal.io.robotfile import load_robot
 from robocal.model.measurements import Measurements
-from robocal.model.uncertainty import predicted_sigma
+from robocal.model.uncertainty import predicted_sigma, region_note
 
 NOISE = 0.02
 
@@ -108,6 +108,8 @@ def test_the_predicted_sigma_matches_the_real_error_inside_and_beyond_the_data(q
         ratios[name] = float(np.sqrt(np.mean(error ** 2) / np.mean(sigma ** 2)))
     model = res.robot.residual
     assert np.mean(model.weight(truth.q[truth.q[:, 0] > 1.7][:300])) < 0.2  # beyond the data it fades
+    note = region_note(res.robot, truth.q[truth.q[:, 0] > 1.7][:300])
+    assert "beyond the data of the learned correction (trees)" in note  # and evaluate/compensate say so
     for ratio in ratios.values():
         assert 0.5 < ratio < 2.0, ratios
 

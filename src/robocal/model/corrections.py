@@ -57,6 +57,10 @@ class Stacked:
     def position_variance(self, q: np.ndarray) -> np.ndarray:
         return self.trees.position_variance(q) + np.nan_to_num(self.process.position_variance(q))
 
+    def weight(self, q: np.ndarray) -> np.ndarray:
+        """The share of the correction kept at q: the larger of the two parts' (each fades on its own)."""
+        return np.maximum(self.trees.weight(q), self.process.weight(q))
+
     def correct(self, q, R, p, base_rotation):
         return apply_correction(self.predict(q), self.axes, R, p, base_rotation)
 

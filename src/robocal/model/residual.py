@@ -169,6 +169,19 @@ class ResidualModel:
             out[start:start + 4096] = np.concatenate([b.predict(self.X, chunk) for b in self.blocks], axis=1)
         return out
 
+    def weight(self, q: np.ndarray) -> np.ndarray:
+        """The share (m,) of the position correction kept at q (:func:`fade`; 1 for a model saved
+        without its noise level, which does not fade)."""
+        q = np.atleast_2d(np.asarray(q, float))
+        block = self.blocks[0]
+        if not np.isfinite(block.noise):
+            return np.ones(len(q))
+        out = np.empty(len(q))
+        for start in range(0, len(q), 4096):
+            chunk = q[start:start + 4096]
+            out[start:start + 4096] = fade(block.explained(self.X, block._cross(self.X, chunk)))
+        return out
+
     def position_variance(self, q: np.ndarray) -> np.ndarray:
         """The posterior variance of the position correction at q (m,) mm², summed over its three
         axes (the trace of its covariance); its prior Σ c² y_scale² far from the data."""

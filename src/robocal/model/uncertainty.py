@@ -115,7 +115,24 @@ def region_note(robot, q: np.ndarray, targets: Sequence[str] | None = None,
     region = robot.region
     if region is None:
         return None
+    faded = correction_note(robot.residual, q)
     if robot.uncertainty is not None and region.sigma_mm:
-        return region.describe_sigma(predicted_sigma(robot, np.atleast_2d(q), targets, inputs))
-    text = region.describe(q)
-    return None if text is None else f"{text}: the model is extrapolated there; expect larger errors"
+        text = region.describe_sigma(predicted_sigma(robot, np.atleast_2d(q), targets, inputs))
+    else:
+        text = region.describe(q)
+        text = None if text is None else f"{text}: the model is extrapolated there; expect larger errors"
+    return "; ".join(t for t in (text, faded) if t) or None
+
+
+def correction_note(correction, q: np.ndarray) -> str | None:
+    """The poses q (m, n) rad beyond the data of a learned correction, or None: where less than half
+    of it is kept (the fringe of its data, where a little is, holds a twentieth of its own held-out
+    poses by construction), and where none is."""
+    if correction is None:
+        return None
+    weight = correction.weight(np.atleast_2d(np.asarray(q, float)))
+    partly, gone = int(np.sum(weight < 0.5)), int(np.sum(weight <= 1e-9))
+    if partly == 0:
+        return None
+    return (f"{partly} of {len(weight)} poses lie beyond the data of the learned correction ({correction.kind}): less "
+            f"than half of it is kept there, none at {gone} of them, where the model is its parametric part alone")
