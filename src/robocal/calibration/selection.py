@@ -43,6 +43,7 @@ from .config import LEARNED, CalibrationConfig
 from .methods import fit_lm
 from .residual import HYPER_POINTS, MAX_POINTS, fit_residual, tune_kernels
 from .result import BudgetRow, LadderRow
+from .statistics import group_folds
 from .steps import Fit, Inputs, fit_parametric, term_spec
 from .timing import stage, staged
 from .trees import Settings, TreeCandidate, choose_settings, fit_trees
@@ -126,8 +127,7 @@ class Chosen:
         sigma = validation.sigma_position if validation.sigma_position is not None else \
             self.fit.setup.meas.sigma_position
         if sigma is not None:  # the floor: what the instrument's own noise alone would show
-            rows.append(BudgetRow("the instrument's own noise (floor)", float(np.sqrt(np.mean(np.sum(sigma**2, 1)))),
-                                  None))
+            rows.append(BudgetRow("the instrument's own noise (floor)", float(np.sqrt(instrument_noise(sigma))), None))
         return rows
 
 
@@ -147,13 +147,7 @@ def pose_groups(meas: Measurements) -> np.ndarray:
 
 def folds(meas: Measurements, k: int, seed: int | None) -> list[np.ndarray]:
     """K folds of pose indices; poses sharing a pose_id (several reflectors) stay together."""
-    groups = pose_groups(meas)
-    n = groups.max() + 1
-    k = max(2, min(k, n))
-    fold_of = np.empty(n, dtype=int)
-    fold_of[np.random.default_rng(seed).permutation(n)] = np.arange(n) % k
-    assignment = fold_of[groups]
-    return [np.flatnonzero(assignment == f) for f in range(k)]
+    return group_folds(pose_groups(meas), k, seed)
 
 
 @dataclass
@@ -303,6 +297,12 @@ class FoldData:
     def train(self, test: np.ndarray) -> np.ndarray:
         return np.setdiff1d(np.arange(len(self.q)), test)
 
+    def process_folds(self, seed: int | None, kernels: tuple) -> list:
+        """The pieces of a process's outer folds (:func:`_piece`): each fold's training joints and
+        position errors, its held-out joints, and the kernels its tuning starts from."""
+        return [("fold", (self.q[self.train(test)], e_train[:, :3], self.q[test], seed, kernels))
+                for test, e_train in self.folds]
+
 
 def _fold_prediction(q_train, e_train, q_test, seed, kernels) -> np.ndarray:
     """One fold: the process re-tuned on the fold's training poses from the given kernels, and
@@ -338,8 +338,7 @@ def cross_validate_residuals(ladder: list[tuple[FoldData, CrossValidation]], see
     kernels = tune_kernels(ladder[0][0].q, ladder[0][0].e[:, :3], seed, pool=pool)
     out = []
     for i, (data, cv) in enumerate(ladder):
-        pieces = [("fold", (data.q[data.train(test)], e_train[:, :3], data.q[test], seed, kernels))
-                  for test, e_train in data.folds]
+        pieces = data.process_folds(seed, kernels)
         if i + 1 < len(ladder):  # the longest piece first, so that no worker waits for it at the end
             pieces.insert(0, ("tune", (ladder[i + 1][0].q, ladder[i + 1][0].e[:, :3], seed, kernels)))
         done = pool.map(_piece, pieces)
@@ -352,10 +351,10 @@ def cross_validate_residuals(ladder: list[tuple[FoldData, CrossValidation]], see
     return out
 
 
-def instrument_noise(meas: Measurements) -> float:
-    """The trace (mm²) of the instrument's stated position noise, averaged over the poses (0 unstated)."""
-    s = meas.sigma_position
-    return 0.0 if s is None else float(np.mean(np.sum(np.asarray(s, float) ** 2, axis=1)))
+def instrument_noise(sigma: np.ndarray | None) -> float:
+    """The trace (mm²) of an instrument's stated position noise σ (m, 3) mm, averaged over the
+    poses (0 unstated)."""
+    return 0.0 if sigma is None else float(np.mean(np.sum(np.asarray(sigma, float) ** 2, axis=1)))
 
 
 @staged("model")
@@ -365,7 +364,7 @@ def cross_validate_trees(data: FoldData, cv: CrossValidation, meas: Measurements
     (:func:`robocal.calibration.trees.fit_trees`), with ``settings`` or those the inner
     cross-validation chooses on its poses."""
     settings = settings or choose_settings(data.q, data.e, data.groups, seed, pool)
-    return fit_trees(data.q, data.e, data.folds, cv.errors, instrument_noise(meas), settings, seed, pool)
+    return fit_trees(data.q, data.e, data.folds, cv.errors, instrument_noise(meas.sigma_position), settings, seed, pool)
 
 
 def _leftover(data: FoldData, trees: TreeCandidate, model: TreeResidual | None) -> FoldData:
@@ -390,10 +389,8 @@ def cross_validate_stacked(data: FoldData, trees: TreeCandidate, kernels: tuple,
     fold's process re-tuned (from ``kernels``, the process's of the same parametric fit) on what
     the fold's trees leave on its training poses, and added to the trees' held-out correction."""
     left = _leftover(data, trees, None)
-    pieces = [("fold", (data.q[data.train(test)], e_train[:, :3], data.q[test], seed, kernels))
-              for test, e_train in left.folds]
     corrected = np.array(trees.errors, copy=True)
-    for (test, _), prediction in zip(left.folds, pool.map(_piece, pieces)):
+    for (test, _), prediction in zip(left.folds, pool.map(_piece, left.process_folds(seed, kernels))):
         corrected[test] -= prediction
     return corrected
 

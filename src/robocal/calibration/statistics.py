@@ -11,6 +11,17 @@ import math
 
 import numpy as np
 
+
+def group_folds(groups: np.ndarray, k: int, seed: int | None) -> list[np.ndarray]:
+    """K folds of row indices (k at least 2, at most the number of groups), drawn with the seed;
+    rows of one group (the reflectors of one pose) stay together.  groups: 0..G−1 per row."""
+    n = int(groups.max()) + 1
+    k = max(2, min(k, n))
+    fold_of = np.empty(n, dtype=int)
+    fold_of[np.random.default_rng(seed).permutation(n)] = np.arange(n) % k
+    assignment = fold_of[groups]
+    return [np.flatnonzero(assignment == f) for f in range(k)]
+
 #: a pose whose position residual exceeds this many robust σ is an outlier.  For isotropic
 #: Gaussian noise |δp| follows a Maxwell law; P(|δp| > 6σ) ≈ 1e-7.
 OUTLIER_SIGMAS = 6.0

@@ -36,7 +36,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..backend import SERIAL, worker_pool
-from ..model.trees import Ensemble, TreeResidual, fade
+from ..model.trees import Ensemble, TreeResidual, fade, nearest
+from .statistics import group_folds
 
 LEARNING_RATE = 0.2
 MAX_TREES = 200
@@ -109,18 +110,11 @@ def _curve(piece) -> np.ndarray:
     return out
 
 
-def _inner_folds(groups: np.ndarray, seed: int | None) -> list[np.ndarray]:
-    n = int(groups.max()) + 1
-    fold_of = np.empty(n, dtype=int)
-    fold_of[np.random.default_rng(seed).permutation(n)] = np.arange(n) % INNER_FOLDS
-    return [np.flatnonzero(fold_of[groups] == f) for f in range(INNER_FOLDS)]
-
-
 def _inner_curves(q, y, groups, seed, leaves, pool) -> np.ndarray:
     """The inner cross-validated squared error (len(leaves), MAX_TREES) of y's trees, summed over
     its outputs, the folds and the poses, for each leaf size and number of trees."""
     groups = np.arange(len(q)) if groups is None else np.unique(groups, return_inverse=True)[1]
-    folds = _inner_folds(groups, seed)
+    folds = group_folds(groups, INNER_FOLDS, seed)
     train = [np.setdiff1d(np.arange(len(q)), test) for test in folds]
     curves = pool.map(_curve, [(q[tr], y[tr], q[te], y[te], leaf, seed) for leaf in leaves
                                for tr, te in zip(train, folds)])
@@ -216,13 +210,6 @@ def metric_scale(q: np.ndarray, importance: np.ndarray) -> np.ndarray:
     share = importance[:3].mean(axis=0)
     spread = np.maximum(np.std(q, axis=0), 1e-6)
     return np.sqrt(share) / spread
-
-
-def nearest(q: np.ndarray, X: np.ndarray, scale: np.ndarray) -> np.ndarray:
-    """The distance (m,) from each pose q to its nearest pose of X in the metric ``scale``."""
-    Ts, Xs = q * scale, X * scale
-    sq = np.sum(Ts * Ts, 1)[:, None] + np.sum(Xs * Xs, 1)[None, :] - 2.0 * Ts @ Xs.T
-    return np.sqrt(np.maximum(sq.min(axis=1), 0.0))
 
 
 def fit_trees(q: np.ndarray, e: np.ndarray, folds: list[tuple[np.ndarray, np.ndarray]], held_out: np.ndarray,

@@ -39,6 +39,19 @@ def fade(distance: np.ndarray, reach: float) -> np.ndarray:
     return np.clip(2.0 - np.asarray(distance, float) / max(reach, 1e-12), 0.0, 1.0)
 
 
+def nearest(q: np.ndarray, X: np.ndarray, scale: np.ndarray) -> np.ndarray:
+    """The distance (m,) from each pose q (m, n) to its nearest pose of X (N, n), each joint
+    weighed by ``scale`` (n,); in chunks of :data:`CHUNK` poses, to bound the (chunk, N) matrix."""
+    q, X = q * scale, X * scale
+    xx = np.sum(X * X, 1)
+    out = np.empty(len(q))
+    for start in range(0, len(q), CHUNK):
+        c = q[start:start + CHUNK]
+        sq = np.sum(c * c, 1)[:, None] + xx[None, :] - 2.0 * c @ X.T
+        out[start:start + CHUNK] = np.sqrt(np.maximum(sq.min(axis=1), 0.0))
+    return out
+
+
 @dataclass(frozen=True, eq=False)
 class Ensemble:
     """One output's trees as flat arrays over all their nodes: feature (joint index, −1 at a
@@ -175,15 +188,7 @@ class TreeResidual:
     def distance(self, q: np.ndarray) -> np.ndarray:
         """The distance (m,) from each pose to its nearest training pose in the trees' metric:
         √Σ_j (scale_j Δq_j)² (dimensionless)."""
-        q = np.atleast_2d(np.asarray(q, float)) * self.scale
-        X = self.X * self.scale
-        xx = np.sum(X * X, 1)
-        out = np.empty(len(q))
-        for start in range(0, len(q), CHUNK):
-            c = q[start:start + CHUNK]
-            sq = np.sum(c * c, 1)[:, None] + xx[None, :] - 2.0 * c @ X.T
-            out[start:start + CHUNK] = np.sqrt(np.maximum(sq.min(axis=1), 0.0))
-        return out
+        return nearest(np.atleast_2d(np.asarray(q, float)), self.X, self.scale)
 
     def weight(self, q: np.ndarray) -> np.ndarray:
         """The share (m,) of the correction kept at each pose (:func:`fade` of its distance)."""
