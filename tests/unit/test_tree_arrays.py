@@ -11,6 +11,7 @@ from robocal.calibration.trees import choose_settings
 from robocal.model.corrections import Stacked, correction_from_dict
 from robocal.model.residual import Block, ResidualModel
 from robocal.model.trees import Ensemble, TreeResidual, fade
+from robocal.model.uncertainty import correction_note
 
 
 def _step(q):
@@ -63,9 +64,13 @@ def test_whole_within_its_reach_nothing_beyond_twice_it(rng):
 def test_the_distance_is_the_nearest_pose_in_the_weighted_metric(rng):
     q = rng.uniform(-2, 2, (200, 6))
     model = TreeResidual(_model(q, rng).ensembles, q, np.array([2.0, 1.0, 0.0, 0.0, 0.5, 0.0]), 0.3, 0.0, 1.0)
-    fresh = rng.uniform(-3, 3, (40, 6))
+    fresh = rng.uniform(-1.9, 1.9, (40, 6))  # within every joint's range: the nearest pose alone
     brute = np.sqrt(np.min(np.sum(((fresh[:, None] - q[None]) * model.scale) ** 2, axis=2), axis=1))
     np.testing.assert_allclose(model.distance(fresh), brute, rtol=1e-9, atol=1e-9)
+    out = fresh.copy()
+    out[:, 3] = q[:, 3].max() + np.radians(2.0) + 0.5  # joint 4 (no weight) 0.5 rad beyond its fringe
+    nearest_only = np.sqrt(np.min(np.sum(((out[:, None] - q[None]) * model.scale) ** 2, axis=2), axis=1))
+    np.testing.assert_allclose(model.distance(out) ** 2, nearest_only ** 2 + (0.5 / q[:, 3].std()) ** 2, rtol=1e-9)
 
 
 def test_sidecar_kinds_round_trip_and_a_broken_tree_is_refused(rng):
@@ -94,3 +99,19 @@ def test_the_inner_cross_validation_keeps_few_trees_on_noise_and_many_on_structu
     wavy = np.column_stack([np.sin(3 * q[:, 0]) * np.cos(2 * q[:, 1]), np.cos(3 * q[:, 2]), q[:, 3] ** 2 / 4])
     structure = choose_settings(q, wavy + rng.normal(0, 0.02, (300, 3)), seed=0)
     assert noise.trees <= 10 < 50 <= structure.trees
+
+
+def test_a_joint_that_never_moved_ends_the_support_when_it_moves(rng):
+    """The trees cannot split on a joint held still, so its weight in their metric is nil; moved
+    beyond where it was held, the pose is still outside the data, and the correction is gone."""
+    q = rng.uniform(-2, 2, (300, 6))
+    q[:, 5] = 0.3  # joint 6 held still over the whole campaign
+    model = TreeResidual(_model(q, rng).ensembles, q, np.array([1.0, 1.0, 1.0, 1.0, 1.0, 0.0]), 0.5, 0.01, 0.09)
+    inside = q[:20].copy()
+    np.testing.assert_allclose(model.weight(inside), 1.0)
+    inside[:, 5] += np.radians(1.0)  # within the 2° fringe of its value
+    np.testing.assert_allclose(model.weight(inside), 1.0)
+    moved = q[:20].copy()
+    moved[:, 5] = 1.0
+    np.testing.assert_array_equal(model.weight(moved), 0.0)
+    assert "beyond the data of the learned correction (trees)" in correction_note(model, moved)

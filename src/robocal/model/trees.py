@@ -186,9 +186,17 @@ class TreeResidual:
         return replace(self, inside=float(inside))
 
     def distance(self, q: np.ndarray) -> np.ndarray:
-        """The distance (m,) from each pose to its nearest training pose in the trees' metric:
-        √Σ_j (scale_j Δq_j)² (dimensionless)."""
-        return nearest(np.atleast_2d(np.asarray(q, float)), self.X, self.scale)
+        """The distance (m,) from each pose to its nearest training pose in the trees' metric,
+        √Σ_j (scale_j Δq_j)², and beyond each joint's range over the training poses (less the
+        fringe :data:`~robocal.model.region.TRUST_RAD`) in units of the joint's spread there: a
+        joint the trees never split on found nothing to split on within its range, which says
+        nothing beyond it (a joint that never moved, moved, leaves the data at once)."""
+        from .region import TRUST_RAD
+
+        q = np.atleast_2d(np.asarray(q, float))
+        beyond = np.maximum(np.maximum(self.X.min(axis=0) - q, q - self.X.max(axis=0)) - TRUST_RAD, 0.0)
+        beyond = beyond / np.maximum(self.X.std(axis=0), 1e-6)
+        return np.sqrt(nearest(q, self.X, self.scale) ** 2 + np.sum(beyond ** 2, axis=1))
 
     def weight(self, q: np.ndarray) -> np.ndarray:
         """The share (m,) of the correction kept at each pose (:func:`fade` of its distance)."""
