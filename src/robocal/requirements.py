@@ -22,6 +22,9 @@ FIGURES = {
     "calibrate": ("rms", "max", "cv_rms", "validation_rms", "validation_max"),
     "evaluate": ("rms", "mean", "std", "max", "point_spread_rms", "distance_error_rms", "plane_rms"),
 }
+#: verdicts a command can be held to, by a bare word: its figures hold True or False under the
+#: word, and the reason under ``WORD_reason``
+VERDICTS = {"calibrate": ("physical",), "evaluate": ()}
 _OPS = {"<=": operator.le, "<": operator.lt, ">=": operator.ge, ">": operator.gt}
 _PATTERN = re.compile(r"^\s*([a-z_]+)\s*(<=|>=|<|>)\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*$")
 
@@ -33,10 +36,12 @@ class Requirement:
     value: float
 
     def met(self, figures: dict) -> bool:
+        if not self.op:  # a verdict
+            return bool(figures[self.figure])
         return bool(_OPS[self.op](figures[self.figure], self.value))
 
     def __str__(self) -> str:
-        return f"{self.figure}{self.op}{self.value:g}"
+        return self.figure if not self.op else f"{self.figure}{self.op}{self.value:g}"
 
 
 def parse_requirements(items, command: str) -> list[Requirement]:
@@ -44,9 +49,13 @@ def parse_requirements(items, command: str) -> list[Requirement]:
     out = []
     for item in items or ():
         for text in str(item).split(","):
+            if text.strip() in VERDICTS[command]:
+                out.append(Requirement(text.strip(), "", math.nan))
+                continue
             m = _PATTERN.match(text)
             if m is None:
-                raise InputError(f"expected FIGURE<=VALUE (or <, >=, >), e.g. rms<=0.5, got {text.strip()!r}",
+                words = "".join(f" or {w}" for w in VERDICTS[command])
+                raise InputError(f"expected FIGURE<=VALUE (or <, >=, >), e.g. rms<=0.5{words}, got {text.strip()!r}",
                                  option="require")
             figure, op, value = m.group(1), m.group(2), float(m.group(3))
             if figure not in FIGURES[command]:
@@ -59,6 +68,15 @@ def parse_requirements(items, command: str) -> list[Requirement]:
 
 
 def unmet(requirements: list[Requirement], figures: dict) -> list[str]:
-    """One line per requirement not met, naming it and the figure reached."""
-    return [f"requirement not met: {r} ({r.figure} = {figures[r.figure]:.4g} mm)" if math.isfinite(figures[r.figure])
-            else f"requirement not met: {r} (this run has no {r.figure})" for r in requirements if not r.met(figures)]
+    """One line per requirement not met, naming it and the figure reached (a verdict: its reason)."""
+    out = []
+    for r in requirements:
+        if r.met(figures):
+            continue
+        if not r.op:
+            out.append(f"requirement not met: {r} ({figures.get(f'{r.figure}_reason', 'not so')})")
+        elif math.isfinite(figures[r.figure]):
+            out.append(f"requirement not met: {r} ({r.figure} = {figures[r.figure]:.4g} mm)")
+        else:
+            out.append(f"requirement not met: {r} (this run has no {r.figure})")
+    return out

@@ -214,8 +214,10 @@ def test_simulate_plants_terms_and_the_command_line_recovers_them(tmp_path, run_
     assert math.degrees(values["harmonic1_cos1"]) == pytest.approx(0.02, rel=0.15)
     # forward selection: geometry, each term alone (cheaper first), then further terms on the best
     tried = [r["model"] for r in result["model_selection"]]
-    assert tried[:4] == ["geometric", "harmonics", "compliance", "backlash"]
-    assert "compliance+harmonics" in tried and "compliance+harmonics+backlash" in tried
+    # (backlash and drift only where the file gives time or directions, or --row-order says its order is the
+    # measuring order: this file is in no particular order)
+    assert tried[:3] == ["geometric", "harmonics", "compliance"]
+    assert "compliance+harmonics" in tried and not any("backlash" in m or "drift" in m for m in tried)
 
 
 IIWA = """

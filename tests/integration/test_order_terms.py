@@ -64,7 +64,8 @@ FLOOR = math.sqrt(3) * NOISE  # rms of 3-D position noise
 
 
 def test_planted_backlash_is_recovered_per_joint_and_fresh_poses_reach_the_floor():
-    result, said = _fit(_backlash_campaign(400, 1), model="backlash", validate=_backlash_campaign(300, 2))
+    result, said = _fit(_backlash_campaign(400, 1), model="backlash", validate=_backlash_campaign(300, 2),
+                        row_order=True)
     values = _values(result, "backlash")
     for j, planted in BACKLASH_DEG.items():
         p = values[f"backlash{j}"]
@@ -79,13 +80,25 @@ def test_planted_backlash_is_recovered_per_joint_and_fresh_poses_reach_the_floor
 
 def test_auto_chooses_backlash_in_measuring_order_and_not_when_the_rows_are_shuffled():
     meas = _backlash_campaign(300, 3)
-    result, _ = _fit(meas, model="auto")
+    result, _ = _fit(meas, model="auto", row_order=True)
     assert result.model == "backlash"
     shuffled = meas.subset(np.random.default_rng(0).permutation(meas.n_poses))
     # the order is lost: each row's predecessor is not the pose the joint came from
     shuffled = Measurements(q=shuffled.q, position=shuffled.position, source="<shuffled>")
-    result, _ = _fit(shuffled, model="auto")
+    result, _ = _fit(shuffled, model="auto", row_order=True)
     assert "backlash" not in result.model
+
+
+def test_without_an_order_stated_auto_does_not_guess_one_and_says_so():
+    """A file without time or dir columns may be in any order (a grid scan written row by row):
+    auto leaves the terms of time and direction out, and says what would let it try them."""
+    meas = _backlash_campaign(300, 3)
+    result, said = _fit(meas, model="auto")
+    assert "backlash" not in result.model and "drift" not in result.model
+    assert not any("backlash" in r.model or "drift" in r.model for r in result.model_selection)
+    assert any(s.startswith("model auto: backlash and drift not tried") and "--row-order" in s for s in said)
+    with pytest.raises(Exception, match="backlash term needs the direction each joint approached"):
+        _fit(meas, model="backlash")
 
 
 def test_direction_columns_override_the_row_order(tmp_path):
@@ -127,7 +140,7 @@ def test_planted_drift_is_recovered_and_later_poses_are_predicted_at_their_time(
 
 def test_drift_on_the_row_clock_predicts_other_files_at_the_last_pose_and_says_so(tmp_path, quiet):
     calibration = _drift_campaign(400, 7, time_column=False)
-    result, said = _fit(calibration, model="drift")
+    result, said = _fit(calibration, model="drift", row_order=True)
     assert any("row numbers stand for time" in s for s in said)
     values = _values(result, "drift")
     # 20 s a row: the rate per 1000 rows is 1000 · 20 s / 3600 s/h times the rate per hour
@@ -175,7 +188,7 @@ def _one_way_campaign(n, seed):
 def test_backlash_from_one_way_motion_is_dropped_with_what_would_show_it():
     meas = _one_way_campaign(200, 11)
     assert np.all(np.diff(meas.q, axis=0) >= 0)
-    result, said = _fit(meas, model="backlash")
+    result, said = _fit(meas, model="backlash", row_order=True)
     ident = result.identifiability
     for j in range(1, 7):
         assert f"backlash{j}" in ident.dropped
@@ -184,7 +197,7 @@ def test_backlash_from_one_way_motion_is_dropped_with_what_would_show_it():
     assert not _values(result, "backlash")  # nothing reported as if measured
     assert any("backlash1 dropped" in s for s in said)
     # given both directions, the same joints' backlash is identified
-    result, _ = _fit(_backlash_campaign(200, 11), model="backlash")
+    result, _ = _fit(_backlash_campaign(200, 11), model="backlash", row_order=True)
     assert "backlash2" in result.names
 
 

@@ -119,15 +119,16 @@ def test_the_residual_process_keeps_the_more_likely_of_its_two_starts(monkeypatc
     """On the seed-1 half of series C the tuning from scikit-learn's start (every length scale
     1 rad) misses the UR10's short-range structure: the start at the shortest length scale ends
     more than 100 nats more likely with about half the white noise, and that kernel is kept."""
-    from robocal.calibration import residual, selection, steps
+    from robocal.calibration import crossval, parametric, residual
+    from robocal.calibration import inputs as steps_inputs
     from robocal.calibration.config import CalibrationConfig
 
     meas = load_measurements(DATA, n_joints=6)
     half = meas.subset(np.sort(np.random.default_rng(1).permutation(meas.n_poses)[: meas.n_poses // 2]))
     config = CalibrationConfig(method="lm", frames="base+tool")
-    inputs = steps.load_inputs("ur10", half, None, config)
-    fit = steps.fit_parametric(inputs, config, steps.term_spec((), inputs.meas, config))
-    poses, errors = selection.residual_errors(fit, fit.estimate.x)
+    inputs = steps_inputs.load_inputs("ur10", half, None, config)
+    fit = parametric.fit_parametric(inputs, config, parametric.term_spec((), inputs.meas, config))
+    poses, errors = crossval.residual_errors(fit, fit.estimate.x)
     pick = np.random.default_rng(0).permutation(poses.n_poses)[: residual.HYPER_POINTS]
     runs, original = [], residual._minimised
 

@@ -98,15 +98,22 @@ def test_the_command_line_round_trip_of_a_urdf_with_joint_terms(tmp_path, run_cl
     assert code == 0 and text.startswith("<?xml")
     urdf_file.write_text(text)
     code, _, err = run_cli("simulate", urdf_file, "--poses", "120", "--measure", "position", "--noise", "0.01",
-                           "--compliance", "2=5e-6,3=8e-6", "--seed", "3", "--out", data)
+                           "--compliance", "2=5e-6,3=8e-6", "--seed", "3", "--out", data,
+                           "--truth", tmp_path / "t.toml")
     assert code == 0, err
     assert "URDF tip link 'target' chosen" in err  # said, on one line
+    validation = tmp_path / "v.csv"
+    code, _, err = run_cli("simulate", tmp_path / "t.toml", "--poses", "80", "--measure", "position", "--noise",
+                           "0.01", "--seed", "4", "--out", validation)
+    assert code == 0, err
     code, stdout, err = run_cli("calibrate", urdf_file, data, "--frames", "none", "--model", "compliance",
-                                "--export", out, "--out", tmp_path / "r.json")
+                                "--export", out, "--out", tmp_path / "r.json", "--validate", validation)
     assert code == 0, err
     sidecar = tmp_path / "cal.robocal.toml"
-    said = "".join(stdout.split())  # the console wraps long lines
-    assert "cannotliveinaURDF" in said and "".join(str(sidecar).split()) in said
+    # what the URDF hands ROS, and what the whole model would: said where the file is written
+    note = next(line for line in err.splitlines() if line.startswith("robocal: note: wrote"))
+    assert f"{out} holds the geometry and frames (the whole model is in {sidecar})" in note
+    assert "reach the robot only through robocal filter and compensate" in note
     assert 'convention = "urdf"' in sidecar.read_text() and "compliance = " in sidecar.read_text()
     after = json.loads((tmp_path / "r.json").read_text())["metrics"]["after"]["position"]["rms"]
     code, whole, _ = run_cli("evaluate", sidecar, data, "--json")
@@ -121,6 +128,15 @@ def test_the_command_line_round_trip_of_a_urdf_with_joint_terms(tmp_path, run_cl
     out.write_text(text.replace('<robocal whole_model="cal.robocal.toml" />', ""))
     code, geometry_only, _ = run_cli("evaluate", out, data, "--json")
     assert json.loads(geometry_only)["position"]["rms"] > 3 * after  # the geometry alone lacks the compliance
+    # the figures the calibration stated for each export are what each gives on the validation poses
+    exports = json.loads((tmp_path / "r.json").read_text())["exports"]
+    assert exports["figure"] == "validation"
+    code, urdf_alone, _ = run_cli("evaluate", out, validation, "--json")
+    assert exports["geometry_and_frames"]["position_rms_mm"] == pytest.approx(
+        json.loads(urdf_alone)["position"]["rms"], rel=1e-9)
+    code, whole, _ = run_cli("evaluate", tmp_path / "elsewhere.toml", validation, "--json")
+    assert exports["whole_model"]["position_rms_mm"] == pytest.approx(json.loads(whole)["position"]["rms"], rel=1e-9)
+    assert f"{exports['geometry_and_frames']['position_rms_mm']:.4f} mm RMS on the validation poses" in note
 
 
 def test_the_target_hangs_from_the_tip_link(tmp_path):

@@ -268,7 +268,7 @@ def w6_auto(repeats: int = 1, data: Path = UR10_DATA) -> list[Row]:
     user runs them; the ≤ 8× target is theirs) and as calls of the Python API in one process."""
     import tempfile
 
-    from ..calibration.selection import learned_of
+    from ..calibration.choice import learned_of
     from ..io.measurements import load_measurements
 
     if not Path(data).is_file():

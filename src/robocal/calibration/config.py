@@ -10,6 +10,7 @@ from ..backend import BACKENDS
 from ..exceptions import InputError
 from ..io.measurements import ReadOptions
 from ..model.candidates import FRAME_CHOICES
+from ..model.prior import Prior
 from ..model.terms import TERMS
 from ..optimize.lm import LOSSES
 from .instrument import Instrument
@@ -135,6 +136,12 @@ class CalibrationConfig:
     point_distance: known distances between two points of a setup (``"A,B=MM"`` or (A, B, mm)),
     for data whose rows touched unknown points (:mod:`robocal.model.constraints`); distance_sigma:
     their standard uncertainty, mm.
+    prior: the widths of what is known of the parameters before measuring, over the robot file's
+    ``[prior]`` and the defaults (``KEY=WIDTH`` items, a mapping or a
+    :class:`~robocal.model.prior.Prior`: a kind such as ``length``/``angle``/``zero``/``harmonic``,
+    ``all``, or a parameter name; mm or deg, ``free`` for none).  row_order: the rows are in the
+    order they were measured, so that terms of time (drift) and of the direction of approach
+    (backlash) may take it where the data have no time or dir1..dirN columns.
     """
 
     method: str = "lm"
@@ -167,6 +174,8 @@ class CalibrationConfig:
     exclude: tuple[str, ...] = ()
     point_distance: tuple[tuple[str, str, float], ...] = ()
     distance_sigma: float = 0.05
+    prior: Prior | None = None
+    row_order: bool = False
 
     def __post_init__(self) -> None:
         set_ = object.__setattr__
@@ -198,6 +207,12 @@ class CalibrationConfig:
         set_(self, "exclude", _exclude(self.exclude))
         set_(self, "point_distance", point_distances(self.point_distance))
         set_(self, "distance_sigma", opt.number(self.distance_sigma, "distance_sigma", minimum=0.0, strict=True))
+        try:
+            set_(self, "prior", None if self.prior is None else Prior.parse(self.prior))
+        except ValueError as exc:
+            raise InputError(str(exc), option="prior") from None
+        if not isinstance(self.row_order, bool):
+            raise InputError(f"expected true or false, got {self.row_order!r}", option="row_order")
         model = ModelSettings(self.model, self.harmonics, self.payload)
         set_(self, "model", model.name)
         set_(self, "harmonics", model.harmonics)

@@ -7,7 +7,9 @@ implausible deviations.
   angle error periodic in that joint (Δq_i = Σ_h a_h cos(h q_i) + b_h sin(h q_i), h = 1, 2)
   pushed through the arm: the pattern a calibration engineer looks for when geometry is
   not the whole story (compliance under gravity, gear transmission errors).
-- :func:`implausible_deviations`: identified deviations beyond 10 mm or 0.1 rad.
+- :func:`physicality`: the verdict on the model: joint deviations beyond 10 mm or 0.1 rad,
+  or joint terms that turn a joint by more than a degree at the poses measured, are not
+  physical for a calibrated arm.
 """
 
 from __future__ import annotations
@@ -18,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..model.parameters import is_angle, is_frame
+from ..model.parameters import is_angle, is_frame, is_term
 from .problem import Problem
 from .statistics import ChiSquared
 
@@ -26,15 +28,19 @@ from .statistics import ChiSquared
 MISFIT_QUANTILE = 0.999
 #: identified joint deviations beyond these are not physical for a calibrated arm (mm, rad)
 PLAUSIBLE_LENGTH_MM, PLAUSIBLE_ANGLE_RAD = 10.0, 0.1
+#: a joint term that turns its joint by more than this at a measured pose (rad, 1°) is not physical:
+#: compliance, gears and drift move joints by hundredths of a degree
+PLAUSIBLE_TERM_RAD = math.radians(1.0)
 HARMONICS = (1, 2)
 
 
 @dataclass(frozen=True)
 class GoodnessOfFit(ChiSquared):
-    """χ² = Σ (residual/σ)² at the solution, on dof = N − k degrees of freedom."""
+    """χ² = Σ (residual/σ)² at the solution, on dof = N − k_eff degrees of freedom (k_eff: the
+    parameters' effective number, less than k where a prior holds some)."""
 
     chi2: float
-    dof: int
+    dof: float
     noise_source: str
 
     def misfit(self) -> bool:
@@ -46,9 +52,14 @@ class GoodnessOfFit(ChiSquared):
                 "noise_source": self.noise_source}
 
 
-def goodness_of_fit(problem: Problem, x: np.ndarray, noise_source: str) -> GoodnessOfFit:
+def goodness_of_fit(problem: Problem, x: np.ndarray, noise_source: str,
+                    effective: float | None = None) -> GoodnessOfFit:
+    """χ² of the data's whitened residuals (the prior's pseudo-observations are not data) on the
+    data's values less the parameters' effective number (``effective``: tr H over the data's rows,
+    the parameter count without a prior) and the eliminated points' and planes' unknowns."""
     r = problem.residuals(x)
-    return GoodnessOfFit(float(r @ r), int(r.size - problem.n_params - problem.n_nuisance), noise_source)
+    used = problem.n_params if effective is None else effective
+    return GoodnessOfFit(float(r @ r), float(problem.n_values - used - problem.n_nuisance), noise_source)
 
 
 def _row_pose(problem: Problem) -> np.ndarray:
@@ -94,7 +105,7 @@ def misfit_message(gof: GoodnessOfFit, patterns: list[tuple[int, float]]) -> str
     """The ``model misfit:`` warning: how far beyond the noise, and the joint that explains most."""
     limit = chi2_quantile(MISFIT_QUANTILE, gof.dof) / gof.dof
     text = (f"model misfit: the residuals are {math.sqrt(gof.reduced_chi2):.3g}× the stated noise (reduced χ² "
-            f"{gof.reduced_chi2:.3g} on {gof.dof} degrees of freedom, beyond its 99.9 % quantile {limit:.3g})")
+            f"{gof.reduced_chi2:.3g} on {gof.dof:.0f} degrees of freedom, beyond its 99.9 % quantile {limit:.3g})")
     if patterns and patterns[0][1] > 0.2:
         joint, share = patterns[0]
         text += (f"; an angle error of joint {joint} periodic in q{joint} explains {100 * share:.0f} % of what is "
@@ -102,17 +113,47 @@ def misfit_message(gof: GoodnessOfFit, patterns: list[tuple[int, float]]) -> str
     return text + "; or the stated noise is too small"
 
 
-def implausible_deviations(names: list[str], x: np.ndarray, uncertainty: np.ndarray | None,
-                           correlation: np.ndarray | None) -> str | None:
-    """A warning naming joint deviations beyond PLAUSIBLE_* and the likely cause, or None.
+@dataclass(frozen=True)
+class Physicality:
+    """The verdict on whether a calibrated model is physical: the deviations a real arm of its
+    kind does not have (name, value, unit as shown), and their likely cause."""
 
-    Frame parameters are left out: a base frame metres from the tracker is normal.
-    """
-    bad = [i for i, n in enumerate(names) if not is_frame(n)
-           and abs(x[i]) > (PLAUSIBLE_ANGLE_RAD if is_angle(n) else PLAUSIBLE_LENGTH_MM)]
+    implausible: tuple[tuple[str, float, str], ...] = ()
+    cause: str = ""
+
+    @property
+    def physical(self) -> bool:
+        return not self.implausible
+
+    def listed(self) -> str:
+        return ", ".join(f"{n} {v:+.4g} {u}" for n, v, u in self.implausible[:6]) + \
+            (" …" if len(self.implausible) > 6 else "")
+
+    def sentence(self) -> str:
+        """The warning: what is not physical, why, and that the model needs checking."""
+        return (f"implausible deviations (beyond {PLAUSIBLE_LENGTH_MM:g} mm or {PLAUSIBLE_ANGLE_RAD:g} rad of the "
+                f"geometry, or a joint term turning its joint by more than {math.degrees(PLAUSIBLE_TERM_RAD):g}°): "
+                f"{self.listed()}; likely cause: {self.cause}. The calibrated model is not physical; check before "
+                "using it")
+
+    def to_dict(self) -> dict:
+        return {"physical": self.physical, "cause": self.cause or None,
+                "implausible": [{"name": n, "value": v, "unit": u} for n, v, u in self.implausible]}
+
+
+def physicality(names: list[str], x: np.ndarray, uncertainty: np.ndarray | None, correlation: np.ndarray | None,
+                turns: dict[str, float] | None = None) -> Physicality:
+    """The verdict: joint deviations beyond PLAUSIBLE_* and joint terms whose largest turn of their
+    joint at a measured pose (``turns``: parameter → rad) exceeds PLAUSIBLE_TERM_RAD, with the
+    likely cause.  Frame parameters are left out: a base frame metres from the tracker is normal."""
+    turns = turns or {}
+    bad = [i for i, n in enumerate(names) if not is_frame(n) and (
+        abs(turns[n]) > PLAUSIBLE_TERM_RAD if n in turns else
+        abs(x[i]) > (PLAUSIBLE_ANGLE_RAD if is_angle(n) else PLAUSIBLE_LENGTH_MM) if not is_term(n) else False)]
     if not bad:
-        return None
-    shown = ", ".join(f"{names[i]} {x[i]:+.4g} {'rad' if is_angle(names[i]) else 'mm'}" for i in bad[:6])
+        return Physicality()
+    shown = tuple((names[i], float(np.degrees(turns[names[i]])), "° of turn") if names[i] in turns else
+                  (names[i], float(x[i]), "rad" if is_angle(names[i]) else "mm") for i in bad)
     cause = "nearly dependent parameters, a wrong nominal model, or a missing model term"
     if correlation is not None:
         c = np.abs(np.nan_to_num(correlation, nan=0.0))
@@ -122,8 +163,7 @@ def implausible_deviations(names: list[str], x: np.ndarray, uncertainty: np.ndar
         if c[i, j] > 0.99:
             cause = (f"{names[i]} and {names[j]} are nearly dependent (correlation {correlation[i, j]:+.4f}): "
                      f"{_dependency_hint(names[i], names[j])}")
-    return (f"implausible deviations (beyond {PLAUSIBLE_LENGTH_MM:g} mm or {PLAUSIBLE_ANGLE_RAD:g} rad): {shown}; "
-            f"likely cause: {cause}. The calibrated model is not physical; check before using it")
+    return Physicality(shown, cause)
 
 
 def _dependency_hint(a: str, b: str) -> str:

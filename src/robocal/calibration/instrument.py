@@ -262,10 +262,12 @@ def kind_weights(problem, x: np.ndarray) -> KindWeights:
     rows = np.repeat(c.rows, 3)
     n_pos = problem.n_position_rows()
     Jp = J[:n_pos]
-    inv = np.linalg.pinv(J.T @ J)
+    inv = np.linalg.pinv(J.T @ J + problem.prior_information())
     used = {kind: float(np.sum((Jp[mask].T @ Jp[mask]) * inv.T)) for kind, mask in (("contact", rows),
                                                                                      ("tracker", ~rows))}
     rss_c, rss_t = float(np.sum(dp[c.rows] ** 2)), float(np.sum(dp[~c.rows] ** 2))
-    dof_c = 3 * int(c.rows.sum()) - used["contact"] - c.n_unknowns
+    # a plane row says one value (its offset along the normal), a point row three
+    values = 3 * int(c.rows.sum()) - 2 * int(c.rows_of("plane").sum())
+    dof_c = values - used["contact"] - c.n_unknowns
     dof_t = 3 * int((~c.rows).sum()) - used["tracker"]
     return KindWeights(float(np.sqrt(rss_t / max(dof_t, 1.0))), float(np.sqrt(rss_c / max(dof_c, 1.0))))

@@ -11,6 +11,7 @@ Adding a method is one entry in :data:`robocal.calibration.registry.METHODS`.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -26,6 +27,9 @@ from .timing import stage
 
 #: swarms search frame parameters at least this far (mm, rad) around the registration
 FRAME_BOX = (5.0, 0.01)
+#: residual evaluations of the plain least-squares fit that finds the data's scale before the
+#: fit with the prior (:func:`fit_map`): a converging fit takes about ten
+SCALE_EVALUATIONS = 30
 
 
 @dataclass(frozen=True)
@@ -64,13 +68,43 @@ def swarm_box(names: list[str], method: str, box: tuple[float, float] | None) ->
 
 def fit_lm(problem: Problem, x0: np.ndarray, config: CalibrationConfig, progress: Progress | None = None,
            max_nfev: int | None = None, timed_as: str = "optimize") -> OptimizeResult:
-    """LM on ``problem`` from x0; its time counts to the stage ``timed_as`` (a cross-validation
-    fold's refit is model selection, not the method's optimizing)."""
+    """LM on ``problem`` from x0, the data with the prior (:meth:`Problem.map_residuals`); its time
+    counts to the stage ``timed_as`` (a cross-validation fold's refit is model selection, not the
+    method's optimizing)."""
     # residuals are whitened: the loss scale, given in mm, is counted in units of σp
     with stage(timed_as):
-        return levenberg_marquardt(problem.residuals, problem.residual_jacobian, x0, loss=config.loss,
+        return levenberg_marquardt(problem.map_residuals, problem.map_jacobian, x0, loss=config.loss,
                                    f_scale=config.f_scale / problem.setup.sigma_position,
                                    max_nfev=max_nfev or config.max_evaluations, callback=progress)
+
+
+def fit_map(problem: Problem, x0: np.ndarray, config: CalibrationConfig, progress: Progress | None = None,
+            scaled: bool = False) -> tuple[Problem, OptimizeResult]:
+    """The data with the prior, from x0: the problem it ended on (its weights) and LM's result.
+
+    The prior weighs against the data through the data's σ.  Where that σ is not stated it is
+    estimated from the residuals, and a fit that starts from a guessed σ can settle on the wrong
+    side: a prior weighed against a σ far too large pulls the deviations in, the residuals grow,
+    and the σ they show keeps the prior winning.  So the data's own scale comes first: a plain
+    least-squares fit, the σ its residuals show (:func:`~robocal.calibration.noise.block_sigmas`),
+    then the fit with the prior from there.  ``scaled``: the problem's σ already come from a fit
+    of these data (a parent model's settled weights), so the first fit is not needed."""
+    if not problem.has_prior or scaled or config.noise_model.stated(problem.uses_orientation):
+        return problem, fit_lm(problem, x0, config, progress)
+    from .noise import block_sigmas
+
+    plain = replace(problem.setup, prior=None).problem(problem.names)
+    # the scale only: along a valley the data cannot see, plain LM would crawl for thousands of
+    # evaluations without changing the residuals it leaves
+    first = fit_lm(plain, x0, config, progress, max_nfev=min(SCALE_EVALUATIONS, config.max_evaluations or math.inf))
+    if not np.all(np.isfinite(first.x)) or problem.n_residuals <= problem.n_params:
+        return problem, fit_lm(problem, x0, config, progress)
+    sigmas = block_sigmas(plain, first.x, config.noise_model)
+    problem = problem.setup.with_noise(*sigmas).problem(problem.names)
+    second = fit_lm(problem, first.x, config)
+    return problem, first.then(second, method=second.method, history=second.history,
+                               message=f"least squares for the data's scale (σp {sigmas[0]:.3g} mm, {first.nfev} "
+                                       f"evaluations), then with the prior: {second.message}")
 
 
 def reexpress(search: Problem, x_search: np.ndarray, problem: Problem) -> tuple[np.ndarray, float]:
@@ -115,18 +149,20 @@ def run_swarm(search: Problem, config: CalibrationConfig, progress: Progress | N
 
 
 def optimize(problem: Problem, search: Problem, config: CalibrationConfig,
-             progress: Progress | None = None, start: np.ndarray | None = None) -> Estimate:
-    """Run the configured method: LM on ``problem`` (the identifiable set), from ``start`` (its
-    parameters' values; None: the registered nominal model), swarms on ``search``."""
+             progress: Progress | None = None, start: np.ndarray | None = None, scaled: bool = False) -> Estimate:
+    """Run the configured method: LM on ``problem`` (the identifiable set, with its prior), from
+    ``start`` (its parameters' values; None: the registered nominal model), swarms on ``search``;
+    ``scaled``: the problem's σ are already the data's (see :func:`fit_map`)."""
     if config.spec.swarm is None:
-        opt = fit_lm(problem, np.zeros(problem.n_params) if start is None else start, config, progress)
+        problem, opt = fit_map(problem, np.zeros(problem.n_params) if start is None else start, config, progress,
+                               scaled)
         return Estimate(problem, opt, opt.x)
     swarm = run_swarm(search, config, progress)
     x_id, gap = reexpress(search, swarm.x, problem)
     swarm.extra.update({"searched": search.names})
     if not config.least_squares:
         return Estimate(problem, swarm, x_id, gap)
-    lm = fit_lm(problem, x_id, config)
+    problem, lm = fit_map(problem, x_id, config, scaled=scaled)
     history = np.concatenate([swarm.history, lm.history]) if config.objective_kind == "sum_squares" else lm.history
     merged = swarm.then(lm, method=f"{swarm.method}+{lm.method}", history=history,
                         message=f"{swarm.method.upper()} {swarm.nit} generations (best {swarm.fun:.6g}), then LM: "

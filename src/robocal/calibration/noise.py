@@ -27,6 +27,9 @@ from .problem import DEFAULT_K, Problem
 
 #: relative change of σ below which the reweighting has settled
 SETTLED = 1e-3
+#: with a prior, the data's σ itself sets their weight against it: a relative change of σ below
+#: this moves the prior-held directions by a few percent of their already small deviation
+PRIOR_SETTLED = 2e-2
 #: refits allowed to the reweighting
 MAX_REWEIGHTS = 6
 #: the Gauss–Newton step is taken as the refit when the χ² it reaches misses the χ² it
@@ -102,24 +105,33 @@ class NoiseEstimate:
 
 def leverage_split(problem: Problem, x: np.ndarray) -> tuple[float, float]:
     """Degrees of freedom the parameters use in the position and orientation blocks: the
-    traces of the hat matrix over each block's rows (they add up to the parameter count).
+    traces of the hat matrix over each block's rows (with stated distances and the prior's
+    pseudo-observations, they add up to the parameter count: a parameter held by its prior uses
+    none of the data's).
 
-    tr_b(H) = tr(J_bᵀJ_b (JᵀJ)⁻¹): k×k products only, whatever the number of poses.
+    tr_b(H) = tr(J_bᵀJ_b (JᵀJ + P)⁻¹): k×k products only, whatever the number of poses.
     """
     J = problem.residual_jacobian(x)
     n_pos, n_rot = problem.n_position_rows(), problem.n_orientation_rows()
     M_p = J[:n_pos].T @ J[:n_pos]
     M_r = J[n_pos:n_pos + n_rot].T @ J[n_pos:n_pos + n_rot]
     M_d = J[n_pos + n_rot:].T @ J[n_pos + n_rot:]  # stated distances: they use some too, but have their σ
-    inv = np.linalg.pinv(M_p + M_r + M_d)
+    inv = np.linalg.pinv(M_p + M_r + M_d + problem.prior_information())
     return float(np.sum(M_p * inv.T)), float(np.sum(M_r * inv.T))
+
+
+def position_values(problem: Problem) -> float:
+    """The position block's values less what the eliminated points and planes use: three per
+    measured point or point row, one per plane row (its offset along the normal)."""
+    planes = 0 if problem.constraints is None else int(problem.constraints.rows_of("plane").sum())
+    return 3 * problem.meas.n_poses - 2 * planes - problem.n_nuisance
 
 
 def block_sigmas(problem: Problem, x: np.ndarray, model: NoiseModel) -> tuple[float, float]:
     """σp, σr that these residuals show, keeping whatever the model states."""
     dp, dr = problem.scaled_errors(x)
     rss_p = float(np.sum(dp * dp))
-    n_p = dp.size - problem.n_nuisance  # the eliminated points and planes used some of the rows
+    n_p = position_values(problem)
     used_p, used_r = leverage_split(problem, x)
     sr = problem.setup.sigma_orientation
     if dr is None:
@@ -144,8 +156,8 @@ def settle(problem: Problem, x: np.ndarray, model: NoiseModel, iterations: int =
     linearised problem at x: each round takes the Gauss–Newton step of the current weights
     from one Jacobian, estimates the blocks' σ from the residuals it predicts (as
     :func:`block_sigmas`), and stops when the ratio settles.  The step then is the refit a
-    chain of refits would end with, to first order (full-pose data; position-only data settle
-    at once, see :func:`settled`)."""
+    chain of refits would end with, to first order (full-pose data, or any data with a prior;
+    position-only data without one settle at once, see :func:`settled`)."""
     sp, sr = problem.setup.sigma_position, problem.setup.sigma_orientation
     n_pos, n_r = problem.n_position_rows(), problem.n_orientation_rows()
     r = problem.residuals(x)
@@ -154,12 +166,15 @@ def settle(problem: Problem, x: np.ndarray, model: NoiseModel, iterations: int =
     rot = slice(n_pos, n_pos + n_r)
     r_p, r_r, J_p, J_r = r[:n_pos] * sp, r[rot] * sr, J[:n_pos] * sp, J[rot] * sr
     r_d, J_d = r[n_pos + n_r:], J[n_pos + n_r:]
-    P_p, P_r, P_d = J_p.T @ J_p, J_r.T @ J_r, J_d.T @ J_d
-    g_p, g_r, g_d = J_p.T @ r_p, J_r.T @ r_r, J_d.T @ r_d
-    c_p, c_r, c_d = float(r_p @ r_p), float(r_r @ r_r), float(r_d @ r_d)
-    n_free = n_pos - problem.n_nuisance  # the eliminated points and planes used some of the rows
+    # the prior's pseudo-observations: their weight does not change with the data's
+    W = problem.prior_information()
+    P_p, P_r, P_d = J_p.T @ J_p, J_r.T @ J_r, J_d.T @ J_d + W
+    g_p, g_r, g_d = J_p.T @ r_p, J_r.T @ r_r, J_d.T @ r_d + W @ x
+    c_p, c_r, c_d = float(r_p @ r_p), float(r_r @ r_r), float(r_d @ r_d) + float(x @ W @ x)
+    n_free = position_values(problem)
     sigmas = (sp, sr)
-    for _ in range(iterations if n_r else 1):
+    prior = problem.has_prior
+    for _ in range(iterations if n_r or prior else 1):
         wp, wr = sigmas[0] ** -2, (sigmas[1] ** -2 if n_r else 0.0)
         inv = np.linalg.pinv(wp * P_p + wr * P_r + P_d)
         step = -inv @ (wp * g_p + wr * g_r + g_d)
@@ -171,7 +186,7 @@ def settle(problem: Problem, x: np.ndarray, model: NoiseModel, iterations: int =
             new = (_block_values(rss_p, n_free, used[0], 0.0, 0, 0.0, model)[0], sr)
         else:
             new = _block_values(rss_p, n_free, used[0], rss_r, n_r, used[1], model)
-        done = settled(sigmas, new, bool(n_r))
+        done = settled(sigmas, new, bool(n_r), prior)
         sigmas = new
         if done:
             break
@@ -189,10 +204,14 @@ def confirmed(problem: Problem, x: np.ndarray, target: Settled, model: NoiseMode
     again, with the degrees of freedom of the linearised fit (no Jacobian needed)."""
     dp, dr = problem.scaled_errors(x)
     if dr is None:
-        return True
-    again = _block_values(float(np.sum(dp * dp)), dp.size, target.used[0], float(np.sum(dr * dr)), dr.size,
-                          target.used[1], model)
-    return settled(target.sigmas, again, True)
+        if not problem.has_prior:
+            return True
+        again = (_block_values(float(np.sum(dp * dp)), position_values(problem), target.used[0], 0.0, 0, 0.0,
+                               model)[0], target.sigmas[1])
+        return settled(target.sigmas, again, False, True)
+    again = _block_values(float(np.sum(dp * dp)), position_values(problem), target.used[0], float(np.sum(dr * dr)),
+                          dr.size, target.used[1], model)
+    return settled(target.sigmas, again, True, problem.has_prior)
 
 
 def _block_values(rss_p, n_p, used_p, rss_r, n_r, used_r, model: NoiseModel) -> tuple[float, float]:
@@ -208,13 +227,15 @@ def _block_values(rss_p, n_p, used_p, rss_r, n_r, used_r, model: NoiseModel) -> 
 
 def _sigma(rss: float, dof: float) -> float:
     # a floor keeps the weights finite for noise-free data
-    return max(math.sqrt(rss / dof) if dof > 0 else 0.0, 1e-12)
+    return max(math.sqrt(max(rss, 0.0) / dof) if dof > 0 else 0.0, 1e-12)
 
 
-def settled(old: tuple[float, float], new: tuple[float, float], full_pose: bool) -> bool:
-    """Whether new weights would change the fit: only the ratio σp/σr does (a common scale of
-    all residuals leaves the least-squares solution where it is), so position-only data settle
-    at once."""
+def settled(old: tuple[float, float], new: tuple[float, float], full_pose: bool, prior: bool = False) -> bool:
+    """Whether new weights would change the fit.  Without a prior only the ratio σp/σr does (a
+    common scale of all residuals leaves the least-squares solution where it is), so
+    position-only data settle at once; with one, each σ weighs its block against the prior."""
+    if prior and any(abs(n / o - 1.0) > PRIOR_SETTLED for n, o in zip(new[:1 + full_pose], old[:1 + full_pose])):
+        return False
     if not full_pose:
         return True
     return abs(new[0] / new[1] - old[0] / old[1]) <= SETTLED * old[0] / old[1]

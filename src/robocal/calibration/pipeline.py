@@ -1,20 +1,20 @@
 """The calibration pipeline: nominal robot + measurements → calibrated robot and honest figures.
 
-:func:`calibrate` runs the steps of :mod:`robocal.calibration.steps` through the choice of
-model (:mod:`robocal.calibration.selection`: steps 2–9 once per model, or a ladder of them
-for ``auto``), the final guard, and the evaluation:
+:func:`calibrate` runs the steps of a calibration through the choice of model
+(:mod:`robocal.calibration.selection`: steps 2–9 once per model, or a ladder of them for
+``auto``), the final guard, and the evaluation:
 
-1. :func:`~.steps.load_inputs`: robot, data and validation data, checked against each other;
-2. :func:`~.steps.register`: a complete model (DH + β on parallel axes), the measuring frame
-   (and tool offsets) in closed form, the noise weighting to start with;
-3. :func:`~.steps.choose_candidates`: the parameters offered, from the config;
-4. :func:`~.steps.analyse_identifiability`: the identifiable subset, the rest dropped with reasons;
+1. :func:`~.inputs.load_inputs`: robot, data and validation data, checked against each other;
+2. :func:`~.parametric.register`: a complete model (DH + β on parallel axes), the measuring
+   frame (and tool offsets) in closed form, the noise weighting to start with;
+3. :func:`~.subset.choose_candidates`: the parameters offered, from the config;
+4. :func:`~.subset.analyse_identifiability`: the identifiable subset, the rest dropped with reasons;
 5. :func:`robocal.calibration.methods.optimize`: the configured method;
-6. :func:`~.steps.screen_outliers`: with a robust loss, outliers left out and the inliers refitted;
-7. :func:`~.steps.reweigh`: σ estimated per residual block where not stated, and the fit repeated;
-8. :func:`~.steps.refine_at_estimate`: identifiability re-checked at the estimate (F-test);
-9. :func:`~.steps.judge`: goodness of fit, standard uncertainties, misfit and plausibility warnings;
-10. :func:`~.selection.guard`, then :func:`~.steps.evaluate`: before/after metrics.
+6. :func:`~.screening.screen_outliers`: with a robust loss, outliers left out and the inliers refitted;
+7. :func:`~.weighting.reweigh`: σ estimated per residual block where not stated, and the fit repeated;
+8. :func:`~.subset.refine_at_estimate`: identifiability re-checked at the estimate (F-test);
+9. :func:`~.judgement.judge`: goodness of fit, standard uncertainties, misfit and plausibility warnings;
+10. :func:`~.guard.guard`, then :func:`evaluate`: before/after metrics.
 
 "Before" figures use the nominal joint geometry with the registered frames, i.e. the best
 a rigid re-mounting of the nominal model can do, so that the improvement shown is the
@@ -34,16 +34,19 @@ from ..backend import blas_threads
 from ..exceptions import RobocalWarning
 from ..model.covariance import ParameterCovariance
 from ..model.measurements import Measurements
+from ..model.metrics import Metrics
 from ..model.region import Region
 from ..model.robot import Robot
 from ..model.uncertainty import known_targets, predicted_sigma
 from ..optimize.result import Progress
 from .config import CalibrationConfig
+from .guard import guard
+from .inputs import load_inputs
 from .problem import warm_up
 from .residual import MAX_POINTS
-from .result import CalibrationResult
-from .selection import fit_model, guard
-from .steps import evaluate, load_inputs
+from .result import CalibrationResult, ExportFigures
+from .screening import Screening
+from .selection import fit_model
 from .timing import stage, timed
 
 
@@ -101,6 +104,51 @@ def order_notes(fit, meas: Measurements) -> list[str]:
     return notes
 
 
+def evaluate(initial: Robot, calibrated: Robot, meas: Measurements, all_rows: Measurements,
+             validation: Measurements | None, screening: Screening) -> tuple[dict[str, Metrics], list[str]]:
+    """Step 10: before/after metrics on the calibration data and, when given, on validation data;
+    with outliers left out, validation of the plain fit that kept them too."""
+    notes: list[str] = []
+    metrics = {"before": Metrics.of(initial, meas), "after": Metrics.of(calibrated, meas)}
+    if all_rows is not meas:
+        metrics["after_all_rows"] = Metrics.of(calibrated, all_rows)
+    if validation is not None:
+        metrics["validation_before"] = Metrics.of(initial, validation)
+        metrics["validation_after"] = Metrics.of(calibrated, validation)
+        if screening.with_outliers is not None:
+            kept = metrics["validation_with_outliers_kept"] = Metrics.of(screening.with_outliers, validation)
+            notes.append(f"leaving out {len(screening.outliers)} outlier poses changed the validation RMS from "
+                         f"{kept.position['rms']:.4g} mm (plain fit of every pose) to "
+                         f"{metrics['validation_after'].position['rms']:.4g} mm")
+        from ..model.uncertainty import known_targets, region_note
+
+        said = region_note(calibrated, validation.q, known_targets(calibrated, validation), validation.inputs)
+        if said:
+            notes.append(f"validation: {said}")
+    return metrics, notes
+
+
+def export_figures(calibrated: Robot, metrics: dict, meas: Measurements, validation: Measurements | None,
+                   geometry: Metrics | None) -> ExportFigures:
+    """The figures of the whole model and of its geometry and frames alone (what a URDF or a
+    kinematics YAML holds), on the validation poses when given, else predicted by cross-validation
+    (``geometry``: the held-out figures of that part), else in-sample."""
+    bare = calibrated.replace(terms=None, residual=None)
+    geometric = calibrated.geometric
+    if validation is not None:
+        key, part = "validation", Metrics.of(bare, validation)
+        whole = metrics["validation_after"]
+    elif "predicted" in metrics and geometry is not None:
+        key, part, whole = "predicted", geometry, metrics["predicted"]
+    else:
+        key, whole = "fit", metrics["after"]
+        part = whole if geometric else Metrics.of(bare, meas)
+    if geometric:
+        part = whole
+    return ExportFigures(key, whole.position["rms"], whole.position["max"], part.position["rms"],
+                         part.position["max"], geometric)
+
+
 def _validated(table, chosen: str, metrics) -> list:
     """The ladder, with the chosen model's validation RMS as the calibrated model gives it (with
     its region and how well it knows its TCP there), the figure the error budget and the metrics show."""
@@ -137,6 +185,7 @@ def _calibrate(robot, data, validate, cfg: CalibrationConfig, columns, progress,
     notes += said
     if chosen.prediction is not None:  # what the held-out poses said: the headline without validation poses
         metrics = {"before": metrics["before"], "predicted": chosen.prediction, **metrics}
+    exports = export_figures(calibrated, metrics, est.problem.meas, inputs.validation, chosen.exported_prediction)
     contact = {}
     for key, robot, data in (("before", initial, est.problem.meas), ("after", calibrated, est.problem.meas),
                              ("validation_before", initial, inputs.validation),
@@ -153,4 +202,6 @@ def _calibrate(robot, data, validate, cfg: CalibrationConfig, columns, progress,
         model=chosen.name, model_selection=_validated(chosen.table, chosen.name, metrics), error_budget=budget,
         geometric=None if chosen.geometric is None or chosen.geometric is fit else chosen.geometric.robot,
         instrument=fit.instrument, all_rows=inputs.meas, excluded=cfg.exclude, contact=contact,
+        prior_sigma=est.problem.prior_sigma if est.problem.has_prior else None, prior_share=fit.prior_share,
+        physical=fit.physical, at_estimate=fit.at_estimate, exports=exports,
     )

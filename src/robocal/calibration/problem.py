@@ -33,6 +33,7 @@ from ..model.measurements import Measurements
 from ..model.parameters import ParameterSpace, is_angle
 
 if TYPE_CHECKING:
+    from ..model.prior import Prior
     from .instrument import InstrumentWeights
 
 #: default orientation weight k of the pose objective, mm²/rad², when no noise is stated: 1 rad
@@ -50,6 +51,8 @@ class Setup:
     backend: ``auto``, ``numba`` or ``numpy`` for swarm objectives.  instrument: per-point
     weight factors from the instrument's σ of each measured value (see
     :mod:`robocal.calibration.instrument`), None to weigh every point of a block alike.
+    prior: the prior σ of every parameter of the space (its own units; inf where free, see
+    :mod:`robocal.model.prior`), or None for plain least squares.
     """
 
     space: ParameterSpace
@@ -59,6 +62,7 @@ class Setup:
     use_orientation: bool = True
     backend: str = "auto"
     instrument: InstrumentWeights | None = None
+    prior: np.ndarray | None = None
 
     @property
     def full_pose(self) -> bool:
@@ -77,6 +81,20 @@ class Setup:
 
     def with_noise(self, sigma_position: float, sigma_orientation: float) -> Setup:
         return replace(self, sigma_position=sigma_position, sigma_orientation=sigma_orientation)
+
+    def with_prior(self, prior: Prior | None) -> Setup:
+        """The same setup with ``prior``'s σ for every parameter of its space (None: none).  A
+        compliance's width is a deflection at the data's load: divided by the RMS over these
+        poses of its basis, so that a fold of them keeps the whole data's σ."""
+        if prior is None:
+            return replace(self, prior=None)
+        space = self.space
+        load = {}
+        joints = space.joint_data(self.meas.q, self.meas.inputs) if space.n_term_params else None
+        if joints is not None:
+            rms = np.sqrt(np.mean(np.sum(joints.basis ** 2, axis=1), axis=0))
+            load = dict(zip(space.terms.names(space.robot.n_joints), rms))
+        return replace(self, prior=prior.sigmas(space.names, space.robot.prismatic, load))
 
     def around(self, robot) -> Setup:
         """The same setup with the parameter space around another robot (e.g. the estimate)."""
@@ -124,6 +142,11 @@ class Problem:
         self.constraints = self.meas.constraints
         self._frames_active = bool(np.any(self.active >= self.space.n_joint_params))
         self._backend = resolve(setup.backend)  # read once: ROBOCAL_NO_NUMBA as it is when the problem is set up
+        # 1/σ of each estimated parameter's prior (0 where free): one pseudo-observation x_i/σ_i each
+        sigma = np.full(len(self.active), np.inf) if setup.prior is None else setup.prior[self.active]
+        self.prior_sigma = sigma
+        self._prior_w = np.where(np.isfinite(sigma), 1.0 / np.where(np.isfinite(sigma), sigma, 1.0), 0.0)
+        self._prior_rows = np.flatnonzero(self._prior_w > 0)
 
     @property
     def names(self) -> list[str]:
@@ -140,6 +163,23 @@ class Problem:
     @property
     def n_residuals(self) -> int:
         return self.meas.n_poses * (6 if self.uses_orientation else 3) + self.n_distances
+
+    @property
+    def n_prior(self) -> int:
+        """Pseudo-observations of the prior: one per estimated parameter that is not free."""
+        return len(self._prior_rows)
+
+    @property
+    def has_prior(self) -> bool:
+        return self.n_prior > 0
+
+    @property
+    def n_values(self) -> float:
+        """The data's values: three per measured point or point row, one per plane row (its
+        offset along the plane's normal is all it says), three per orientation, one per stated
+        distance; the eliminated points and planes are counted apart (:attr:`n_nuisance`)."""
+        planes = 0 if self.constraints is None else int(self.constraints.rows_of("plane").sum())
+        return self.n_residuals - 2 * planes
 
     @property
     def n_distances(self) -> int:
@@ -297,3 +337,25 @@ class Problem:
                 Jr = apply_right_jacobian_inv(dr, w)
             out[:, 3 * m : 6 * m] = -self._wr * Jr.reshape(k, 3 * m)
         return out.T
+
+    def prior_information(self) -> np.ndarray:
+        """The prior's information (k, k): diag(1/σ²), zero where free."""
+        return np.diag(self._prior_w ** 2)
+
+    def map_residuals(self, x: np.ndarray) -> np.ndarray:
+        """What least squares minimises: the whitened data residuals (:meth:`residuals`), then
+        the prior's pseudo-observations x_i/σ_i (MAP; the deviations' prior mean is the nominal
+        model, zero).  Without a prior, :meth:`residuals` itself."""
+        r = self.residuals(x)
+        if not self.has_prior:
+            return r
+        return np.concatenate([r, self._prior_w[self._prior_rows] * np.asarray(x)[self._prior_rows]])
+
+    def map_jacobian(self, x: np.ndarray) -> np.ndarray:
+        """∂(:meth:`map_residuals`)/∂x: the data's rows, then one row per prior (1/σ_i at i)."""
+        J = self.residual_jacobian(x)
+        if not self.has_prior:
+            return J
+        P = np.zeros((self.n_prior, self.n_params))
+        P[np.arange(self.n_prior), self._prior_rows] = self._prior_w[self._prior_rows]
+        return np.asfortranarray(np.vstack([J, P]))

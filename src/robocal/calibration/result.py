@@ -16,14 +16,16 @@ from ..model.kinematics import joint_parameter_names
 from ..model.measurements import Measurements
 from ..model.metrics import Metrics
 from ..model.parameters import is_frame, unit
+from ..model.prior import HELD
 from ..model.robot import Robot
 from ..model.terms import reported_unit
 from ..model.uncertainty import UncertaintyMap, tcp_map
 from ..optimize.result import OptimizeResult
 from .config import CalibrationConfig
-from .diagnostics import GoodnessOfFit
+from .diagnostics import GoodnessOfFit, Physicality
 from .identifiability import Identifiability
 from .instrument import InstrumentFit
+from .judgement import AtEstimate
 from .noise import NoiseEstimate
 
 #: version of the result JSON; 2 added ``schema_version``, the structured ``dropped`` reasons
@@ -38,8 +40,11 @@ from .noise import NoiseEstimate
 #: ``backlash1..N`` (deg) and ``drift1..N`` (deg/h or deg/1000 rows), ``tcp_uncertainty`` (the
 #: predicted position's σ over the calibrated region: points, median_mm, p95_mm, max_mm); 6 dropped
 #: ``fallback`` (the whole model is used everywhere), ``region`` gained ``sigma_mm`` and
-#: ``tcp_uncertainty`` counts the residual process's own variance
-SCHEMA_VERSION = 6
+#: ``tcp_uncertainty`` counts the residual process's own variance; 7 added the prior (per parameter
+#: ``prior_sigma``, ``prior_share``, ``pinned_by``; ``held_by_prior``), ``physical`` (the verdict),
+#: ``exports`` (what a TOML, a URDF and a YAML hand their receivers) and ``identifiability.at_estimate``;
+#: ``goodness_of_fit.dof`` counts the parameters' effective number and a plane row as one value
+SCHEMA_VERSION = 7
 #: a deviation smaller than this many standard uncertainties is "not significant"
 SIGNIFICANCE_SIGMAS = 2.0
 
@@ -77,6 +82,51 @@ class BudgetRow:
     def to_dict(self) -> dict:
         out = {"model": self.model, "validation_rms_mm": self.validation_rms_mm, "removed_mm": self.removed_mm}
         return out if self.axes_mm is None else {**out, "axes_rms_mm": dict(zip("xyz", self.axes_mm))}
+
+
+@dataclass(frozen=True)
+class ExportFigures:
+    """What each kind of export hands its receiver, on the same poses: the whole model (a robot
+    TOML, which every robocal command reads) and its geometry and frames alone (what a URDF or a
+    kinematics YAML can hold: a controller or ROS gets no joint terms and no learned correction).
+    figure: ``validation`` (the validation poses), ``predicted`` (5-fold cross-validation of the
+    calibration poses) or ``fit``; RMS and max position errors in mm."""
+
+    figure: str
+    whole_rms_mm: float
+    whole_max_mm: float
+    geometry_rms_mm: float
+    geometry_max_mm: float
+    #: the model holds no more than geometry and frames: every export carries it whole
+    geometric: bool
+
+    @property
+    def where(self) -> str:
+        return {"validation": "on the validation poses", "predicted": "predicted on new poses (5-fold "
+                "cross-validation)"}.get(self.figure, "on the calibration poses (in-sample)")
+
+    def sentence(self, path, sidecar=None) -> str:
+        """What the file at ``path`` holds, and how accurate that is: one line for the terminal."""
+        suffix = Path(path).suffix.lower()
+        whole = f"{self.whole_rms_mm:.4f} mm RMS {self.where}"
+        if suffix not in (".urdf", ".yaml", ".yml") or self.geometric:
+            held = "the whole model" if suffix not in (".urdf", ".yaml", ".yml") else "the whole model (geometry " \
+                "and frames)"
+            return f"{path} holds {held}: {whole}"
+        frames = "geometry (its frames are in" if suffix != ".urdf" else "geometry and frames (the whole model is in"
+        return (f"{path} holds the {frames} {sidecar or 'the robot TOML beside it'}): a controller or ROS reading it "
+                f"gets {self.geometry_rms_mm:.4f} mm RMS {self.where}, where the whole model gets {whole}; its "
+                "joint terms and learned correction reach the robot only through robocal filter and compensate")
+
+    def to_dict(self) -> dict:
+        return {"figure": self.figure, "whole_model": {"position_rms_mm": self.whole_rms_mm,
+                                                       "position_max_mm": self.whole_max_mm,
+                                                       "held_by": ["robot TOML"]},
+                "geometry_and_frames": {"position_rms_mm": self.geometry_rms_mm,
+                                        "position_max_mm": self.geometry_max_mm,
+                                        "held_by": ["URDF", "kinematics YAML (geometry only)"]},
+                "reaches_the_robot": "the whole model through robocal filter and compensate; a URDF or YAML "
+                                     "alone carries geometry and frames"}
 
 
 @dataclass
@@ -127,6 +177,23 @@ class CalibrationResult:
     #: data whose rows touched unknown points or planes: their figures (point_spread_rms,
     #: plane_rms, distance_error_rms, mm) per set, ``before``/``after``/``validation_…``
     contact: dict = field(default_factory=dict)
+    #: each identified parameter's prior σ (its own units; inf: free) and prior share (0: the data
+    #: alone pin it; above :data:`robocal.model.prior.HELD`: held by its prior), None without a prior
+    prior_sigma: np.ndarray | None = field(default=None, repr=False)
+    prior_share: np.ndarray | None = field(default=None, repr=False)
+    #: the verdict on whether the model is physical (:func:`robocal.calibration.diagnostics.physicality`)
+    physical: Physicality = field(default_factory=Physicality)
+    #: the kept set's identifiability where the fit ended (:class:`~robocal.calibration.judgement.AtEstimate`)
+    at_estimate: AtEstimate | None = None
+    #: what each kind of export hands its receiver (:class:`ExportFigures`)
+    exports: ExportFigures | None = None
+
+    @property
+    def held(self) -> list[str]:
+        """The parameters the poses do not pin: their prior tells more of them than the data do."""
+        if self.prior_share is None:
+            return []
+        return [n for n, h in zip(self.names, self.prior_share) if h > HELD]
 
     def headline(self) -> tuple[str, str, Metrics]:
         """The figure to lead with: (key, label, metrics): accuracy on the validation poses when
@@ -157,7 +224,9 @@ class CalibrationResult:
         m, nan = self.metrics, float("nan")
         pick = {"rms": ("after", "rms"), "max": ("after", "max"), "cv_rms": ("predicted", "rms"),
                 "validation_rms": ("validation_after", "rms"), "validation_max": ("validation_after", "max")}
-        return {k: m[key].position[f] if key in m else nan for k, (key, f) in pick.items()}
+        out = {k: m[key].position[f] if key in m else nan for k, (key, f) in pick.items()}
+        return {**out, "physical": self.physical.physical,
+                "physical_reason": f"the calibrated model is not physical: {self.physical.listed()}"}
 
     def headline_text(self) -> str:
         """One line: the honest figure first, the fit beside it, labelled as what it is."""
@@ -168,6 +237,8 @@ class CalibrationResult:
         text = f"{what} {m.position['rms']:.4f} mm, max {m.position['max']:.4f} mm {label}"
         if key != "after":
             text += f"; the fit itself {fit['rms']:.4f} mm (in-sample)"
+        if not self.physical.physical:  # the figure is not the model: a controller loads the model
+            text += f"; the model is not physical ({self.physical.listed()}): check it before use"
         return text
 
     def per_pose(self) -> list[dict]:
@@ -251,12 +322,19 @@ class CalibrationResult:
         for i, n in enumerate(self.names):
             nominal = initial_values.get(n, 0.0)
             shown, scale = reported_unit(n, self.robot.terms) or (unit(n), 1.0)
+            prior = {}
+            if self.prior_sigma is not None:
+                sigma = float(self.prior_sigma[i])
+                prior = {"prior_sigma": _finite_or_none(scale * sigma),
+                         "prior_share": None if self.prior_share is None else float(self.prior_share[i]),
+                         "pinned_by": "free" if not math.isfinite(sigma) else "prior" if n in self.held else "data"}
             params.append({
                 "name": n, "unit": shown, "nominal": scale * nominal, "error": scale * float(self.x[i]),
                 "value": scale * (nominal + float(self.x[i])),
                 "uncertainty": None if self.uncertainty is None else _finite_or_none(scale * self.uncertainty[i]),
                 "significant": self.significant(i),
                 "absorbs": [{"name": d, "coefficient": c} for d, c in ident.absorbed_by(n)],
+                **prior,
                 # frame parameters are deviations from the closed-form registration, not from a file value
                 **({"relative_to": "registration"} if is_frame(n) else {}),
             })
@@ -270,6 +348,9 @@ class CalibrationResult:
             "k_mm2_per_rad2": self.k,
             "noise": None if self.noise is None else self.noise.to_dict(),
             "goodness_of_fit": None if self.goodness_of_fit is None else self.goodness_of_fit.to_dict(),
+            "physical": self.physical.to_dict(),
+            "exports": None if self.exports is None else self.exports.to_dict(),
+            "held_by_prior": self.held,
             "instrument": None if self.instrument is None else self.instrument.to_dict(),
             "excluded": list(self.excluded),
             "tcp_uncertainty": None if self.tcp_uncertainty is None else self.tcp_uncertainty.summary(),
@@ -289,7 +370,8 @@ class CalibrationResult:
             "parameters": params,
             "dropped": [{"name": n, "reason": ident.reasons[n].text(), **ident.reasons[n].to_dict()}
                         for n in ident.dropped],
-            "identifiability": ident.to_dict(),
+            "identifiability": {**ident.to_dict(),
+                                **({} if self.at_estimate is None else {"at_estimate": self.at_estimate.to_dict()})},
             "headline": {"figure": self.headline()[0], "position_rms_mm": self.headline()[2].position["rms"],
                          "position_max_mm": self.headline()[2].position["max"]},
             "metrics": {k: v.to_dict() for k, v in self.metrics.items()},

@@ -107,7 +107,8 @@ def leave_one_out(position_errors: np.ndarray, J: np.ndarray) -> np.ndarray:
     return out
 
 
-def robust_outliers(position_errors: np.ndarray) -> tuple[np.ndarray, float]:
+def robust_outliers(position_errors: np.ndarray, kinds: np.ndarray | None = None,
+                    dofs: dict[int, int] | None = None) -> tuple[np.ndarray, float]:
     """Poses that fail the outlier test, and the robust σ (mm per axis).
 
     The test, on (ideally leave-one-out, see :func:`leave_one_out`) position errors: |δp|
@@ -117,18 +118,47 @@ def robust_outliers(position_errors: np.ndarray) -> tuple[np.ndarray, float]:
     at least OUTLIER_GAP times the next.  A lost beam or a mislabelled row stands apart from the
     rest; the residuals of an incomplete model (real robots: compliance, gears) form a
     continuous tail, which no gap cuts, however far it reaches.
+
+    kinds: an integer label per row (tracker rows, rows that touched points, rows that touched
+    planes): each kind's σ is its own, and ``dofs`` gives the values a row of each kind carries (3
+    for a point, 1 for a plane row: its offset along the normal, whose |e| follows χ with 1
+    degree of freedom).  Each row's |e|/σ is carried to the Maxwell law (χ with 3) at the same tail
+    probability, so one bound and one gap serve every kind.  The σ returned is the first kind's.
     """
     norm = np.linalg.norm(position_errors, axis=1)
-    sigma = float(np.median(norm)) / MAXWELL_MEDIAN
+    kinds = np.zeros(len(norm), dtype=int) if kinds is None else np.asarray(kinds, dtype=int)
+    dofs = dofs or {}
+    z = np.zeros(len(norm))
+    sigma = None
+    for kind in np.unique(kinds):
+        rows = kinds == kind
+        dof = dofs.get(int(kind), 3)
+        s = float(np.median(norm[rows])) / MEDIANS[dof]
+        sigma = s if sigma is None else sigma
+        # a floor of 1e-9 mm: noise-free data have no outliers in their rounding
+        z[rows] = norm[rows] / max(s, 1e-9) if dof == 3 else _as_maxwell(norm[rows] / max(s, 1e-9), dof)
+    sigma = 0.0 if sigma is None else sigma
     if len(norm) < MIN_POSES_FOR_OUTLIERS:
         return np.zeros(0, dtype=int), sigma
-    bound = OUTLIER_SIGMAS * max(sigma, 1e-9)
-    order = np.argsort(-norm)
-    ranked = norm[order]
-    gaps = np.flatnonzero((ranked[:-1] > bound) & (ranked[:-1] >= OUTLIER_GAP * ranked[1:]))
+    order = np.argsort(-z)
+    ranked = z[order]
+    gaps = np.flatnonzero((ranked[:-1] > OUTLIER_SIGMAS) & (ranked[:-1] >= OUTLIER_GAP * ranked[1:]))
     if not gaps.size:
         return np.zeros(0, dtype=int), sigma
     return np.sort(order[:gaps[-1] + 1]), sigma
+
+
+#: medians of χ with 1 and 3 degrees of freedom, in units of the per-axis σ: the half-normal's
+#: and the Maxwell law's
+MEDIANS = {1: 0.6744898, 3: MAXWELL_MEDIAN}
+
+
+def _as_maxwell(x: np.ndarray, dof: int) -> np.ndarray:
+    """χ values with ``dof`` degrees of freedom carried to the Maxwell law's at the same tail probability."""
+    from scipy.special import chdtrc, chdtri
+
+    tail = np.clip(chdtrc(dof, x ** 2), 1e-300, 1.0)
+    return np.sqrt(chdtri(3, tail))
 
 
 def chi2_summary(chi2: float, dof: float) -> tuple[float | None, float | None]:

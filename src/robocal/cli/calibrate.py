@@ -33,7 +33,7 @@ COMPILE_SAID_S = 1.5
 CONFIG_FIELDS = ("method", "frames", "params", "seed", "objective", "noise", "angle_noise", "k", "loss", "f_scale",
                  "particles", "iterations", "box", "halton", "backend", "model", "harmonics", "payload", "joint_unit",
                  "length_unit", "instrument", "delimiter", "decimal", "euler", "exclude", "point_distance",
-                 "distance_sigma")
+                 "distance_sigma", "prior", "row_order")
 #: the command's own options: its inputs and outputs, how to read them, and what it prints
 CLI_ONLY = ("robot", "data", "validate", "out", "export", "report", "column", "base_link", "tip_link", "quiet",
             "position_only", "poses_out", "exclude_file", "as_json", "require")
@@ -85,7 +85,10 @@ def _print_summary(result, robot_name: str, data: Path) -> None:
     ident, opt = result.identifiability, result.optimization
     out.print(f"model {result.model}: " + f"{len(result.names)} parameters identified, {len(ident.dropped)} dropped"
               + (f" ({', '.join(ident.dropped)})" if ident.dropped else "")
-              + f"; condition number {ident.condition:.3g}; {opt.status} ({opt.method}) after {opt.nit} iterations, "
+              + f"; condition number {ident.condition:.3g}"
+              + ("" if result.at_estimate is None else f" ({result.at_estimate.condition:.3g} at the estimate)")
+              + (f"; held by their prior: {', '.join(result.held)}" if result.held else "")
+              + f"; {opt.status} ({opt.method}) after {opt.nit} iterations, "
               f"{opt.nfev} evaluations")
     out.print(timing_line(result.timings))
 
@@ -137,6 +140,13 @@ def calibrate_cmd(
                                                     "stand MM apart (data whose rows touched points; repeatable)"),
     distance_sigma: float = typer.Option(0.05, "--distance-sigma", help="standard uncertainty of a stated distance, "
                                          "mm"),
+    prior: list[str] | None = typer.Option(None, "--prior", help="what is known before measuring: KIND=WIDTH "
+                                           "(length mm, angle, zero, compliance, harmonic, backlash, drift deg; all) "
+                                           "or PARAMETER=WIDTH, or =free; over the robot file's [prior] and the "
+                                           "defaults (length 1 mm, angle 0.1°, zero 1°); repeatable"),
+    row_order: bool = typer.Option(False, "--row-order", help="the rows are in the order they were measured: drift "
+                                   "may take time, and backlash the direction of approach, from it (without time or "
+                                   "dir1..dirN columns)"),
     column: list[str] | None = typer.Option(None, "--column", help="map file columns: FILE=ROBOCAL[,FILE=ROBOCAL…]"),
     joint_unit: str | None = typer.Option(None, "--joint-unit", help="deg | rad (default: deg, checked)"),
     length_unit: str | None = typer.Option(None, "--length-unit", help="mm | m (default: mm, checked)"),
@@ -147,8 +157,8 @@ def calibrate_cmd(
     tip_link: str | None = tip_link_option(),
     as_json: bool = json_flag("the result (what --out writes)"),
     require: list[str] | None = typer.Option(None, "--require", help="a verdict for CI: FIGURE<=VALUE (rms, max, "
-                                             "cv_rms, validation_rms, validation_max; mm); not met: exit 4, named on "
-                                             "stderr; repeatable"),
+                                             "cv_rms, validation_rms, validation_max; mm) or physical; not met: "
+                                             "exit 4, named on stderr; repeatable"),
     quiet: bool = quiet_flag(),
 ) -> None:
     """Identify a robot's geometric parameters from measured poses."""
@@ -166,7 +176,7 @@ def calibrate_cmd(
     from ..io.atomic import together
     from ..io.robotfile import load_robot
     from ..requirements import parse_requirements
-    from .common import check_outputs, console, print_warnings, progress_bar, stage_status, verdict
+    from .common import check_outputs, print_notes, print_warnings, progress_bar, stage_status, verdict
 
     checks = parse_requirements(require, "calibrate")
     if validate is None and any(c.figure.startswith("validation") for c in checks):
@@ -183,6 +193,7 @@ def calibrate_cmd(
                              option="exclude_file")
         given["exclude"] = ",".join([*(exclude.split(",") if exclude else []), *listed])
     given["point_distance"] = tuple(point_distance or ())
+    given["prior"] = tuple(prior) if prior else None
     cfg = CalibrationConfig(**{**given, "use_orientation": not position_only,
                                "angle_noise": None if angle_noise is None else math.radians(angle_noise)})
     nominal = load_robot(robot, base_link=base_link, tip_link=tip_link)
@@ -220,12 +231,11 @@ def calibrate_cmd(
         print_json(result.to_dict())
     elif not quiet:
         _print_summary(result, nominal.name, data)
-    if written and written[0].suffix.lower() == ".urdf" and len(written) > 1:
-        console().print(f"wrote {written[0]}; the model's joint terms and residual correction cannot live in a URDF: "
-                        f"the whole model is in {written[1]} (every robocal command reads it)")
-    elif len(written) > 1:
-        console().print(f"wrote {written[0]} and, beside it, {' and '.join(map(str, written[1:]))} (parts of the "
-                        "same model: keep them together)")
+    if written and result.exports is not None:
+        sidecar = next((w for w in written[1:] if w.suffix == ".toml"), None)
+        parts = "" if written[0].suffix.lower() in (".urdf", ".yaml", ".yml") or len(written) < 2 else \
+            f" (with {' and '.join(map(str, written[1:]))} beside it: parts of the same model, keep them together)"
+        print_notes([f"wrote {result.exports.sentence(written[0], sidecar)}{parts}"], quiet)
     verdict(checks, result.figures())
 
 

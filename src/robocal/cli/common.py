@@ -23,6 +23,15 @@ def print_warnings(messages) -> None:
         print(f"robocal: warning: {one_line(m)}", file=sys.stderr)
 
 
+def print_notes(messages, quiet: bool = False) -> None:
+    """Information for the user (a file written and what it holds): on stderr, so that stdout
+    stays the command's document; hidden by --quiet."""
+    if quiet:
+        return
+    for m in messages:
+        print(f"robocal: note: {one_line(m)}", file=sys.stderr)
+
+
 def metrics_table(title: str, columns: dict):
     """A before/after style table: one column per Metrics."""
     from rich.table import Table

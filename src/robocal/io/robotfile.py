@@ -28,7 +28,8 @@ from ..math.so3 import matrix_to_rpy
 from ..model import urdf
 from ..model.corrections import Correction, correction_from_dict
 from ..model.covariance import ParameterCovariance
-from ..model.kinematics import CONVENTIONS, prismatic_mask
+from ..model.kinematics import CONVENTIONS, joint_parameter_names, prismatic_mask
+from ..model.prior import Prior, unknown_names
 from ..model.region import Region
 from ..model.robot import Robot
 from ..model.terms import TERMS, FileKey, JointTerms
@@ -36,7 +37,7 @@ from .atomic import atomic_write, read_text
 from .builtins import builtin_names, builtin_text
 
 TOP_KEYS = {"name", "convention", "joint", "base", "tool", "targets", "source", "gravity", "drift", "residual",
-            "region", "fallback", "uncertainty", "controller"}
+            "region", "fallback", "uncertainty", "controller", "prior"}
 CONTROLLER_KEYS = {"coupling"}
 COUPLING_KEYS = {"joint", "plus", "factor"}
 GEOMETRY_KEYS = {"a", "alpha", "d", "theta", "beta", "limits", "type", "name"}
@@ -109,8 +110,12 @@ def _vector(value, size, source, where) -> list[float]:
     return [_number(v, source, where) for v in value]
 
 
-def _check_degrees(value: float, source, where) -> None:
-    if value != 0 and any(abs(abs(value) - r) < 2e-3 for r in _RADIAN_LOOKALIKES):
+def _check_degrees(value: float, source, where, zero: bool = False) -> None:
+    """A twist or frame angle near π/2, π or π/4 in degrees was typed in radians; a joint zero
+    (``zero``) only when it is one of them to the digits a typed radian has: a calibrated zero
+    of −0.785° is a real offset, not π/4."""
+    near = 1e-4 if zero else 2e-3
+    if value != 0 and any(abs(abs(value) - r) < near for r in _RADIAN_LOOKALIKES):
         raise InputError(f"{value!r} looks like radians (≈ π/2, π or π/4); robot files give angles in degrees",
                          source=source, where=where)
 
@@ -161,7 +166,7 @@ def _dh_joint(j: dict, i: int, conv: str, source: str) -> np.ndarray:
                              source=source, where=where)
         row[4] = _number(j["beta"], source, f"{where}, key 'beta'")
     for k in (1, 2, 4):
-        _check_degrees(row[k], source, f"{where}, key '{('a', 'alpha', 'theta', 'd', 'beta')[k]}'")
+        _check_degrees(row[k], source, f"{where}, key '{('a', 'alpha', 'theta', 'd', 'beta')[k]}'", zero=k == 2)
     row[[1, 2, 4]] = np.radians(row[[1, 2, 4]])
     row[5] = _joint_type(j, where, source)
     return row
@@ -387,13 +392,34 @@ def parse_robot(text: str, *, source: str = "<robot>", default_name: str = "robo
                       stacklevel=3)
     uncertainty = None if "uncertainty" not in data else _covariance(data["uncertainty"], source)
     coupling = () if "controller" not in data else _coupling(data["controller"], len(joints), source)
+    prior = None if "prior" not in data else _prior(data["prior"], conv, geom, source)
     robot = Robot(conv, geom, limits, joint_names=tuple(nm or f"joint{i + 1}" for i, nm in enumerate(names))
                   if any(names) else None, base=base, tool=tool, targets=targets, name=name or default_name,
                   source=source, terms=terms, residual=residual, region=region, uncertainty=uncertainty,
-                  coupling=coupling)
+                  coupling=coupling, prior=prior)
     if uncertainty is not None:
         _check_covariance_names(robot, uncertainty, source)
     return robot
+
+
+def _prior(table, convention: str, geom: np.ndarray, source: str) -> Prior:
+    """``[prior]``: widths by kind (``length = 1.0`` mm, ``angle = 0.1`` deg, …) or by parameter
+    name, or ``"free"`` (MODEL §3.1)."""
+    if not isinstance(table, dict):
+        raise InputError("expected a table [prior] of KEY = WIDTH (mm, deg) or \"free\"", source=source,
+                         where="[prior]")
+    try:
+        prior = Prior.parse(table)
+    except ValueError as exc:
+        raise InputError(str(exc), source=source, where="[prior]") from None
+    names = [n for joint in joint_parameter_names(convention, geom) for n in joint]
+    if convention == "dh":  # β is offered on parallel axes (Hayati's): a prior may state its width
+        names += [f"beta{i + 1}" for i in range(len(geom))]
+    unknown = unknown_names(prior, names, len(geom))
+    if unknown:
+        raise InputError(f"names parameter {unknown[0]!r}, which this {convention} robot of {len(geom)} joints has "
+                         f"not (its geometry: {', '.join(names[:6])}, …)", source=source, where="[prior]")
+    return prior
 
 
 def _check_covariance_names(robot: Robot, covariance: ParameterCovariance, source: str) -> None:
@@ -609,12 +635,21 @@ def robot_to_toml(robot: Robot, comment: str | None = None, residual_file: str |
     for name, T in robot.targets.items():
         lines += _frame_text(f"[targets.{_quote(name)}]", T) + [""]
     lines += _region_lines(robot)
+    lines += _prior_lines(robot)
     lines += _uncertainty_lines(robot)
     if robot.coupling:
         pairs = ", ".join(f"{{joint = {j + 1}, plus = {p + 1}, factor = {_num(f)}}}" for j, p, f in robot.coupling)
         lines += ["[controller]  # the model's joint = the controller's + factor × the controller's plus joint",
                   f"coupling = [{pairs}]", ""]
     return "\n".join(lines)
+
+
+def _prior_lines(robot: Robot) -> list[str]:
+    if robot.prior is None or not robot.prior.widths:
+        return []
+    return ["[prior]  # widths of what is known before measuring (mm, deg; MODEL §3.1), over the defaults"] + \
+        [f"{k if k.isidentifier() else _quote(k)} = {_quote(v) if isinstance(v, str) else _num(v)}"
+         for k, v in robot.prior.to_table().items()] + [""]
 
 
 def _uncertainty_lines(robot: Robot) -> list[str]:

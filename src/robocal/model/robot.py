@@ -13,6 +13,7 @@ from .covariance import ParameterCovariance
 from .dh import ALPHA, BETA, THETA, A, D
 from .kinematics import chain_pose, check_convention, geometry_width, prismatic_mask
 from .kinematics import reach as chain_reach
+from .prior import Prior
 from .region import Region
 from .terms import JointInputs, JointTerms, joint_offsets
 
@@ -55,6 +56,9 @@ class Robot:
     region: Region | None = None
     uncertainty: ParameterCovariance | None = field(default=None, repr=False)
     coupling: tuple[tuple[int, int, float], ...] = ()
+    #: what is known of its parameters before measuring (a robot file's ``[prior]``): the widths
+    #: a calibration's prior takes over the defaults (:mod:`robocal.model.prior`), or None
+    prior: Prior | None = None
 
     def __post_init__(self) -> None:
         check_convention(self.convention)

@@ -294,6 +294,8 @@ class Term:
     def needs_torques(self, terms: JointTerms) -> bool:
         return False
 
+    #: what the data must give for the term to be fitted at all ("" when any poses do)
+    needs: str = ""
     #: what its basis varies with over the poses, and the motion that makes it vary ({j}: the joint)
     varies_with: str = "input"
     remedy: str = "measure poses where it varies"
@@ -502,7 +504,16 @@ class Backlash(PerJointTerm):
     def option_of(self, terms):
         return None if terms.get("backlash") is None else 1
 
+    #: what the data must give for the term to be fitted at all
+    needs = ("the direction each joint approached each pose from: dir1..dirN columns, a time column, or the "
+             "rows in measuring order (--row-order)")
+
     def option_for(self, meas, settings):
+        """Directions from dir1..dirN columns or the time column's order; from the rows' order only
+        where the user says the rows are in measuring order (a file sorted otherwise, a grid scan
+        written row by row, would give directions no joint took)."""
+        if meas.order == "row order" and not settings.get("row_order", False):
+            return None
         return 1
 
 
@@ -546,8 +557,14 @@ class Drift(PerJointTerm):
             return None
         return terms.clock or ("s", 0.0)
 
+    needs = "when each pose was measured: a time column, or the rows in measuring order (--row-order)"
+
     def option_for(self, meas, settings):
-        """The data's clock, and their last pose as the reference: the robot as calibration left it."""
+        """The data's clock, and their last pose as the reference: the robot as calibration left it.
+        Without a time column the rows' numbers stand for time only where the user says the rows
+        are in measuring order."""
+        if meas.time is None and not settings.get("row_order", False):
+            return None
         inputs = meas.inputs
         if inputs.time is None:
             return None

@@ -179,6 +179,26 @@ def _error_figures(result: CalibrationResult) -> list[str]:
     return parts
 
 
+def _exports(result: CalibrationResult) -> list[str]:
+    """What each kind of export hands its receiver, and how accurate that is."""
+    e = result.exports
+    if e is None:
+        return []
+    if e.geometric:
+        return [f"<h2>What the exports hold</h2><p>The model is geometry and frames alone: a robot TOML, a URDF and "
+                f"a kinematics YAML carry all of it ({e.whole_rms_mm:.4f} mm RMS {html.escape(e.where)}).</p>"]
+    return ["<h2>What the exports hold</h2><p>A robot TOML holds the whole model; a URDF or a kinematics YAML only "
+            "its geometry and frames. What the receiver then gets, "
+            f"{html.escape(e.where)}:</p>",
+            _table(("export", "holds", "position RMS (mm)", "max (mm)"),
+                   [("robot TOML (robocal filter, compensate, evaluate)", "the whole model", f"{e.whole_rms_mm:.4f}",
+                     f"{e.whole_max_mm:.4f}"),
+                    ("URDF, kinematics YAML (a controller, ROS)", "geometry and frames", f"{e.geometry_rms_mm:.4f}",
+                     f"{e.geometry_max_mm:.4f}")]),
+            "<p>The joint terms and the learned correction reach the robot only through <code>robocal filter</code> "
+            "(its programs) and <code>robocal compensate</code> (its commands).</p>"]
+
+
 def _model_tables(result: CalibrationResult) -> list[str]:
     """The ladder of ``--model auto`` and the error budget on the validation poses."""
     parts = []
@@ -301,9 +321,17 @@ def _worst(result: CalibrationResult, count: int = 10) -> list[str]:
 
 
 def next_steps(result: CalibrationResult) -> list[str]:
-    """One or two concrete suggestions from the diagnostics."""
+    """One or two concrete suggestions from the diagnostics, the verdict on physicality first."""
     out = []
     meas = result.measurements
+    if not result.physical.physical:
+        out.append(f"The calibrated model is not physical: {html.escape(result.physical.listed())} (likely cause: "
+                   f"{html.escape(result.physical.cause)}). Do not load it into a controller: check the nominal model, "
+                   "and measure poses that move the joints these parameters belong to.")
+    if result.held:
+        out.append(f"The poses do not pin {html.escape(', '.join(result.held))}: they are held by their prior (the "
+                   "nominal value within its width, MODEL §3.1), not measured. Poses that move their joints more "
+                   "widely would measure them.")
     g, inst = result.goodness_of_fit, result.instrument
     if result.model == "geometric" and ((g is not None and g.misfit()) or (inst is not None and inst.reduced_chi2
                                                                             and inst.reduced_chi2 > 4)):
@@ -350,6 +378,7 @@ def calibration_html(result: CalibrationResult, command: str | None = None) -> s
              _run_header(result, command), _lead(result), _summary(result, d)]
     parts += _said(result)
     parts += ["<h2>What to do next</h2>"] + [f"<p class='next'>{s}</p>" for s in next_steps(result)]
+    parts += _exports(result)
     cols = result.accuracy_columns()
     contact = _contact(result)
     parts.append("<h2>Accuracy</h2><p>“Before” is the nominal geometry with the registered frames; “after (fit)” "

@@ -16,7 +16,9 @@ from ..math.so3 import orientation_error
 from ..model.parameters import is_angle, is_frame
 from ..model.terms import reported_unit
 
-PARAMETER_COLUMNS = ("parameter", "unit", "nominal", "identified", "deviation", "± σ", "note")
+PARAMETER_COLUMNS = ("parameter", "unit", "nominal", "identified", "deviation", "± σ", "prior ± σ", "note")
+#: what the table says of a parameter its prior holds (MODEL §3.1)
+HELD_NOTE = "held by its prior: the poses do not pin it"
 FRAME_COLUMNS = ("frame", "identified xyz (mm)", "identified rpy (deg)", "change from registration", "note")
 
 
@@ -64,11 +66,16 @@ def parameter_rows(result: CalibrationResult) -> list[tuple[str, ...]]:
         x = float(result.x[i])
         u = None if result.uncertainty is None else float(result.uncertainty[i])
         notes = [n for n in (_absorbs(result, name),) if n]
-        if result.significant(i) is False:
+        held = name in result.held
+        if held:
+            notes.append(HELD_NOTE)
+        elif result.significant(i) is False:
             notes.append(f"not significant (< {SIGNIFICANCE_SIGMAS:g} σ)")
+        prior = "—" if result.prior_sigma is None else _uncertainty(float(result.prior_sigma[i]), angle) \
+            if math.isfinite(result.prior_sigma[i]) else "free"
         rows.append((name, unit, _number(nominal.get(name, 0.0), angle),
                      _number(nominal.get(name, 0.0) + x, angle), _number(x, angle), _uncertainty(u, angle),
-                     "; ".join(notes)))
+                     prior, "; ".join(notes)))
     return rows
 
 
@@ -113,7 +120,7 @@ def noise_line(result) -> str:
     text += " (stated)" if n.source == "stated" else " (estimated from the fit: the instrument's noise plus what the " \
         "model leaves out)"
     if g is not None and g.dof > 0:
-        text += f"; χ² {g.chi2:.4g} on {g.dof} degrees of freedom (reduced {g.reduced_chi2:.3g}, p {g.p_value:.3g})"
+        text += f"; χ² {g.chi2:.4g} on {g.dof:.0f} degrees of freedom (reduced {g.reduced_chi2:.3g}, p {g.p_value:.3g})"
     if result.robot.residual is not None:
         text += " — of the parametric fit; its residual correction is judged by cross-validation"
     if result.instrument is not None:

@@ -1,0 +1,159 @@
+"""Step 1 of a calibration: the nominal robot, the measurements and validation data, checked
+against each other; the frames mode in effect and what was noticed on the way.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from ..exceptions import InputError
+from ..io.measurements import load_measurements
+from ..io.robotfile import load_robot
+from ..model.kinematics import joint_parameter_names
+from ..model.measurements import Measurements
+from ..model.prior import unknown_names
+from ..model.robot import Robot
+from . import checks
+from .config import CalibrationConfig
+from .instrument import Instrument, with_instrument
+from .registration import choose_frames
+
+
+@dataclass(frozen=True)
+class Inputs:
+    """The nominal robot, the measurements, validation data, the frames mode in effect, and what
+    was noticed on the way (the frames chosen, degenerate data)."""
+
+    nominal: Robot
+    meas: Measurements
+    validation: Measurements | None
+    frames: str
+    notes: tuple[str, ...] = ()
+
+
+
+def _measurements(data, nominal: Robot, config: CalibrationConfig, columns) -> Measurements:
+    if isinstance(data, Measurements):
+        if data.n_joints != nominal.n_joints:
+            raise InputError(f"data have {data.n_joints} joints, the robot has {nominal.n_joints}", source=data.source)
+        return data
+    return load_measurements(data, **config.read_options(nominal, columns))
+
+
+def load_inputs(robot, data, validate, config: CalibrationConfig, columns=None) -> Inputs:
+    """Step 1: the nominal robot and the measurements, position-only when asked, checked; the
+    frames mode (``auto`` decides here, and says what it decided, in the inputs' notes)."""
+    notes: list[str] = []
+    nominal = load_robot(robot)
+    if nominal.residual is not None:  # a calibration learns its own correction from what its fit leaves
+        notes.append(f"the residual model of {nominal.source or nominal.name} is not used as a starting point: a "
+                     "calibration fits its own (with --model residual or auto)")
+        nominal = nominal.replace(residual=None)
+    if nominal.region is not None:  # a new calibration finds its own
+        nominal = nominal.replace(region=None)
+    _check_prior(nominal, config)
+    meas = _measurements(data, nominal, config, columns)
+    val = None if validate is None else _measurements(validate, nominal, config, columns)
+    if not (meas.full_pose and config.use_orientation):
+        meas = meas.position_only()
+        val = None if val is None else val.position_only()
+    if config.point_distance:  # stated here; measurements given as objects may carry their own
+        meas = meas.with_distances(config.point_distance, config.distance_sigma)
+        if val is not None and val.constraints is not None:
+            val = val.with_distances(config.point_distance, config.distance_sigma)
+    meas = _instrument_sigmas(meas, config, notes)
+    meas = _excluded(meas, config.exclude, notes)
+    if config.payload is not None:  # a stated payload where the files have no column
+        meas = meas if meas.payload is not None else replace(meas, payload=np.full(meas.n_poses, config.payload))
+        if val is not None and val.payload is None:
+            val = replace(val, payload=np.full(val.n_poses, config.payload))
+    frames = config.frames
+    if meas.constraints is not None:
+        frames, said = _contact_frames(frames, meas)
+        notes += said
+    elif frames in ("auto", "none"):
+        choice = choose_frames(nominal, meas)
+        if frames == "auto" and choice.mode != "none":  # it changed what is calibrated: say so
+            notes.append(f"frames auto: {choice.sentence()}")
+        elif frames == "none" and choice.mode != "none":
+            notes.append(f"frames none, but {choice.sentence()}: calibrate with frames auto or {choice.mode}")
+        frames = choice.mode if frames == "auto" else "none"
+    tracker = meas if meas.constraints is None else meas.subset(~meas.constraints.rows)
+    if tracker.n_poses:
+        checks.check_targets(nominal, tracker, frames)
+        checks.check_validation_targets(nominal, tracker, val)
+        if config.length_unit is None:  # a stated unit overrides the spread check
+            checks.check_units(nominal, tracker, frames)
+    return Inputs(nominal, meas, val, frames, tuple(notes + checks.degeneracy_warnings(nominal, meas)))
+
+
+def _check_prior(nominal: Robot, config: CalibrationConfig) -> None:
+    """A prior that names a parameter the robot has not is an error: a typo would leave the
+    parameter it meant at its default width, unsaid."""
+    if config.prior is None:
+        return
+    names = [n for joint in joint_parameter_names(nominal.convention, nominal.geometry) for n in joint]
+    if nominal.convention == "dh":  # β is offered on parallel axes
+        names += [f"beta{i + 1}" for i in range(nominal.n_joints)]
+    unknown = unknown_names(config.prior, names, nominal.n_joints)
+    if unknown:
+        raise InputError(f"names parameter {unknown[0]!r}, which this {nominal.convention} robot of "
+                         f"{nominal.n_joints} joints has not (its geometry: {', '.join(names[:6])}, …)",
+                         option="prior")
+
+
+def _contact_frames(frames: str, meas: Measurements) -> tuple[str, list[str]]:
+    """The frames of data whose rows touched unknown points or planes: those can stand anywhere,
+    so they cannot see the base frame; the tool point they see.  Tracker rows beside them see
+    the base as ever."""
+    c = meas.constraints
+    if c.only and frames in ("base", "base+tool"):
+        raise InputError(f"the base frame is not observable from {meas.source}: its rows touched points or planes "
+                         "whose place is unknown (use frames tcp, or auto)", option="frames")
+    if frames != "auto":
+        return frames, []
+    if c.only:
+        return "tcp", ["frames auto: the rows touched points or planes whose place is unknown, so the base frame is "
+                        "not observable from them; the tool point is identified (frames tcp)"]
+    return "base+tool", ["frames auto: tracker rows beside rows that touched points or planes: base and tool are "
+                         "identified (frames base+tool)"]
+
+
+def _excluded(meas: Measurements, exclude: tuple[str, ...], notes: list[str]) -> Measurements:
+    """The measurements without the poses ``exclude`` names (pose ids, or ``row N``); a name the
+    data do not have is an error (a typo would otherwise leave a bad pose in)."""
+    if not exclude:
+        return meas
+    ids = [meas.pose_ids[i] if meas.pose_ids is not None else f"row {int(meas.rows[i])}" for i in range(meas.n_poses)]
+    unknown = [e for e in exclude if e not in set(ids)]
+    if unknown:
+        what = "pose_id" if meas.pose_ids is not None else "row (written 'row N')"
+        raise InputError(f"excluded pose {unknown[0]!r} is not in the data (no such {what})", source=meas.source,
+                         option="exclude")
+    keep = [i for i, x in enumerate(ids) if x not in set(exclude)]
+    if not keep:
+        raise InputError(f"leaves none of the {meas.n_poses} poses to calibrate on", source=meas.source,
+                         option="exclude")
+    notes.append(f"{meas.n_poses - len(keep)} pose(s) left out as asked (--exclude): {', '.join(exclude[:10])}"
+                 + (" …" if len(exclude) > 10 else ""))
+    return meas.subset(keep)
+
+
+def _instrument_sigmas(meas: Measurements, config: CalibrationConfig, notes: list[str]) -> Measurements:
+    """The instrument's σ per point the fit weighs by: the file's columns, or the statement of
+    ``instrument``; a stated noise σ of a block replaces its columns (and says so)."""
+    if config.instrument is not None:
+        statement = Instrument.parse(config.instrument)
+        if meas.sigma_position is not None:
+            notes.append(f"the sx, sy, sz columns of {meas.source} are replaced by {statement.sentence()}")
+        return replace(with_instrument(meas, statement), sigma_source=statement.sentence(),
+                       sigma_orientation=meas.sigma_orientation)
+    for block, stated, columns in (("sigma_position", config.noise, "sx, sy, sz"),
+                                   ("sigma_orientation", config.angle_noise if config.k is None else 0.0,
+                                    "srx, sry, srz")):
+        if stated is not None and getattr(meas, block) is not None:
+            notes.append(f"the noise stated replaces the {columns} columns of {meas.source}")
+            meas = replace(meas, **{block: None})
+    return meas
