@@ -15,7 +15,7 @@ from ..model.trees import TreeResidual
 from .choice import Candidate, model_name
 from .crossval import K_FOLDS, CrossValidation, FoldData, residual_errors
 from .parametric import Fit
-from .residual import fit_residual, tune_kernels
+from .residual import best_kernel, fit_residual, minimised, neg_log_likelihood, scratch_pieces, tune_kernels
 from .timing import staged
 from .trees import Settings, TreeCandidate, choose_settings, fit_trees
 
@@ -35,16 +35,48 @@ def _fold_prediction(q_train, e_train, q_test, seed, kernels) -> np.ndarray:
 
 
 def _piece(piece):
-    """A worker's piece of the residual candidates: a fold's prediction, or a tuning on all poses."""
+    """A worker's piece of the learned candidates: a process's fold prediction, a process's tuning
+    on all poses, or an inner fold of the trees (:func:`robocal.calibration.trees.curve`)."""
     kind, args = piece
     return _fold_prediction(*args) if kind == "fold" else tune_kernels(*args)
 
 
 @staged("model")
-def cross_validate_residuals(ladder: list[tuple[FoldData, CrossValidation]], seed: int | None,
-                             pool: worker_pool = SERIAL) -> list[tuple[np.ndarray, tuple]]:
-    """For each parametric fit (its :class:`FoldData` and cross-validation), the held-out position
-    errors (m, 3) mm of the fit plus a residual process, and the position kernel tuned on all the poses.
+def chained_kernels(data: list[FoldData], seed: int | None, pool: worker_pool = SERIAL) -> list[tuple]:
+    """The process's position kernel tuned on all the poses of each parametric fit (its
+    :class:`FoldData`): the first from scratch, each next from the one before (the same poses,
+    residuals of a nearby model: a warm start, not a shortcut, it runs to convergence; the
+    likelihood has several basins, and residuals with more structure, geometry's, lead to the deeper)."""
+    kernels = [tune_kernels(data[0].q, data[0].e[:, :3], seed, pool=pool)]
+    for d in data[1:]:
+        kernels.append(tune_kernels(d.q, d.e[:, :3], seed, kernels[-1], pool=pool))
+    return kernels
+
+
+@staged("model")
+def scratch_kernel(data: FoldData, seed: int | None, pool: worker_pool = SERIAL) -> tuple[tuple, float]:
+    """The process's position kernel tuned from scratch on all the poses of one fit, and its
+    negative log likelihood there."""
+    kernel, nll = best_kernel(pool.map(minimised, scratch_pieces(data.q, data.e, seed)))
+    return (kernel,), nll
+
+
+@staged("model")
+def warm_kernels(geometric: FoldData, kept: FoldData, nll: float, seed: int | None,
+                 pool: worker_pool = SERIAL) -> tuple[tuple, tuple | None]:
+    """Geometry alone's position kernel tuned from scratch, and the model kept's re-tuned from it
+    where that is more likely than its own from scratch (``nll``), else None."""
+    base = tune_kernels(geometric.q, geometric.e[:, :3], seed, pool=pool)
+    again = tune_kernels(kept.q, kept.e[:, :3], seed, base)
+    return base, again if neg_log_likelihood(kept.q, kept.e, seed, again[0]) < nll else None
+
+
+@staged("model")
+def cross_validate_residuals(ladder: list[tuple[FoldData, CrossValidation, tuple]], seed: int | None,
+                             pool: worker_pool = SERIAL) -> list[np.ndarray]:
+    """For each parametric fit (its :class:`FoldData`, cross-validation and the kernel tuned on all
+    its poses, :func:`chained_kernels`), the held-out position errors (m, 3) mm of the fit plus a
+    residual process.
 
     Each fold tunes its own kernel on its training poses, so that the held-out poses judge a
     process that never saw them: a kernel tuned on all the poses and only conditioned per fold
@@ -53,24 +85,16 @@ def cross_validate_residuals(ladder: list[tuple[FoldData, CrossValidation]], see
     scratch, eight hyperparameters on a thousand poses take seconds per fold); on pure noise
     that is enough to leave the held-out poses unexplained, as they should be.  (A start from
     another fold's kernel would carry as much of the held-out poses: that fold trained on them.)
-
-    The first fit's kernel is tuned from scratch; each next fit's starts from the one before
-    (the same poses, residuals of a nearby model: a warm start, not a shortcut, it runs to
-    convergence) and is tuned on the workers beside the previous fit's folds.
+    Every fold of every fit is one piece of work for the pool's workers.
     """
-    kernels = tune_kernels(ladder[0][0].q, ladder[0][0].e[:, :3], seed, pool=pool)
+    pieces = [piece for data, _, kernels in ladder for piece in data.process_folds(seed, kernels)]
+    done = iter(pool.map(_piece, pieces))
     out = []
-    for i, (data, cv) in enumerate(ladder):
-        pieces = data.process_folds(seed, kernels)
-        if i + 1 < len(ladder):  # the longest piece first, so that no worker waits for it at the end
-            pieces.insert(0, ("tune", (ladder[i + 1][0].q, ladder[i + 1][0].e[:, :3], seed, kernels)))
-        done = pool.map(_piece, pieces)
+    for data, cv, _ in ladder:
         corrected = np.array(cv.errors, copy=True)
-        for (test, _), prediction in zip(data.folds, done[len(done) - len(data.folds):]):
-            corrected[test] -= prediction
-        out.append((corrected, kernels))
-        if i + 1 < len(ladder):
-            kernels = done[0]
+        for test, _ in data.folds:
+            corrected[test] -= next(done)
+        out.append(corrected)
     return out
 
 
@@ -157,30 +181,43 @@ def learned_on_all(c: Candidate, seed: int | None, pool: worker_pool = SERIAL) -
 
 
 
-def learned_candidates(bases: list[tuple[Candidate, CrossValidation]], meas: Measurements, seed: int | None,
+def process_candidates(bases: list[tuple[tuple[Candidate, CrossValidation], FoldData, tuple]], seed: int | None,
                        pool: worker_pool, say=None) -> list[Candidate]:
-    """The learned corrections on each parametric base: a process, trees, and where both improve
-    on their base, the trees with a process on what they leave, on the base of the better."""
-    say = say or (lambda text: None)
-    data = [FoldData.of(c.fit, cv) for c, cv in bases]
-    say(f"{', '.join(model_name(c.terms + ('residual',)) for c, _ in bases)}: kernels and {K_FOLDS} folds")
-    processes = [Candidate(c.terms, "residual", c.fit, errors, kernels, data=d) for (c, _), d, (errors, kernels) in
-                 zip(bases, data, cross_validate_residuals([(d, cv) for d, (_, cv) in zip(data, bases)], seed, pool))]
-    say(f"{', '.join(model_name(c.terms + ('trees',)) for c, _ in bases)}: inner cross-validation and {K_FOLDS} folds")
-    trees = []
-    # the settings chosen on the parametric model kept (the last base), and used on geometry alone too
-    settings = choose_settings(data[-1].q, data[-1].e, data[-1].groups, seed, pool)
+    """A residual process on each parametric base ((candidate, cross-validation), its
+    :class:`FoldData` and its kernel), cross-validated: every fold of every base one piece of work."""
+    (say or (lambda text: None))(f"{', '.join(model_name(c.terms + ('residual',)) for (c, _), _, _ in bases)}: "
+                                 f"{K_FOLDS} folds")
+    errors = cross_validate_residuals([(d, cv, k) for (_, cv), d, k in bases], seed, pool)
+    return [Candidate(c.terms, "residual", c.fit, e, k, data=d) for ((c, _), d, k), e in zip(bases, errors)]
+
+
+def tree_candidates(bases: list[tuple[Candidate, CrossValidation]], data: list[FoldData], settings: Settings,
+                    meas: Measurements, seed: int | None, pool: worker_pool, say=None) -> list[Candidate]:
+    """Gradient-boosted trees with ``settings`` on each parametric base, cross-validated."""
+    (say or (lambda text: None))(f"{', '.join(model_name(c.terms + ('trees',)) for c, _ in bases)}: {K_FOLDS} folds")
+    out = []
     for (c, cv), d in zip(bases, data):
         candidate = cross_validate_trees(d, cv, meas, seed, pool, settings)
-        trees.append(Candidate(c.terms, "trees", c.fit, candidate.errors, trees=candidate, data=d))
-    out = processes + trees
-    # a process on what the trees leave, where the trees predict better than the process and both
-    # better than their parametric model: on the trees' own poses what they leave is small (they
-    # fit them closely), so a process there can add to trees that lead, not lift trees that trail
-    both = [(p, t) for (c, _), p, t in zip(bases, processes, trees) if t.cv_rms <= p.cv_rms < c.cv_rms]
-    if both:
-        p, t = min(both, key=lambda pair: pair[1].cv_rms)
-        say(f"{model_name(t.terms + ('trees', 'residual'))}: {K_FOLDS} folds")
-        errors = cross_validate_stacked(t.data, t.trees, p.kernels, seed, pool)
-        out.append(Candidate(t.terms, "trees+residual", t.fit, errors, p.kernels, t.trees, t.data))
+        out.append(Candidate(c.terms, "trees", c.fit, candidate.errors, trees=candidate, data=d))
     return out
+
+
+def stacked_candidate(bases: list[Candidate], learned: list[Candidate], seed: int | None, pool: worker_pool,
+                      say=None) -> Candidate | None:
+    """A process on what the trees leave, where the trees predict better than the process and both
+    better than their parametric model, on the base of the better trees: on the trees' own poses
+    what they leave is small (they fit them closely), so a process there can add to trees that
+    lead, not lift trees that trail."""
+    say = say or (lambda text: None)
+    both = []
+    for c in bases:
+        p = next((x for x in learned if x.learned == "residual" and x.fit is c.fit), None)
+        t = next((x for x in learned if x.learned == "trees" and x.fit is c.fit), None)
+        if p is not None and t is not None and t.cv_rms <= p.cv_rms < c.cv_rms:
+            both.append((p, t))
+    if not both:
+        return None
+    p, t = min(both, key=lambda pair: pair[1].cv_rms)
+    say(f"{model_name(t.terms + ('trees', 'residual'))}: {K_FOLDS} folds")
+    errors = cross_validate_stacked(t.data, t.trees, p.kernels, seed, pool)
+    return Candidate(t.terms, "trees+residual", t.fit, errors, p.kernels, t.trees, t.data)

@@ -153,6 +153,40 @@ def _tune_block(q, y, order, k: int, start, iterations: int | None, points: int 
     return _tuned(q[pick], y[pick], start, iterations, pool)
 
 
+def _tuning_poses(q: np.ndarray, y: np.ndarray, seed: int | None) -> tuple[np.ndarray, np.ndarray]:
+    """The poses a position kernel is tuned on: at most :data:`HYPER_POINTS`, drawn with the seed
+    (those :func:`tune_kernels` takes)."""
+    pick = np.random.default_rng(seed).permutation(len(q))[:HYPER_POINTS]
+    return np.asarray(q, float)[pick], np.asarray(y, float)[pick]
+
+
+def scratch_pieces(q: np.ndarray, errors: np.ndarray, seed: int | None) -> list[tuple]:
+    """The position kernel's tunings from scratch (one per start of :data:`STARTS`), as pieces
+    of work for :func:`minimised`; :func:`best_kernel` of their results is :func:`tune_kernels`'
+    position kernel."""
+    q, y = _tuning_poses(q, np.asarray(errors, float)[:, :3], seed)
+    return [(q, y, Kernel.start(q.shape[1], ls).theta, None) for ls in STARTS]
+
+
+def best_kernel(runs: list[tuple[np.ndarray, float]]) -> tuple[Kernel, float]:
+    """The most likely of the tunings' results, and its negative log likelihood."""
+    theta, nll = min(runs, key=lambda run: run[1])
+    return Kernel(theta), nll
+
+
+def neg_log_likelihood(q: np.ndarray, errors: np.ndarray, seed: int | None, kernel: Kernel) -> float:
+    """The position kernel's negative log marginal likelihood on the poses it is tuned on."""
+    from .likelihood import MarginalLikelihood, standardise
+
+    q, y = _tuning_poses(q, np.asarray(errors, float)[:, :3], seed)
+    return float(MarginalLikelihood(q, standardise(y))(kernel.theta)[0])
+
+
+def minimised(piece) -> tuple[np.ndarray, float]:
+    """One tuning of θ (:func:`_minimised`), as a piece of work for a pool's workers."""
+    return _minimised(piece)
+
+
 def tune_kernels(q: np.ndarray, errors: np.ndarray, seed: int | None = 0, start: tuple | None = None,
                  iterations: int | None = None, points: int | None = None, pool: worker_pool = SERIAL) -> tuple:
     """The kernels (one per block: positions, orientations) of maximum marginal likelihood on at

@@ -44,17 +44,23 @@ from .crossval import K_FOLDS, CrossValidation, FoldData, cross_validate, geomet
 from .inputs import Inputs
 from .learned import (
     MIN_RESIDUAL_POSES,
+    chained_kernels,
     cross_validate_residuals,
     cross_validate_stacked,
     cross_validate_trees,
     instrument_noise,
-    learned_candidates,
     learned_on_all,
+    process_candidates,
+    scratch_kernel,
+    stacked_candidate,
+    tree_candidates,
+    warm_kernels,
 )
 from .parametric import Fit, fit_parametric, term_spec, unsupported_terms
-from .residual import HYPER_POINTS, MAX_POINTS
+from .residual import HYPER_POINTS, MAX_POINTS, tune_kernels
 from .result import BudgetRow, LadderRow
 from .timing import stage
+from .trees import choose_settings
 
 #: share of the data's values a model may spend on its unknowns (parameters, the residual
 #: process's effective degrees of freedom) before its calibration figures are called fitted
@@ -164,7 +170,9 @@ def fit_model(inputs: Inputs, config: CalibrationConfig, progress=None, stages=N
                 data = FoldData.of(fit, cv)
                 candidate = Candidate(tuple(sorted(terms - set(LEARNED))), learned, fit, cv.errors, data=data)
                 if "residual" in learned:
-                    candidate.errors, candidate.kernels = cross_validate_residuals([(data, cv)], config.seed, pool)[0]
+                    with stage("model"):
+                        candidate.kernels = tune_kernels(data.q, data.e[:, :3], config.seed, pool=pool)
+                    candidate.errors = cross_validate_residuals([(data, cv, candidate.kernels)], config.seed, pool)[0]
                 if "trees" in learned:
                     candidate.trees = cross_validate_trees(data, cv, meas, config.seed, pool)
                     candidate.errors = candidate.trees.errors if learned == "trees" else \
@@ -229,10 +237,45 @@ def fit_model(inputs: Inputs, config: CalibrationConfig, progress=None, stages=N
         # take structure that joint terms would have taken more coarsely
         candidates = [c for c, _ in ladder]
         on = [(c, cv) for c, cv in ladder if residuals and c.terms in dict.fromkeys((parametric.terms, ()))]
+        skipped = None
         if on:
             done = len(candidates)
-            candidates += learned_candidates(on, meas, config.seed, pool,
-                                             lambda text: say(done, done + process * len(on), f"learned: {text}"))
+
+            def tell(text):
+                say(done, done + process * len(on), f"learned: {text}")
+
+            data = [FoldData.of(c.fit, cv) for c, cv in on]
+            kept, geometry = on[-1], on[:-1]  # the parametric model kept, and geometry alone where it is not
+
+            def pays(learned: list[Candidate]) -> bool:
+                return choose([kept[0], *learned], groups) is not kept[0]
+
+            # first on the model kept: a learned correction that cannot improve it cannot, on geometry
+            # alone (less), beat it; the trees (the cheaper) first
+            tell(f"{model_name(kept[0].terms + ('trees',))}: inner cross-validation")
+            settings = choose_settings(data[-1].q, data[-1].e, data[-1].groups, config.seed, pool)
+            trees = tree_candidates([kept], data[-1:], settings, meas, config.seed, pool, tell)
+            if geometry and pays(trees):  # both bases: the kernel of geometry's richer residuals leads
+                tell(f"{', '.join(model_name(c.terms + ('residual',)) for c, _ in on)}: kernels")
+                kernels = chained_kernels(data, config.seed, pool)
+                processes = process_candidates(list(zip(on, data, kernels)), config.seed, pool, tell)
+                trees = tree_candidates(geometry, data[:1], settings, meas, config.seed, pool, tell) + trees
+            else:
+                tell(f"{model_name(kept[0].terms + ('residual',))}: kernels")
+                kernel, nll = scratch_kernel(data[-1], config.seed, pool)
+                processes = process_candidates([(kept, data[-1], kernel)], config.seed, pool, tell)
+                if geometry and pays(processes):
+                    base, again = warm_kernels(data[0], data[-1], nll, config.seed, pool)
+                    # the model kept's process again where geometry's kernel led to a deeper basin
+                    processes = process_candidates([(on[0], data[0], base)] + (
+                        [] if again is None else [(kept, data[-1], again)]), config.seed, pool, tell) + \
+                        ([] if again is not None else processes)
+                    trees = tree_candidates(geometry, data[:1], settings, meas, config.seed, pool, tell) + trees
+                elif geometry:
+                    skipped = kept[0]
+            learned = processes + trees
+            stacked = stacked_candidate([c for c, _ in on], learned, config.seed, pool, tell)
+            candidates += learned + ([stacked] if stacked is not None else [])
         chosen = choose(candidates, groups)
         residual = learned_on_all(chosen, config.seed, pool)
 
@@ -249,6 +292,9 @@ def fit_model(inputs: Inputs, config: CalibrationConfig, progress=None, stages=N
     notes = [f"model auto: {chosen.name} (cross-validated position RMS {chosen.cv_rms:.4g} mm; geometric "
              f"{candidates[0].cv_rms:.4g} mm; a richer model is kept only if it predicts held-out poses "
              f"better, paired test p < {SIGNIFICANCE:g})"]
+    if skipped is not None:
+        notes.append(f"model auto: learned corrections not tried on geometry alone: neither improves on "
+                     f"{skipped.name}, which holds more")
     if lacking:
         notes.append(f"model auto: {' and '.join(lacking)} not tried: "
                      + "; ".join(f"the {name} term needs {needs}" for name, needs in lacking.items()))

@@ -96,7 +96,7 @@ def _fitted(q, y, leaf, trees, seed) -> list:
         return [_regressor(leaf, trees, seed).fit(q, y[:, a]) for a in range(y.shape[1])]
 
 
-def _curve(piece) -> np.ndarray:
+def curve(piece) -> np.ndarray:
     """An inner fold: the held-out squared error (summed over the outputs) after each tree."""
     q_train, y_train, q_test, y_test, leaf, seed = piece
     out = np.zeros(MAX_TREES)
@@ -110,28 +110,35 @@ def _curve(piece) -> np.ndarray:
     return out
 
 
-def _inner_curves(q, y, groups, seed, leaves, pool) -> np.ndarray:
-    """The inner cross-validated squared error (len(leaves), MAX_TREES) of y's trees, summed over
-    its outputs, the folds and the poses, for each leaf size and number of trees."""
+def inner_pieces(q: np.ndarray, e: np.ndarray, groups: np.ndarray | None = None,
+                 seed: int | None = 0) -> tuple[list[int], list[tuple]]:
+    """The leaf sizes the inner cross-validation tries on the positions e (m, 3) mm at q, and its
+    pieces of work (:func:`curve`, one per leaf size and inner fold; groups: the pose of each row,
+    rows of one pose stay in one fold).  Leaves above a quarter of a fold's training poses are not
+    tried."""
+    q, e = np.asarray(q, float), np.asarray(e, float)[:, :3]
+    smallest = len(q) - -(-len(q) // INNER_FOLDS)
+    leaves = [leaf for leaf in LEAF_SIZES if leaf <= max(smallest // 4, LEAF_SIZES[0])]
     groups = np.arange(len(q)) if groups is None else np.unique(groups, return_inverse=True)[1]
     folds = group_folds(groups, INNER_FOLDS, seed)
     train = [np.setdiff1d(np.arange(len(q)), test) for test in folds]
-    curves = pool.map(_curve, [(q[tr], y[tr], q[te], y[te], leaf, seed) for leaf in leaves
-                               for tr, te in zip(train, folds)])
-    return np.array([sum(curves[i * INNER_FOLDS:(i + 1) * INNER_FOLDS]) for i in range(len(leaves))])
+    return leaves, [(q[tr], e[tr], q[te], e[te], leaf, seed) for leaf in leaves for tr, te in zip(train, folds)]
+
+
+def settings_of(leaves: list[int], curves: list[np.ndarray]) -> Settings:
+    """The leaf size and number of trees of the lowest inner cross-validated error: the curves of
+    :func:`inner_pieces`' pieces summed over the inner folds."""
+    total = np.array([sum(curves[i * INNER_FOLDS:(i + 1) * INNER_FOLDS]) for i in range(len(leaves))])
+    best_leaf, best_trees = np.unravel_index(np.argmin(total), total.shape)
+    return Settings(leaves[best_leaf], int(best_trees) + 1)
 
 
 def choose_settings(q: np.ndarray, e: np.ndarray, groups: np.ndarray | None = None, seed: int | None = 0,
                     pool: worker_pool = SERIAL) -> Settings:
     """The leaf size and number of trees of the lowest inner cross-validated error of the
-    positions e (m, 3) mm at q; groups: the pose of each row (rows of one pose stay in one fold).
-    Leaves above a quarter of a fold's training poses are not tried."""
-    q, e = np.asarray(q, float), np.asarray(e, float)[:, :3]
-    smallest = len(q) - -(-len(q) // INNER_FOLDS)
-    leaves = [leaf for leaf in LEAF_SIZES if leaf <= max(smallest // 4, LEAF_SIZES[0])]
-    total = _inner_curves(q, e, groups, seed, leaves, pool)
-    best_leaf, best_trees = np.unravel_index(np.argmin(total), total.shape)
-    return Settings(leaves[best_leaf], int(best_trees) + 1)
+    positions e (m, 3) mm at q (see :func:`inner_pieces`)."""
+    leaves, pieces = inner_pieces(q, e, groups, seed)
+    return settings_of(leaves, pool.map(curve, pieces))
 
 
 def _importance(models) -> np.ndarray:
