@@ -294,3 +294,20 @@ def test_planned_socket_configurations_beat_random_ones(planted, run_cli, tmp_pa
         q = [_reach(g, sockets[k], r, lim) for k in plan.socket]
         randoms.append(rigid_error(np.array(q), plan.socket, s))
     assert planned < 0.8 * np.median(randoms), (planned, randoms)  # measured: 0.036 against 0.071 mm
+
+
+@pytest.mark.slow
+def test_plane_rows_count_one_value_each_so_their_sigma_is_the_play(planted):
+    """A plane row says only its offset along the plane's normal: its degrees of freedom, the noise
+    estimate and the outlier test count one value, and planted planes with play p estimate σ = p
+    (counted as three values, σ came out √3 too low and good rows were called outliers)."""
+    sigmas = []
+    for seed in range(4):
+        rng = np.random.default_rng(40 + seed)
+        q, label, setup = _campaign(planted["g"], rng, setups=6, per=30, kind="planes")
+        res, said = _fit(planted["nominal"], _measurements(q, label, setup, kind="planes"))
+        sigmas.append(res.noise.position)
+        assert not any("look like outliers" in s for s in said)
+        g = res.goodness_of_fit  # one value a row, three unknowns a plane, less the parameters' effective number
+        assert g.dof == pytest.approx(len(q) - 3 * 6 - len(res.names) + float(np.sum(res.prior_share)))
+    assert np.mean(sigmas) == pytest.approx(PLAY, rel=0.1), sigmas

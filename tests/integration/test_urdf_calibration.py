@@ -112,7 +112,7 @@ def test_the_command_line_round_trip_of_a_urdf_with_joint_terms(tmp_path, run_cl
     sidecar = tmp_path / "cal.robocal.toml"
     # what the URDF hands ROS, and what the whole model would: said where the file is written
     note = next(line for line in err.splitlines() if line.startswith("robocal: note: wrote"))
-    assert f"{out} holds the geometry and frames (the whole model is in {sidecar})" in note
+    assert f"wrote {out}: geometry and frames (the whole model is in {sidecar})" in note
     assert "reach the robot only through robocal filter and compensate" in note
     assert 'convention = "urdf"' in sidecar.read_text() and "compliance = " in sidecar.read_text()
     after = json.loads((tmp_path / "r.json").read_text())["metrics"]["after"]["position"]["rms"]

@@ -35,3 +35,26 @@ def test_robust_outliers_find_gross_errors_only(rng):
     flagged, sigma = robust_outliers(dp)
     assert list(flagged) == [5, 77]
     assert sigma == pytest.approx(0.02, rel=0.15)
+
+
+def test_the_outlier_test_reads_each_kind_of_row_with_its_own_law():
+    """Plane rows (one value: |e| is χ with one degree of freedom) and point rows (three: Maxwell)
+    with different σ: over many draws of good rows none is called an outlier; read as one kind
+    with the Maxwell law, the plane rows' σ comes out low and good rows are flagged."""
+    rng = np.random.default_rng(0)
+    kinds = np.repeat([1, 2], [60, 90])
+    flagged_by_kind = flagged_pooled = 0
+    for _ in range(400):
+        point = rng.normal(0.0, 0.3, (60, 3))
+        normal = rng.normal(size=(90, 3))
+        normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+        plane = normal * rng.normal(0.0, 0.02, (90, 1))
+        e = np.vstack([point, plane])
+        flagged_by_kind += len(robust_outliers(e, kinds, {1: 3, 2: 1})[0])
+        flagged_pooled += len(robust_outliers(plane)[0])
+    assert flagged_by_kind == 0
+    assert flagged_pooled > 0
+    # a gross error among plane rows stands out all the same
+    e = np.vstack([rng.normal(0.0, 0.3, (60, 3)), normal * rng.normal(0.0, 0.02, (90, 1))])
+    e[100] = normal[40] * 0.5
+    assert list(robust_outliers(e, kinds, {1: 3, 2: 1})[0]) == [100]

@@ -28,8 +28,8 @@ from .problem import DEFAULT_K, Problem
 #: relative change of σ below which the reweighting has settled
 SETTLED = 1e-3
 #: with a prior, the data's σ itself sets their weight against it: a relative change of σ below
-#: this moves the prior-held directions by a few percent of their already small deviation
-PRIOR_SETTLED = 2e-2
+#: this moves the prior-held directions by a percent of their already small deviation
+PRIOR_SETTLED = 5e-3
 #: refits allowed to the reweighting
 MAX_REWEIGHTS = 6
 #: the Gauss–Newton step is taken as the refit when the χ² it reaches misses the χ² it

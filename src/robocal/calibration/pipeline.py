@@ -146,7 +146,7 @@ def export_figures(calibrated: Robot, metrics: dict, meas: Measurements, validat
     if geometric:
         part = whole
     return ExportFigures(key, whole.position["rms"], whole.position["max"], part.position["rms"],
-                         part.position["max"], geometric)
+                         part.position["max"], geometric, "poses" if meas.constraints is None else "setups")
 
 
 def _validated(table, chosen: str, metrics) -> list:

@@ -99,24 +99,29 @@ class ExportFigures:
     geometry_max_mm: float
     #: the model holds no more than geometry and frames: every export carries it whole
     geometric: bool
+    #: what the held-out figure predicts: new poses, or new setups of rows that touched points or planes
+    held_out: str = "poses"
 
     @property
     def where(self) -> str:
-        return {"validation": "on the validation poses", "predicted": "predicted on new poses (5-fold "
-                "cross-validation)"}.get(self.figure, "on the calibration poses (in-sample)")
+        return {"validation": "on the validation poses",
+                "predicted": f"predicted on new {self.held_out} (5-fold cross-validation)"}.get(
+            self.figure, "on the calibration poses (in-sample)")
 
     def sentence(self, path, sidecar=None) -> str:
-        """What the file at ``path`` holds, and how accurate that is: one line for the terminal."""
+        """What the file at ``path`` holds, and how accurate that is: "PATH: …", one line."""
         suffix = Path(path).suffix.lower()
         whole = f"{self.whole_rms_mm:.4f} mm RMS {self.where}"
-        if suffix not in (".urdf", ".yaml", ".yml") or self.geometric:
-            held = "the whole model" if suffix not in (".urdf", ".yaml", ".yml") else "the whole model (geometry " \
-                "and frames)"
-            return f"{path} holds {held}: {whole}"
-        frames = "geometry (its frames are in" if suffix != ".urdf" else "geometry and frames (the whole model is in"
-        return (f"{path} holds the {frames} {sidecar or 'the robot TOML beside it'}): a controller or ROS reading it "
-                f"gets {self.geometry_rms_mm:.4f} mm RMS {self.where}, where the whole model gets {whole}; its "
-                "joint terms and learned correction reach the robot only through robocal filter and compensate")
+        if suffix not in (".urdf", ".yaml", ".yml"):
+            return f"{path}: the whole model, {whole}"
+        frames = "the joints' geometry (its frames are in" if suffix != ".urdf" else \
+            "geometry and frames (the whole model is in"
+        if self.geometric:
+            return f"{path}: the whole model (geometry and frames), {whole}"
+        held = f"{frames} {sidecar or 'the robot TOML beside it'})"
+        return (f"{path}: {held}; a controller or ROS reading it gets {self.geometry_rms_mm:.4f} mm RMS {self.where}, "
+                f"where the whole model gets {self.whole_rms_mm:.4f} mm: its joint terms and learned correction reach "
+                "the robot only through robocal filter and compensate")
 
     def to_dict(self) -> dict:
         return {"figure": self.figure, "whole_model": {"position_rms_mm": self.whole_rms_mm,

@@ -128,9 +128,10 @@ def _rung(piece) -> tuple[Fit, CrossValidation]:
 def spent_dof(fit: Fit, residual: Correction | None) -> list[str]:
     """A loud note when the model spends most of the data on its unknowns: its figures on the
     calibration poses are then fitted, not measured accuracy."""
-    n_data = fit.estimate.problem.n_residuals
+    n_data = fit.estimate.problem.n_values
     dof = 0.0 if residual is None else float(np.nan_to_num(residual.dof))
-    used = fit.n_params + dof
+    # the parameters' effective number: one the prior holds spends none of the data
+    used = fit.n_params - (0.0 if fit.prior_share is None else float(np.sum(fit.prior_share))) + dof
     if not used > MAX_DOF_SHARE * n_data:
         return []
     process = "" if residual is None else f" ({dof:.0f} of them the learned correction's)"

@@ -28,7 +28,7 @@ def bench_cmd(
     as_json: bool = json_flag("every workload's figures"),
     quiet: bool = quiet_flag(),
 ) -> None:
-    """Time the workloads W1–W7 (medians), with the peers side by side where they are installed."""
+    """Time the workloads W1–W8 (medians), with the peers side by side where they are installed."""
     from rich.console import Console
 
     from ..bench.timing import format_value

@@ -221,7 +221,9 @@ def _split(convention: str, g: np.ndarray, THETA: int, D: int, BETA: int) -> tup
 
 
 def ur_kinematics_yaml(robot: Robot, label: str = "") -> tuple[str, list[str]]:
-    """The kinematics YAML of a six-joint model, and what it could not hold (notes)."""
+    """The kinematics YAML of a six-joint model, and what it could not hold of its geometry (notes):
+    a flange beyond the last joint's frame.  Joint terms and a learned correction it never holds;
+    a calibration's export says so with the figures of each part."""
     origins, leftover = joint_origins(robot)
     notes = []
     if not (np.allclose(leftover[:3, 3], 0.0, atol=LEFTOVER_MM) and
@@ -230,9 +232,6 @@ def ur_kinematics_yaml(robot: Robot, label: str = "") -> tuple[str, list[str]]:
         rpy = ", ".join(f"{math.degrees(v):.6g}" for v in matrix_to_rpy(leftover[:3, :3]))
         notes.append(f"the flange sits at xyz ({xyz}) mm, rpy ({rpy}) deg after the last joint's frame: a kinematics "
                      "YAML ends at that frame, so add this offset to the controller's TCP")
-    if robot.terms is not None and not robot.terms.empty or robot.residual is not None:
-        notes.append("a kinematics YAML holds geometry only: the model's joint terms and residual correction are "
-                     "left out (the robot file keeps them)")
     lines = ["kinematics:"]
     g = robot.geometry
     for i, (seg, O) in enumerate(zip(SEGMENTS, origins)):
