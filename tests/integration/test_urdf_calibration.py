@@ -112,7 +112,8 @@ def test_the_command_line_round_trip_of_a_urdf_with_joint_terms(tmp_path, run_cl
     sidecar = tmp_path / "cal.robocal.toml"
     # what the URDF hands ROS, and what the whole model would: said where the file is written
     note = next(line for line in err.splitlines() if line.startswith("robocal: note: wrote"))
-    assert f"wrote {out}: geometry and frames (the whole model is in {sidecar})" in note
+    # the model's own geometry was fitted beside its compliance: ROS gets the geometric calibration's instead
+    assert f"wrote {out}: the geometric calibration's geometry and frames (the whole model is in {sidecar})" in note
     assert "reach the robot only through robocal filter and compensate" in note
     assert 'convention = "urdf"' in sidecar.read_text() and "compliance = " in sidecar.read_text()
     after = json.loads((tmp_path / "r.json").read_text())["metrics"]["after"]["position"]["rms"]
@@ -131,6 +132,7 @@ def test_the_command_line_round_trip_of_a_urdf_with_joint_terms(tmp_path, run_cl
     # the figures the calibration stated for each export are what each gives on the validation poses
     exports = json.loads((tmp_path / "r.json").read_text())["exports"]
     assert exports["figure"] == "validation"
+    assert exports["geometry_and_frames"]["geometry_of"] == "the geometric calibration's"
     code, urdf_alone, _ = run_cli("evaluate", out, validation, "--json")
     assert exports["geometry_and_frames"]["position_rms_mm"] == pytest.approx(
         json.loads(urdf_alone)["position"]["rms"], rel=1e-9)

@@ -10,7 +10,6 @@ import numpy as np
 
 from ..model.measurements import Measurements
 from ..model.metrics import Metrics
-from ..model.parameters import is_term
 from .config import CalibrationConfig
 from .methods import fit_lm
 from .parametric import Fit
@@ -198,22 +197,3 @@ class FoldData:
         return [("fold", (self.q[self.train(test)], e_train[:, :3], self.q[test], seed, kernels))
                 for test, e_train in self.folds]
 
-
-def geometry_prediction(fit: Fit, cv: CrossValidation, prediction: Metrics) -> Metrics:
-    """The held-out figures of what a URDF or a kinematics YAML can hold of the fit: its geometry
-    and frames, without its joint terms (each fold's estimate with them left out); ``prediction``,
-    the parametric fit's own held-out figures, where it has no joint terms."""
-    problem = fit.estimate.problem
-    terms = np.array([is_term(n) for n in problem.names])
-    if not terms.any():
-        return prediction
-    bare = problem.setup.around(problem.space.robot.replace(terms=None))
-    errors = np.zeros_like(cv.errors)
-    orientation = None if cv.orientation is None else np.zeros_like(cv.orientation)
-    for test, x in zip(cv.folds, cv.estimates):
-        held = bare.with_measurements(problem.meas.subset(test)).problem(problem.names)
-        dp, dr = held.errors(np.where(terms, 0.0, x))
-        errors[test] = dp
-        if orientation is not None and dr is not None:
-            orientation[test] = dr
-    return Metrics.from_errors(errors, orientation)

@@ -101,10 +101,35 @@ def fit_map(problem: Problem, x0: np.ndarray, config: CalibrationConfig, progres
         return problem, fit_lm(problem, x0, config, progress)
     sigmas = block_sigmas(plain, first.x, config.noise_model)
     problem = problem.setup.with_noise(*sigmas).problem(problem.names)
-    second = fit_lm(problem, first.x, config)
+    if config.max_evaluations is not None and first.nfev >= config.max_evaluations:
+        return problem, first  # the user's cap is spent: the fit stopped before converging, and says so
+    second = _gauss_newton(problem, first.x, config) or fit_lm(problem, first.x, config)
     return problem, first.then(second, method=second.method, history=second.history,
                                message=f"least squares for the data's scale (σp {sigmas[0]:.3g} mm, {first.nfev} "
                                        f"evaluations), then with the prior: {second.message}")
+
+
+def _gauss_newton(problem: Problem, x0: np.ndarray, config: CalibrationConfig) -> OptimizeResult | None:
+    """The Gauss–Newton step of the data with the prior from the plain fit, where the problem is
+    linear there (the χ² it reaches misses the χ² it predicts by less than
+    :data:`~robocal.calibration.noise.LINEAR_CHI2`): then it is the fit LM would converge to, at the
+    cost of one Jacobian.  None where it is not, or with a robust loss."""
+    from .noise import LINEAR_CHI2
+
+    if config.loss != "linear":
+        return None
+    with stage("optimize"):
+        r, J = problem.map_residuals(x0), problem.map_jacobian(x0)
+        scale = 1.0 / np.maximum(np.linalg.norm(J, axis=0), 1e-300)  # mm and rad columns alike
+        Js = J * scale
+        y = np.linalg.lstsq(Js.T @ Js, -(Js.T @ r), rcond=None)[0]
+        predicted = float(r @ r) + 2.0 * float(y @ (Js.T @ r)) + float(y @ (Js.T @ Js) @ y)
+        x = x0 + y * scale
+        reached = problem.map_residuals(x)
+        chi2 = float(reached @ reached)
+    if not abs(chi2 - predicted) <= LINEAR_CHI2:
+        return None
+    return OptimizeResult("gauss-newton", x, chi2, np.array([chi2]), 1, 1, "converged", "one Gauss–Newton step", 0.0)
 
 
 def reexpress(search: Problem, x_search: np.ndarray, problem: Problem) -> tuple[np.ndarray, float]:

@@ -128,25 +128,38 @@ def evaluate(initial: Robot, calibrated: Robot, meas: Measurements, all_rows: Me
     return metrics, notes
 
 
-def export_figures(calibrated: Robot, metrics: dict, meas: Measurements, validation: Measurements | None,
-                   geometry: Metrics | None) -> ExportFigures:
-    """The figures of the whole model and of its geometry and frames alone (what a URDF or a
-    kinematics YAML holds), on the validation poses when given, else predicted by cross-validation
-    (``geometry``: the held-out figures of that part), else in-sample."""
-    bare = calibrated.replace(terms=None, residual=None)
+def geometry_for_receivers(calibrated: Robot, geometric: Robot | None) -> Robot:
+    """What a URDF or a kinematics YAML carries: geometry and frames.  Where the model holds joint
+    terms, the geometric calibration's (its own geometry was fitted beside the terms, which took
+    their share: without them it is no geometric model); else the model's, without its learned
+    correction."""
+    if calibrated.terms is not None and not calibrated.terms.empty and geometric is not None:
+        return geometric.replace(name=calibrated.name, terms=None, residual=None, region=calibrated.region,
+                                 uncertainty=None)
+    return calibrated.replace(residual=None)
+
+
+def export_figures(calibrated: Robot, receiver: Robot, metrics: dict, meas: Measurements,
+                   validation: Measurements | None, geometry: Metrics | None) -> ExportFigures:
+    """The figures of the whole model and of what a URDF or a kinematics YAML carries of it
+    (``receiver``, :func:`geometry_for_receivers`), on the validation poses when given, else
+    predicted by cross-validation (``geometry``: the held-out figures of the receiver's part),
+    else in-sample."""
     geometric = calibrated.geometric
     if validation is not None:
-        key, part = "validation", Metrics.of(bare, validation)
+        key, part = "validation", Metrics.of(receiver, validation)
         whole = metrics["validation_after"]
     elif "predicted" in metrics and geometry is not None:
         key, part, whole = "predicted", geometry, metrics["predicted"]
     else:
         key, whole = "fit", metrics["after"]
-        part = whole if geometric else Metrics.of(bare, meas)
+        part = Metrics.of(receiver, meas)
     if geometric:
         part = whole
     return ExportFigures(key, whole.position["rms"], whole.position["max"], part.position["rms"],
-                         part.position["max"], geometric, "poses" if meas.constraints is None else "setups")
+                         part.position["max"], geometric, "poses" if meas.constraints is None else "setups",
+                         "the model's own" if receiver.geometry is calibrated.geometry or geometric
+                         else "the geometric calibration's")
 
 
 def _validated(table, chosen: str, metrics) -> list:
@@ -185,7 +198,10 @@ def _calibrate(robot, data, validate, cfg: CalibrationConfig, columns, progress,
     notes += said
     if chosen.prediction is not None:  # what the held-out poses said: the headline without validation poses
         metrics = {"before": metrics["before"], "predicted": chosen.prediction, **metrics}
-    exports = export_figures(calibrated, metrics, est.problem.meas, inputs.validation, chosen.exported_prediction)
+    geometric = None if chosen.geometric is None or chosen.geometric is fit else chosen.geometric.robot
+    receiver = geometry_for_receivers(calibrated, geometric)
+    exports = export_figures(calibrated, receiver, metrics, est.problem.meas, inputs.validation,
+                             chosen.geometric_prediction)
     contact = {}
     for key, robot, data in (("before", initial, est.problem.meas), ("after", calibrated, est.problem.meas),
                              ("validation_before", initial, inputs.validation),
@@ -200,7 +216,7 @@ def _calibrate(robot, data, validate, cfg: CalibrationConfig, columns, progress,
         validation=inputs.validation, outliers=fit.screening.outliers, reexpression_gap_mm=est.reexpression_gap_mm,
         noise=fit.noise, goodness_of_fit=fit.goodness, covariance=fit.covariance, frames=inputs.frames,
         model=chosen.name, model_selection=_validated(chosen.table, chosen.name, metrics), error_budget=budget,
-        geometric=None if chosen.geometric is None or chosen.geometric is fit else chosen.geometric.robot,
+        geometric=geometric, receiver=receiver,
         instrument=fit.instrument, all_rows=inputs.meas, excluded=cfg.exclude, contact=contact,
         prior_sigma=est.problem.prior_sigma if est.problem.has_prior else None, prior_share=fit.prior_share,
         physical=fit.physical, at_estimate=fit.at_estimate, exports=exports,

@@ -101,6 +101,9 @@ class ExportFigures:
     geometric: bool
     #: what the held-out figure predicts: new poses, or new setups of rows that touched points or planes
     held_out: str = "poses"
+    #: whose geometry a URDF or YAML carries: "the model's own", or "the geometric calibration's"
+    #: where the model holds joint terms (its own geometry was fitted beside them)
+    geometry_of: str = "the model's own"
 
     @property
     def where(self) -> str:
@@ -114,8 +117,9 @@ class ExportFigures:
         whole = f"{self.whole_rms_mm:.4f} mm RMS {self.where}"
         if suffix not in (".urdf", ".yaml", ".yml"):
             return f"{path}: the whole model, {whole}"
-        frames = "the joints' geometry (its frames are in" if suffix != ".urdf" else \
-            "geometry and frames (the whole model is in"
+        whose = "" if self.geometry_of == "the model's own" else "the geometric calibration's "
+        frames = f"{whose}joint geometry (its frames are in" if suffix != ".urdf" else \
+            f"{whose}geometry and frames (the whole model is in"
         if self.geometric:
             return f"{path}: the whole model (geometry and frames), {whole}"
         held = f"{frames} {sidecar or 'the robot TOML beside it'})"
@@ -128,7 +132,7 @@ class ExportFigures:
                                                        "position_max_mm": self.whole_max_mm,
                                                        "held_by": ["robot TOML"]},
                 "geometry_and_frames": {"position_rms_mm": self.geometry_rms_mm,
-                                        "position_max_mm": self.geometry_max_mm,
+                                        "position_max_mm": self.geometry_max_mm, "geometry_of": self.geometry_of,
                                         "held_by": ["URDF", "kinematics YAML (geometry only)"]},
                 "reaches_the_robot": "the whole model through robocal filter and compensate; a URDF or YAML "
                                      "alone carries geometry and frames"}
@@ -190,8 +194,10 @@ class CalibrationResult:
     physical: Physicality = field(default_factory=Physicality)
     #: the kept set's identifiability where the fit ended (:class:`~robocal.calibration.judgement.AtEstimate`)
     at_estimate: AtEstimate | None = None
-    #: what each kind of export hands its receiver (:class:`ExportFigures`)
+    #: what each kind of export hands its receiver (:class:`ExportFigures`), and what a URDF or a
+    #: kinematics YAML carries (:func:`robocal.calibration.pipeline.geometry_for_receivers`)
     exports: ExportFigures | None = None
+    receiver: Robot | None = field(default=None, repr=False)
 
     @property
     def held(self) -> list[str]:
@@ -431,11 +437,21 @@ class CalibrationResult:
             written = save_robot(self.robot, whole, comment)
         probe = bool(self.contact)  # the tip link itself touched the points or planes: it is the tool
         where = "the tip link is the identified tool point" if probe else "target the tool"
-        atomic_write(path, urdf_text(self.robot, comment + "\nLengths in m, angles in rad; measuring_frame carries "
-                                                           f"the identified base frame, {where}.",
-                                     whole_model=None if whole is None else whole.name, tool_at_tip=probe))
+        atomic_write(path, urdf_text(self.receiver or self.robot, comment + self._receiver_comment() +
+                                     "\nLengths in m, angles in rad; measuring_frame carries the identified base "
+                                     f"frame, {where}.", whole_model=None if whole is None else whole.name,
+                                     tool_at_tip=probe))
         return [path, *written]
 
+
+    def _receiver_comment(self) -> str:
+        """What a URDF's or a YAML's own reader gets, for its header."""
+        e = self.exports
+        if e is None or e.geometric:
+            return ""
+        return (f"\nThis file holds {e.geometry_of} geometry: {e.geometry_rms_mm:.4f} mm RMS {e.where} (the whole "
+                f"model: {e.whole_rms_mm:.4f} mm; its joint terms and learned correction reach the robot through "
+                "robocal filter and compensate).")
 
     def _export_ur(self, path: Path, comment: str) -> list[Path]:
         """A UR kinematics YAML for a ROS driver (:mod:`robocal.io.ur`), and the whole model
@@ -446,11 +462,12 @@ class CalibrationResult:
         from ..io.robotfile import save_robot
         from ..io.ur import ur_kinematics_yaml
 
-        text, notes = ur_kinematics_yaml(self.robot)
+        text, notes = ur_kinematics_yaml(self.receiver or self.robot)
         whole = path.with_name(f"{path.stem}.robocal.toml")
         written = save_robot(self.robot, whole, comment)
-        head = "".join(f"# {line}\n" for line in (comment + "\nLengths in m, angles in rad. The measuring frame and "
-                                                   f"the tool are in {whole.name}.").splitlines())
+        head = "".join(f"# {line}\n" for line in (comment + self._receiver_comment() + "\nLengths in m, angles in "
+                                                   f"rad. The measuring frame and the tool are in {whole.name}.")
+                       .splitlines())
         atomic_write(path, head + text)
         for note in notes:
             warnings.warn(f"{path}: {note}", RobocalWarning, stacklevel=2)

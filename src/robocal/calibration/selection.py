@@ -40,7 +40,7 @@ from ..model.robot import Robot
 from ..model.terms import TERMS
 from .choice import SIGNIFICANCE, TRIAL_ORDER, Candidate, choose, learned_of, model_name, with_term
 from .config import LEARNED, CalibrationConfig
-from .crossval import K_FOLDS, CrossValidation, FoldData, cross_validate, geometry_prediction, pose_groups, predict
+from .crossval import K_FOLDS, CrossValidation, FoldData, cross_validate, pose_groups, predict
 from .inputs import Inputs
 from .learned import (
     MIN_RESIDUAL_POSES,
@@ -83,9 +83,6 @@ class Chosen:
     #: the geometric fit for the guard to fall back on; None for a model returned unchanged
     prediction: Metrics | None = None
     geometric_prediction: Metrics | None = None
-    #: held-out figures of the model's geometry and frames alone: what a URDF or a kinematics
-    #: YAML carries of it (:func:`~robocal.calibration.crossval.geometry_prediction`)
-    exported_prediction: Metrics | None = None
 
     def budget(self, calibrated: Robot, validation: Measurements | None) -> list[BudgetRow]:
         """What each part of the model removes on the validation poses: position RMS (mm) of the
@@ -185,8 +182,7 @@ def fit_model(inputs: Inputs, config: CalibrationConfig, progress=None, stages=N
             geometric = fit_parametric(inputs, config, term_spec((), meas, config))
         geometric_prediction = parametric_prediction if geometric is fit else predict(geometric, config)[1]
         return Chosen(model_name(terms), fit, residual, notes=spent_dof(fit, residual), geometric=geometric,
-                      prediction=prediction, geometric_prediction=geometric_prediction,
-                      exported_prediction=geometry_prediction(fit, cv, parametric_prediction))
+                      prediction=prediction, geometric_prediction=geometric_prediction)
     groups = pose_groups(meas)
     # a learned correction corrects measured positions: rows that touched points or planes have none
     residuals = groups.max() + 1 >= MIN_RESIDUAL_POSES and meas.constraints is None
@@ -302,7 +298,6 @@ def fit_model(inputs: Inputs, config: CalibrationConfig, progress=None, stages=N
     chosen_cv = next(cv for c, cv in ladder if c.fit is chosen.fit)
     return Chosen(chosen.name, chosen.fit, residual, rows, notes + spent_dof(chosen.fit, residual),
                   geometric=candidates[0].fit, prediction=chosen_cv.metrics(chosen.errors),
-                  geometric_prediction=geometric_cv.metrics(),
-                  exported_prediction=geometry_prediction(chosen.fit, chosen_cv, chosen_cv.metrics()))
+                  geometric_prediction=geometric_cv.metrics())
 
 

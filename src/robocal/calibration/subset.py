@@ -176,6 +176,11 @@ def analyse_identifiability(setup: Setup, candidates: Candidates) -> tuple[Ident
         ident = ident.with_changes(dropped=[n for n in candidates.names if n in reasons], reasons=reasons,
                                    warnings=ident.warnings + [f"{n} dropped: {r.detail}" for n, r in unvaried.items()])
     notes = list(ident.warnings)
+    if setup.prior is not None and np.any(np.isfinite(setup.prior[:setup.space.n_joint_params])):
+        # the prior bounds what the poses leave open: the uncertainties are not large, they are the prior's
+        notes = [n.replace("; expect large uncertainties", "; what they do not pin is held by its prior (named in "
+                           "the parameters table)") if n.startswith("identification is ill-conditioned") else n
+                 for n in notes]
     if candidates.explicit:
         bad = [n for n in candidates.joints if n in ident.reasons]
         if bad:
@@ -224,7 +229,7 @@ def refine_at_estimate(est: Estimate, ident: Identifiability, candidates: Candid
         return est, ident
     names = ident.kept + added
     wider = setup.problem(names)
-    dof = wider.n_residuals - len(names) - wider.n_nuisance
+    dof = wider.n_values - len(names) - wider.n_nuisance
     # First the Gauss–Newton step from the estimate: the decrease of χ² it predicts is what the
     # refit would reach where the problem is near linear.  Far from significant, the refit
     # (LM crawling along a weakly separated valley, most of a calibration's time) cannot change

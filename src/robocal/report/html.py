@@ -187,14 +187,17 @@ def _exports(result: CalibrationResult) -> list[str]:
     if e.geometric:
         return [f"<h2>What the exports hold</h2><p>The model is geometry and frames alone: a robot TOML, a URDF and "
                 f"a kinematics YAML carry all of it ({e.whole_rms_mm:.4f} mm RMS {html.escape(e.where)}).</p>"]
+    own = e.geometry_of == "the model's own"
     return ["<h2>What the exports hold</h2><p>A robot TOML holds the whole model; a URDF or a kinematics YAML only "
-            "its geometry and frames. What the receiver then gets, "
-            f"{html.escape(e.where)}:</p>",
+            "geometry and frames" + ("" if own else ": the geometric calibration's, since the model's own geometry was "
+                                     "fitted beside its joint terms, which took their share") +
+            f". What the receiver then gets, {html.escape(e.where)}:</p>",
             _table(("export", "holds", "position RMS (mm)", "max (mm)"),
                    [("robot TOML (robocal filter, compensate, evaluate)", "the whole model", f"{e.whole_rms_mm:.4f}",
                      f"{e.whole_max_mm:.4f}"),
-                    ("URDF, kinematics YAML (a controller, ROS)", "geometry and frames", f"{e.geometry_rms_mm:.4f}",
-                     f"{e.geometry_max_mm:.4f}")]),
+                    ("URDF, kinematics YAML (a controller, ROS)",
+                     f"{'' if own else 'the geometric calibration: '}geometry and frames", f"{e.geometry_rms_mm:.4f}",
+                     f"{e.geometry_max_mm:.4f}")], left=2),
             "<p>The joint terms and the learned correction reach the robot only through <code>robocal filter</code> "
             "(its programs) and <code>robocal compensate</code> (its commands).</p>"]
 
@@ -329,9 +332,11 @@ def next_steps(result: CalibrationResult) -> list[str]:
                    f"{html.escape(result.physical.cause)}). Do not load it into a controller: check the nominal model, "
                    "and measure poses that move the joints these parameters belong to.")
     if result.held:
-        out.append(f"The poses do not pin {html.escape(', '.join(result.held))}: they are held by their prior (the "
-                   "nominal value within its width, MODEL §3.1), not measured. Poses that move their joints more "
-                   "widely would measure them.")
+        many = len(result.held) > 1
+        out.append(f"The poses do not pin {html.escape(', '.join(result.held))}: {'they are' if many else 'it is'} "
+                   f"held by {'their' if many else 'its'} prior (the nominal value within its width, MODEL §3.1), not "
+                   f"measured. Poses that move {'their' if many else 'its'} joints more widely would measure "
+                   f"{'them' if many else 'it'}.")
     g, inst = result.goodness_of_fit, result.instrument
     if result.model == "geometric" and ((g is not None and g.misfit()) or (inst is not None and inst.reduced_chi2
                                                                             and inst.reduced_chi2 > 4)):
