@@ -100,6 +100,35 @@ def named_frames(items, option: str) -> tuple[tuple[float, ...] | None, dict[str
     return unnamed, named
 
 
+#: the word a --tool names the calibrated model's own tool by (MODEL §1.1)
+CALIBRATED = "calibrated"
+
+
+def tool_frames(items, option: str = "tool") -> tuple[tuple[float, ...] | None, dict[str, tuple[float, ...]],
+                                                       frozenset[str]]:
+    """``[NAME=][x,y,z[,rx,ry,rz]][,calibrated]`` items: as :func:`named_frames`, and the tools the
+    calibration measured (their names; "" for the unnamed one: every target's tool), whose data,
+    where given, are the controller's and whose calibrated model's tool stands in for them."""
+    plain, measured = [], set()
+    for item in items or ():
+        text = str(item)
+        name, sep, values = text.rpartition("=")
+        parts = [v.strip() for v in values.split(",")]
+        if parts[-1].lower() != CALIBRATED:
+            plain.append(text)
+            continue
+        key = name.strip() if sep else ""
+        if sep and not key:
+            raise InputError(f"expected NAME=calibrated or calibrated, got {text!r}", option=option)
+        if key in measured:
+            raise InputError(f"{key or 'the unnamed tool'} is said calibrated twice", option=option)
+        measured.add(key)
+        if len(parts) > 1:
+            plain.append((f"{key}=" if sep else "") + ",".join(parts[:-1]))
+    unnamed, named = named_frames(plain, option)
+    return unnamed, named, frozenset(measured)
+
+
 def column_map(items) -> dict[str, str] | None:
     """``FILE=ROBOCAL`` pairs, each item possibly a comma list (``J1=q1,J2=q2``)."""
     if not items:

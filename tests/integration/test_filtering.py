@@ -450,3 +450,75 @@ def test_configuration_bits_on_their_boundaries_stay_as_taught(tmp_path):
         assert {c.status for c in result.flagged} <= {"unsupported"}, [(c.target.name, c.reason)
                                                                        for c in result.flagged]
         assert result.counts()["ok"] >= len(q) - 1 and result.texts == texts, writer
+
+
+# --- the TCP rule: the program's tool data, the calibrated tool only where the user says so ---
+
+def _rapid_cell(tmp_path, reflector, program_tool, true_tool, n=10, seed=21):
+    """An IRB 120 on a pedestal whose calibrated model carries ``reflector`` (the point the tracker
+    measured, mm in the flange frame) and a RAPID program taught with ``program_tool`` (mm): the
+    taught poses, the program, the true geometry and the true tool."""
+    rng = np.random.default_rng(seed)
+    nominal = tmp_path / "nominal.toml"
+    nominal.write_text(ind.robot_toml("irb120", {}, base=PEDESTAL))
+    accurate = tmp_path / "accurate.toml"
+    accurate.write_text(ind.robot_toml("irb120", PLANTED, base=PEDESTAL, tool=reflector))
+    g_nom = ind.geometry("irb120")
+    tool = ctl.frame(program_tool, [0.0, 0.0, 0.0])
+    q = _taught(rng, [(-150, 150), (-60, 70), (-80, 50), (-150, 150), (20, 110), (-350, 350)], n)
+    world = [ind.pose(g_nom, qi, base=PEDESTAL, tool=tool) for qi in q]
+    text = ctl.rapid_program(world, [ctl.abb_config("irb120", g_nom, qi, PEDESTAL) for qi in q], [], tool, np.eye(4))
+    (tmp_path / "cell.mod").write_text(text)
+    return nominal, accurate, q, world, tool, ctl.frame(true_tool, [0.0, 0.0, 0.0])
+
+
+def _landing_mm(result, q, world, tool):
+    """How far the true robot's TCP lands from each target, driven by the filtered program as the
+    independent controller takes it (its nominal inverse from the taught joints)."""
+    g_nom, g_acc = ind.geometry("irb120"), ind.geometry("irb120", PLANTED)
+    new = ctl.read_rapid(result.text)
+    out = []
+    for i, (qi, T) in enumerate(zip(q, world)):
+        v = new[f"p{i + 1}"]
+        T_new = ctl.frame(v[:3], [0, 0, 0])
+        T_new[:3, :3] = Rotation.from_quat([v[4], v[5], v[6], v[3]]).as_matrix()
+        q_ctrl = ind.inverse(g_nom, T_new, qi, tool=tool[0], base=PEDESTAL)
+        out.append(np.linalg.norm(ind.pose(g_acc, q_ctrl, base=PEDESTAL, tool=tool[1])[:3, 3] - T[:3, 3]))
+    return np.array(out)
+
+
+def test_a_reflector_near_the_flange_never_replaces_the_programs_tcp(tmp_path):
+    """Calibrated with a reflector 4 mm from the flange, the program taught with the flange (tool0's
+    data): every target lands for the flange, as taught, and the JSON says which TCP each used."""
+    nominal, accurate, q, world, tool, _ = _rapid_cell(tmp_path, (3.0, -2.0, 2.0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
+    with warnings.catch_warnings(record=True) as said:
+        warnings.simplefilter("always")
+        result = filter_program(accurate, tmp_path / "cell.mod", nominal)
+    assert result.counts() == {"ok": 10}
+    assert np.max(_landing_mm(result, q, world, (tool, tool))) < CHECK_MM
+    assert any("if the calibration measured that tool, say so" in n for n in result.notes)
+    rows = json.loads(result.json())["targets"]
+    assert {r["tcp"] for r in rows} == {"the program's tool gun"}
+
+
+def test_the_calibrated_tool_stands_in_only_where_the_user_says_it_is_the_programs(tmp_path, run_cli):
+    """The calibration measured the program's tool itself (0.8 mm off its data): with --tool
+    gun=calibrated the true robot with the true tool lands on every target; without, the program's
+    data are taken as they are, and the true tool misses by what the data miss."""
+    nominal, accurate, q, world, tool, true_tool = _rapid_cell(tmp_path, (0.8, 24.4, 140.5), (0.0, 25.0, 140.0),
+                                                               (0.8, 24.4, 140.5))
+    out = tmp_path / "out.mod"
+    code, _, err = run_cli("filter", accurate, tmp_path / "cell.mod", "--nominal", nominal, "--out", out,
+                           "--tool", "gun=calibrated", "--summary", tmp_path / "s.json")
+    assert code == 0, err
+    result = type("R", (), {"text": out.read_text()})
+    assert np.max(_landing_mm(result, q, world, (tool, true_tool))) < CHECK_MM
+    rows = json.loads((tmp_path / "s.json").read_text())["targets"]
+    assert {r["tcp"] for r in rows} == {"the program's tool gun (the calibrated model's tool standing in)"}
+    code, _, err = run_cli("filter", accurate, tmp_path / "cell.mod", "--nominal", nominal, "--out", out)
+    assert code == 0, err
+    result = type("R", (), {"text": out.read_text()})
+    assert np.min(_landing_mm(result, q, world, (tool, true_tool))) > 0.5  # the data's own miss, 0.86 mm
+    code, _, err = run_cli("filter", accurate, tmp_path / "cell.mod", "--nominal", nominal, "--out", out,
+                           "--tool", "gun=calibrated", "--tool", "gun=calibrated")
+    assert code == 2 and "said calibrated twice" in err

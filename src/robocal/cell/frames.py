@@ -18,10 +18,12 @@ The chain, stated once (4×4 transforms, mm)::
 - *flange* is the nominal model's tool frame: the frame the controller's tool data are stated in
   (KUKA's $FLANGE, ABB's tool0, UR's tool flange, FANUC's faceplate; a URDF's tool0).  The TCP is
   ``flange · tool data`` (``--tool``, the program's: KRL $TOOL (TOOL_DATA[n]), RAPID tooldata,
-  URScript set_tcp, FANUC UT n), or the flange itself where none is given.  The calibrated model's
-  own tool is the point its calibration measured: kept where it refines that TCP (within
-  TOOL_MATCH_MM / TOOL_MATCH_DEG, it is the better estimate), replaced by the TCP on the calibrated
-  joints and base where it is another point (a tracker target on the flange), and said.
+  URScript set_tcp, FANUC UT n), or the flange itself where none is given: the controller's TCP,
+  which the calibrated robot reaches on its calibrated joints and base.  The calibrated model's
+  own tool is the point its calibration measured (a tracker's reflector, a probe); it stands in
+  for a program's tool only where the user says that this is the tool it measured
+  (``--tool NAME=calibrated``), never by how near the two are: which tool is the real one is the
+  user's knowledge.
 
 ``compensate`` and ``filter`` build their robots with :func:`make_cell`, so that the same goal with
 the same tool gives the same joints in both.
@@ -37,9 +39,9 @@ from ..math.se3 import invert
 from ..math.so3 import orientation_error
 from ..model.robot import Robot
 
-#: a calibrated tool further than this from the TCP (mm, deg) is another point: the target the
-#: calibration measured, not a refinement of the TCP
-TOOL_MATCH_MM, TOOL_MATCH_DEG = 5.0, 2.0
+#: a calibrated tool nearer than this to the TCP (mm, deg) may be that tool, measured: said, with
+#: how to use it (it is used only where the user says so)
+TOOL_NEAR_MM, TOOL_NEAR_DEG = 5.0, 2.0
 
 
 def frame_gap(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -63,9 +65,14 @@ class Cell:
     #: the TCP in the frame after the last joint (the nominal flange's frame · the tool data)
     tcp: np.ndarray
     tcp_source: str
-    #: the calibrated tool was kept as a refinement of the TCP (else the TCP is on its chain)
+    #: the calibrated model's tool stands in for the TCP (asked for), else the TCP is on its chain
     refined: bool
     notes: tuple[str, ...] = field(default_factory=tuple)
+
+    @property
+    def label(self) -> str:
+        """Which TCP the goals are for, as a result's rows say it."""
+        return self.tcp_source + (" (the calibrated model's tool standing in)" if self.refined else "")
 
     def to_accurate(self, T: np.ndarray) -> np.ndarray:
         """Poses (..., 4, 4) from the controller's world into the calibrated model's."""
@@ -98,26 +105,32 @@ def users_of(user, T: np.ndarray) -> np.ndarray:
     return np.stack([eye if u is None else u for u in user]).reshape(T.shape)
 
 
-def make_cell(nominal: Robot, accurate: Robot, tool: np.ndarray | None = None, source: str = "") -> Cell:
+def make_cell(nominal: Robot, accurate: Robot, tool: np.ndarray | None = None, source: str = "",
+              calibrated: bool = False) -> Cell:
     """The cell of a controller running ``nominal`` on a robot the calibrated model ``accurate``
     describes, for the tool data ``tool`` (4×4 mm in the flange frame, the nominal model's tool;
     default none: the TCP is the flange) named by ``source`` (said in the notes: ``the --tool
-    given``, ``the program's tool tool1``)."""
+    given``, ``the program's tool tool1``).  ``calibrated``: the user says the calibrated model's
+    tool is this tool, measured: it stands in for the TCP on the calibrated robot; else the TCP is
+    put on the calibrated joints and base."""
     if tool is None:
         tcp, source = nominal.tool, source or "the nominal model's tool"
     else:
         tcp, source = nominal.tool @ np.asarray(tool, float), source or "the TCP given"
     mm, deg = (float(x) for x in frame_gap(accurate.tool, tcp))
     notes = []
-    refined = mm <= TOOL_MATCH_MM and deg <= TOOL_MATCH_DEG
-    if refined:
-        calibrated = accurate
+    if calibrated:
         if mm > 1e-9 or deg > 1e-9:
-            notes.append(f"the calibrated tool, {mm:.3g} mm and {deg:.3g}° from {source}, refines it: the calibrated "
-                         "robot reaches with the calibrated tool")
-    else:
-        calibrated = accurate.with_tool(tcp)
+            notes.append(f"the calibrated model's tool stands in for {source}, as asked: it is {mm:.3g} mm and "
+                         f"{deg:.3g}° from that tool's data")
+        return Cell(nominal.with_tool(tcp), accurate, tcp, source, True, tuple(notes))
+    if (mm > 1e-9 or deg > 1e-9) and mm <= TOOL_NEAR_MM and deg <= TOOL_NEAR_DEG:
+        notes.append(f"the calibrated model's tool is {mm:.3g} mm and {deg:.3g}° from {source}: the goals are for "
+                     f"{source} as the program states it, on the calibrated joints and base; if the calibration "
+                     "measured that tool, say so (--tool NAME=calibrated, or --tool calibrated) and its measured "
+                     "tool stands in")
+    elif mm > TOOL_NEAR_MM or deg > TOOL_NEAR_DEG:
         notes.append(f"the calibrated model's tool is {mm:.4g} mm and {deg:.3g}° from {source}: it is the point the "
                      f"calibration measured, not the TCP; the goals are for {source} on the calibrated joints and base"
                      + (" (give --tool to name another TCP)" if "nominal model" in source else ""))
-    return Cell(nominal.with_tool(tcp), calibrated, tcp, source, refined, tuple(notes))
+    return Cell(nominal.with_tool(tcp), accurate.with_tool(tcp), tcp, source, False, tuple(notes))

@@ -23,7 +23,9 @@ def compensate_cmd(
     payload: float | None = typer.Option(None, "--payload", help="payload mass, kg, at goals without a payload "
                                          "column"),
     tool: str | None = typer.Option(None, "--tool", help="the TCP the commands are for, in the nominal model's "
-                                    "tool frame (its flange): x,y,z[,rx,ry,rz] mm, deg (default: that frame)"),
+                                    "tool frame (its flange): x,y,z[,rx,ry,rz] mm, deg (default: that frame); "
+                                    "calibrated (or x,y,z[,rx,ry,rz],calibrated): the calibration measured that "
+                                    "tool, and its calibrated tool stands in for it"),
     as_json: bool = json_flag("the summary (counts per status, validation against --truth)"),
     summary: Path | None = summary_option("the summary"),
     column: list[str] | None = typer.Option(None, "--column", help="map file columns: FILE=ROBOCAL[,FILE=ROBOCAL…]"),
@@ -44,7 +46,7 @@ def compensate_cmd(
     from .common import check_outputs, console, metrics_table, one_line, print_json, print_warnings
 
     check_outputs((nominal, calibrated, goals, truth), out=out, summary=summary)
-    opt.frame_values(tool, "tool")  # checked before any work
+    tcp, _, measured = opt.tool_frames([tool] if tool else None, "tool")  # checked before any work
 
     # the chain's links choose the nominal's chain (and the truth's); a calibrated URDF export
     # runs from its measuring_frame to its target, robocal's defaults
@@ -54,9 +56,8 @@ def compensate_cmd(
                    prismatic=tuple(map(bool, nom.prismatic)) if nom.prismatic.any() else None)
     from ..math.se3 import frame_from_values
 
-    tcp = opt.frame_values(tool, "tool")
     result = compensate(nom, cal, g, truth=tru, position_only=position_only or None, payload=payload,
-                        tool=None if tcp is None else frame_from_values(tcp))
+                        tool=None if tcp is None else frame_from_values(tcp), calibrated_tool=bool(measured))
     document, summary_path = result.summary(), summary
     with together():
         result.save(out)

@@ -23,7 +23,9 @@ def filter_cmd(
                                           "controller's flange): x,y,z,rx,ry,rz (mm, deg, "
                                           "R = Rz(rz)·Ry(ry)·Rx(rx): FANUC's w,p,r, KUKA's C,B,A) for every target, "
                                           "or NAME=x,y,z,rx,ry,rz for the program's tool NAME (KRL TOOL_DATA[n] "
-                                          "and FANUC UT n: n; RAPID: the tooldata's name); repeatable"),
+                                          "and FANUC UT n: n; RAPID: the tooldata's name); NAME=calibrated (or "
+                                          "…,calibrated, or calibrated for every target): the calibration measured "
+                                          "that tool, and its calibrated tool stands in for it; repeatable"),
     user_frame: list[str] | None = typer.Option(None, "--user-frame", help="a user frame in the robot's world, "
                                                 "[NAME=]x,y,z,rx,ry,rz as --tool (KRL BASE_DATA[n] and FANUC UF "
                                                 "n: n; RAPID: the wobjdata's name); repeatable"),
@@ -51,7 +53,7 @@ def filter_cmd(
     from .common import check_outputs, console, one_line, print_json, print_warnings, table
 
     language = language_of(program, fmt)
-    tcp, tools = opt.named_frames(tool, "tool")
+    tcp, tools, measured = opt.tool_frames(tool, "tool")
     user, users = opt.named_frames(user_frame, "user_frame")
     prog = load_program(program, language.name, controller_frames)  # reading it names its companion files
     outputs = [out if f.out_suffix is None else out.with_suffix(f.out_suffix) for f in prog.files]
@@ -61,7 +63,7 @@ def filter_cmd(
     frames = Frames(tcp=None if tcp is None else frame_from_values(tcp),
                     tools={k: frame_from_values(v) for k, v in tools.items()}, users={k: frame_from_values(v) for k, v
                                                                                      in users.items()},
-                    user=None if user is None else frame_from_values(user))
+                    user=None if user is None else frame_from_values(user), calibrated=measured)
     nom = load_robot(nominal, base_link=base_link, tip_link=tip_link)
     result = filter_program(calibrated, prog, nom, frames=frames, frames_file=controller_frames, seed=seed)
     with together():

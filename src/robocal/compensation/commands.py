@@ -167,15 +167,17 @@ def _check_goal_targets(calibrated: Robot, goals: Goals) -> list[str] | None:
 
 def compensate(nominal: Robot, calibrated: Robot, goals: Goals, *, truth: Robot | None = None,
                position_only: bool | None = None, rot_weight: float = ROT_WEIGHT,
-               payload: float | None = None, tool: np.ndarray | None = None) -> CompensationResult:
+               payload: float | None = None, tool: np.ndarray | None = None,
+               calibrated_tool: bool = False) -> CompensationResult:
     """Compensated commands for every goal (see the module docstring).
 
     position_only: solve for the position alone (default: for pose goals without
     orientation columns; joint goals use the full nominal pose).  truth: a simulated true
     robot; its errors at the nominal and the compensated commands are returned.  payload:
     kg at every goal, where the goals file has no ``payload`` column.  tool: the TCP the
-    commands are for, 4×4 mm in the nominal model's tool frame (its flange); default that frame (see
-    :func:`robocal.cell.frames.make_cell`).
+    commands are for, 4×4 mm in the nominal model's tool frame (its flange); default that frame;
+    calibrated_tool: the calibration measured that tool, and the calibrated model's tool stands in
+    for it (see :func:`robocal.cell.frames.make_cell`: never by how near the two are).
     Goals with a ``target`` column place that reflector of the calibrated model instead.
     """
     if nominal.n_joints != calibrated.n_joints or (truth is not None and truth.n_joints != nominal.n_joints):
@@ -184,7 +186,7 @@ def compensate(nominal: Robot, calibrated: Robot, goals: Goals, *, truth: Robot 
     notes: list[str] = []
     targets = _check_goal_targets(calibrated, goals)
     if targets is None:
-        cell = make_cell(nominal, calibrated, tool, "the --tool given" if tool is not None else "")
+        cell = make_cell(nominal, calibrated, tool, "the --tool given" if tool is not None else "", calibrated_tool)
         notes += cell.notes
         nominal, calibrated, truth = cell.nominal, cell.accurate, None if truth is None else cell.on(truth)
     else:  # the nominal model places the reflectors where the calibrated one has them

@@ -65,6 +65,8 @@ class Correction:
     config_after: dict = field(default_factory=dict)
     tool: str | None = None
     user: str | None = None
+    #: the TCP the target was solved for (:attr:`robocal.cell.frames.Cell.label`), None where none was
+    tcp: str | None = None
 
     @property
     def corrected(self) -> bool:
@@ -80,7 +82,7 @@ class Correction:
             return None if q is None or not np.isfinite(q).all() else [float(v) for v in np.degrees(q)]
 
         return {"target": t.name, "line": t.line, "kind": t.kind, "status": self.status, "reason": self.reason,
-                "tool": self.tool, "user_frame": self.user,
+                "tool": self.tool, "tcp": self.tcp, "user_frame": self.user,
                 "correction": {"mm": num(self.moved_mm), "deg": num(self.turned_deg),
                                "joints_deg": num(self.joints_deg)},
                 "check": {"mm": num(self.check_mm), "deg": num(self.check_deg)},
@@ -100,27 +102,38 @@ def _facts(arm, i: int) -> dict | None:
 class Frames:
     """The frames a filter is given beside the program's own: ``tcp`` for every target (an unnamed
     --tool), named tools and user frames (``--tool N=…``, ``--user-frame N=…``), ``user`` for every
-    target (an unnamed --user-frame); 4×4 mm."""
+    target (an unnamed --user-frame); 4×4 mm.  ``calibrated``: the tools the calibration measured
+    (``--tool N=calibrated``; "" for every target's), whose calibrated model's tool stands in for
+    them on the calibrated robot (MODEL §1.1)."""
 
     tcp: np.ndarray | None = None
     tools: dict[str, np.ndarray] = field(default_factory=dict)
     users: dict[str, np.ndarray] = field(default_factory=dict)
     user: np.ndarray | None = None
+    calibrated: frozenset[str] = frozenset()
+
+    def measured(self, tool: str | None) -> bool:
+        """Whether the calibrated model's tool stands in for the target's tool ``tool``."""
+        return "" in self.calibrated or (tool is not None and tool in self.calibrated)
 
 
 def _resolve(program: Program, frames: Frames, t: Target, nominal: Robot):
-    """(tool key, TCP, source) and (user frame or None), or the reason one is unknown."""
+    """(tool key, TCP, source, the calibrated tool stands in) and (user frame or None), or the
+    reason one is unknown."""
+    measured = frames.measured(t.tool)
     if frames.tcp is not None:
-        tool = ("--tool", frames.tcp, "the --tool given")
+        tool = ("--tool", frames.tcp, "the --tool given", measured)
     elif t.tool is None:
-        tool = ("", None, "the nominal model's tool")
+        tool = ("", None, "the nominal model's tool", measured)
     elif t.tool in frames.tools:
-        tool = (t.tool, frames.tools[t.tool], f"tool {t.tool} (given)")
+        tool = (t.tool, frames.tools[t.tool], f"tool {t.tool} (given)", measured)
     elif t.tool in program.tools:
-        tool = (t.tool, program.tools[t.tool], f"the program's tool {t.tool}")
+        tool = (t.tool, program.tools[t.tool], f"the program's tool {t.tool}", measured)
     else:
+        said = (f"; --tool {t.tool}=calibrated says the calibration measured it, but the controller's data for it "
+                f"are needed all the same (--tool {t.tool}=x,y,z,rx,ry,rz,calibrated)") if measured else ""
         return None, None, f"its tool {t.tool} is unknown: " + program.missing.get(
-            t.tool, f"the program does not declare it (give --tool {t.tool}=x,y,z,rx,ry,rz)")
+            t.tool, f"the program does not declare it (give --tool {t.tool}=x,y,z,rx,ry,rz)") + said
     if frames.user is not None:
         return tool, frames.user, None
     if t.user is None:
@@ -164,11 +177,11 @@ def plan(program: Program, language: Language, nominal: Robot, accurate: Robot, 
         if why:
             out[i] = Correction(t, "frame", why, tool=t.tool, user=t.user)
             continue
-        key, tcp, source = tool
+        key = tool[0], tool[3]
         if key not in cells:
-            cells[key] = make_cell(nominal, accurate, tcp, source)
+            cells[key] = make_cell(nominal, accurate, *tool[1:])
             notes += [n for n in cells[key].notes if n not in notes]
-            if key == "":
+            if tool[0] == "":
                 notes.append("the program names no tool: the TCP is the nominal model's tool (give --tool)")
         groups[key].append((i, user))
     for key, members in groups.items():
@@ -214,7 +227,7 @@ def _poses(program: Program, language: Language, cell: Cell, members, hints, see
     for k, s in enumerate(status):
         if s != "ok":
             out[idx[k]] = Correction(targets[k], f"{s} (nominal)", reasons[k], config_before=targets[k].config,
-                                     tool=targets[k].tool, user=targets[k].user)
+                                     tool=targets[k].tool, user=targets[k].user, tcp=cell.label)
     if not ok:
         return out
     g = cell.to_accurate(goals[ok])
@@ -230,7 +243,7 @@ def _poses(program: Program, language: Language, cell: Cell, members, hints, see
     for j, k in enumerate(ok):
         t, i = targets[k], idx[k]
         before = t.config or language.encode(J_nom[j], _facts(arm_nom, j), {})
-        common = dict(q_nominal=J_nom[j], config_before=before, tool=t.tool, user=t.user)
+        common = dict(q_nominal=J_nom[j], config_before=before, tool=t.tool, user=t.user, tcp=cell.label)
         st = "singular" if singular[j] and sol.status[j] in ("ok", "branch") else sol.status[j]
         if st != "ok":
             why = sol.reason(j) if st == sol.status[j] else "the nominal model is singular at its joints"
@@ -252,7 +265,7 @@ def _joints(program: Program, language: Language, cell: Cell, members) -> dict[i
     singular = condition_numbers(nominal, q, True, 1000.0) > SINGULAR_CONDITION
     out = {}
     for j, (t, i) in enumerate(zip(targets, idx)):
-        common = dict(q_nominal=t.q, tool=t.tool, user=t.user)
+        common = dict(q_nominal=t.q, tool=t.tool, user=t.user, tcp=cell.label)
         st = "singular" if singular[j] and sol.status[j] in ("ok", "branch") else sol.status[j]
         if st != "ok":
             out[i] = Correction(t, st, sol.reason(j) if st == sol.status[j] else
@@ -275,9 +288,10 @@ def check(program: Program, reread: Program, language: Language, corrections: li
         if not c.corrected:
             continue
         tool, user, _ = _resolve(program, frames, c.target, nominal)
-        if tool[0] not in cells:
-            cells[tool[0]] = (make_cell(nominal, accurate, tool[1], tool[2]), [])
-        cells[tool[0]][1].append((i, user))
+        key = tool[0], tool[3]
+        if key not in cells:
+            cells[key] = (make_cell(nominal, accurate, *tool[1:]), [])
+        cells[key][1].append((i, user))
     for cell, members in cells.values():
         poses = [(i, u) for i, u in members if corrections[i].target.kind == "pose"]
         joints = [i for i, _ in members if corrections[i].target.kind == "joints"]
