@@ -522,3 +522,73 @@ def test_the_calibrated_tool_stands_in_only_where_the_user_says_it_is_the_progra
     code, _, err = run_cli("filter", accurate, tmp_path / "cell.mod", "--nominal", nominal, "--out", out,
                            "--tool", "gun=calibrated", "--tool", "gun=calibrated")
     assert code == 2 and "said calibrated twice" in err
+
+
+# --- FANUC production programs: options in any order, wrapped lines, untaught and odd positions ---
+
+def _production_ls(tmp_path):
+    """A FANUC program as production backups write them: harmless options (ACC, TB … P-SPS, Skip)
+    beside run-time offsets after them, an instruction wrapped onto a continuation line, an untaught
+    position, one holding group 2 alone, one in the frames active at run time, a joint position in a
+    user frame robocal is not given, an option it does not know."""
+    rng = np.random.default_rng(31)
+    g = ind.geometry("irb120")
+    tool = ctl.frame([0.0, 0.0, 210.0], [0.0, 0.0, 0.0])
+    box = [(-150, 150), (-60, 70), (-80, 50), (-150, 150), (20, 110), (-350, 350)]
+    q = _taught(rng, box, 8)
+    world = [ind.pose(g, qi, tool=tool) for qi in q]
+    text = ctl.fanuc_program(world, [ctl.fanuc_config("irb120", g, qi) for qi in q], [], uf=0, ut=2)
+    main, pos = text.split("/POS")
+    motions = ["   1:J P[1] 100% CNT0 ACC100 TB .10sec,P-SPS Tool_Offset,PR[11] Offset,PR[12]    ;",
+               "   2:L P[2] 2000mm/sec CNT100 ACC50 TB .10sec,P-SPS Tool_Offset,PR[11]\r\n    :  Offset,PR[12]    ;",
+               "   3:L P[3] 500mm/sec FINE ACC80 TB .05sec,P-SPS Skip,LBL[3]    ;",
+               "   4:L P[4] 500mm/sec CNT50 Wjnt    ;",
+               "   5:J P[5] 100% FINE INC    ;",
+               "   6:L P[6] 500mm/sec FINE MAGIC_OPTION    ;",
+               "   7:J P[7:Home] 100% FINE    ;", "   8:J P[8] 100% FINE    ;",
+               "   9:J P[9] 100% FINE    ;", "  10:J P[10] 100% FINE    ;", "  11:J P[11] 100% FINE    ;",
+               "  12:J P[12] 100% FINE    ;"]
+    main = main[:main.index("/MN") + 3] + "\r\n" + "\r\n".join(motions) + "\r\n"
+    odd = ["P[9]{", "   GP1:", "\tUF : 0, UT : 2,\t\tCONFIG : 'N U T, 0, 0, 0',",
+           "\tX = ******** mm,\tY = ******** mm,\tZ = ******** mm,",
+           "\tW = ******** deg,\tP = ******** deg,\tR = ******** deg", "};",
+           "P[10]{", "   GP2:", "\tUF : 0, UT : 2,", "\tJ1 =     0.000  mm", "};",
+           "P[11]{", "   GP1:", "\tUF : F, UT : F,\t\tCONFIG : 'N U T, 0, 0, 0',",
+           "\tX = 400.000  mm,\tY = 0.000  mm,\tZ = 500.000  mm,", "\tW = 180.000 deg,\tP = 0.000 deg,\tR = 0.000 deg",
+           "};", "P[12]{", "   GP1:", "\tUF : 7, UT : 2,",
+           "\tJ1=    10.000 deg,\tJ2=    20.000 deg,\tJ3=   -10.000 deg,",
+           "\tJ4=     5.000 deg,\tJ5=    40.000 deg,\tJ6=    30.000 deg", "};"]
+    pos = pos.replace("/END", "\r\n".join(odd) + "\r\n/END")
+    (tmp_path / "PROD.LS").write_bytes((main + "/POS" + pos).encode())
+    return tmp_path / "PROD.LS", q, world, tool
+
+
+def test_fanuc_production_options_and_odd_positions(tmp_path, run_cli):
+    program, q, world, tool = _production_ls(tmp_path)
+    nominal, accurate = _robots(tmp_path, "irb120", np.eye(4), COUPLING)
+    out = tmp_path / "OUT.LS"
+    code, _, err = run_cli("filter", accurate, program, "--nominal", nominal, "--out", out, "--tool",
+                           "2=0,0,210,0,0,0", "--summary", tmp_path / "s.json")
+    assert code == 3, err  # written, with targets left
+    rows = {r["target"].split()[0]: r for r in json.loads((tmp_path / "s.json").read_text())["targets"]}
+    left = {k: (r["status"], r["reason"]) for k, r in rows.items() if r["status"] != "ok"}
+    assert "Tool_Offset" in left["P[1]"][1] and "Tool_Offset" in left["P[2]"][1]  # after TB … P-SPS, and wrapped
+    assert "INC" in left["P[5]"][1] and "'MAGIC_OPTION'" in left["P[6]"][1]
+    assert "untaught" in left["P[9]"][1] and "group 2" in left["P[10]"][1]
+    assert "active at run time" in left["P[11]"][1]
+    assert {"P[3]", "P[4]", "P[7]", "P[8]", "P[12]"} <= {k for k, r in rows.items() if r["status"] == "ok"}
+    assert set(left) == {"P[1]", "P[2]", "P[5]", "P[6]", "P[9]", "P[10]", "P[11]"}  # the offsets' PRs are no targets
+    new = ctl.read_fanuc(out.read_text())
+    g_nom, g_acc = ind.geometry("irb120"), ind.geometry("irb120", PLANTED)
+    for k in (3, 4, 7, 8):  # corrected as the independent controller takes them
+        v = new[k]
+        T_new = ctl.frame([v["X"], v["Y"], v["Z"]], [v["W"], v["P"], v["R"]])
+        _lands(ind.pose(g_acc, ind.inverse(g_nom, T_new, q[k - 1], tool=tool), tool=tool), world[k - 1])
+    old = ctl.read_fanuc(program.read_text())
+    for k in (1, 2, 5, 6, 11):
+        assert new[k] == old[k]
+    assert "******** mm" in out.read_text()
+    # the calibrated model of the nominal itself: the program comes back byte for byte
+    code, _, err = run_cli("filter", nominal, program, "--nominal", nominal, "--out", tmp_path / "SAME.LS", "--tool",
+                           "2=0,0,210,0,0,0")
+    assert (tmp_path / "SAME.LS").read_bytes() == program.read_bytes()

@@ -132,8 +132,10 @@ def _resolve(program: Program, frames: Frames, t: Target, nominal: Robot):
     else:
         said = (f"; --tool {t.tool}=calibrated says the calibration measured it, but the controller's data for it "
                 f"are needed all the same (--tool {t.tool}=x,y,z,rx,ry,rz,calibrated)") if measured else ""
-        return None, None, f"its tool {t.tool} is unknown: " + program.missing.get(
-            t.tool, f"the program does not declare it (give --tool {t.tool}=x,y,z,rx,ry,rz)") + said
+        return None, None, f"its tool {t.tool} is unknown: " + _missing(
+            program, "tool", t.tool, f"the program does not declare it (give --tool {t.tool}=x,y,z,rx,ry,rz)") + said
+    if t.kind == "joints":  # a joint target is where its joints put the TCP: no user frame moves it
+        return tool, None, None
     if frames.user is not None:
         return tool, frames.user, None
     if t.user is None:
@@ -142,8 +144,14 @@ def _resolve(program: Program, frames: Frames, t: Target, nominal: Robot):
         return tool, frames.users[t.user], None
     if t.user in program.users:
         return tool, program.users[t.user], None
-    return None, None, f"its user frame {t.user} is unknown: " + program.missing.get(
-        t.user, f"the program does not declare it (give --user-frame {t.user}=x,y,z,rx,ry,rz)")
+    return None, None, f"its user frame {t.user} is unknown: " + _missing(
+        program, "user", t.user, f"the program does not declare it (give --user-frame {t.user}=x,y,z,rx,ry,rz)")
+
+
+def _missing(program: Program, kind: str, name: str, default: str) -> str:
+    """Why the program does not say a frame: by kind and name (``tool:2``; FANUC's UT 2 and UF 2 are
+    not one frame), else by name."""
+    return program.missing.get(f"{kind}:{name}", program.missing.get(name, default))
 
 
 def _check_unnamed(program: Program, frames: Frames) -> None:

@@ -36,13 +36,37 @@ from .program import NUMBER, Field, Lines, Program, ProgramFile, Target, read_fi
 _POSITION = re.compile(r"^P\[(\d+)(?::\s*\"?([^\]\"]*)\"?)?\]\s*\{(.*?)\};", re.S | re.M)
 _GROUP = re.compile(r"\bGP(\d+)\s*:")
 _VALUE = re.compile(r"\b(X|Y|Z|W|P|R|J\d|E\d)\s*=\s*(" + NUMBER + r")\s*(mm|deg)?")
-_FRAMES = re.compile(r"\bUF\s*:\s*(\d+)\s*,\s*UT\s*:\s*(\d+)")
+_FRAMES = re.compile(r"\bUF\s*:\s*(\d+|F)\s*,\s*UT\s*:\s*(\d+|F)", re.I)
 _CONFIG = re.compile(r"CONFIG\s*:\s*'([^']*)'")
 _LETTER = re.compile(r"[FNUDTB]")
 _TURN = re.compile(r"-?\d+")
-_MOTION = re.compile(r"^\s*\d+:\s*([JLCA])\s+(P|PR)\[(\d+)(?::[^\]]*)?\](.*?);", re.M)
-_MORE = re.compile(r"^\s*:\s*(P|PR)\[(\d+)(?::[^\]]*)?\](.*?);", re.M)
-_CHANGING = re.compile(r"\b(Offset|Tool_Offset|INC|VOFFSET|VTOOL)\b", re.I)
+_UNTAUGHT = re.compile(r"\*{3,}")
+_NUMBERED = re.compile(r"^\s*(\d+)\s*:(.*)$")
+_CONTINUED = re.compile(r"^\s*:(.*)$")
+_REF = r"\[\s*(?:\d+|R\[\d+(?::[^\]]*)?\])\s*(?::[^\]]*)?\]"  # [n], [n:comment], [R[m]] (indirect)
+#: a motion instruction: its kind, its position(s) (a circular motion names two) and the rest
+_INSTRUCTION = re.compile(r"^\s*([JLCA])\s+((?:PR|P)" + _REF + r")(?:\s+((?:PR|P)" + _REF + r"))?(.*)$", re.S)
+_POSITION_REF = re.compile(r"(PR|P)\[\s*(\d+|R\[\d+(?::[^\]]*)?\])\s*(?::[^\]]*)?\]")
+_REG = r"R\[\d+(?::[^\]]*)?\]"
+_LABEL = r"LBL\[\d+(?::[^\]]*)?\]"
+_PR = r"PR\[\d+(?::[^\]]*)?\]"
+_SIGNAL = r"(?:DO|RO|GO|AO|F|UO|SO|R)\[\d+(?::[^\]]*)?\]\s*=\s*[\w.+-]+(?:\([^)]*\))?"
+#: the options of a motion that leave its target as written (a speed, a termination, timing and
+#: application options): anything else on a motion line is flagged, its target left as written
+_HARMLESS = re.compile(
+    r"\s*(?:"
+    r"(?:\d+(?:\.\d*)?|\.\d+|" + _REG + r")\s*(?:%|mm/sec|cm/min|inch/min|deg/sec|sec|msec)"  # speed
+    r"|max_speed|FINE|CNT\s*(?:\d+|" + _REG + r")|CD\s*\d+|CR\s*\d+"  # termination
+    r"|ACC\s*(?:\d+|" + _REG + r")|Wjnt|PTH|AP_LD\s*\d+|RT_LD\s*\d+|(?:Ind\.)?EV\s*\d+%"
+    r"|(?:TB|TA|DB)\s*(?:\d+(?:\.\d*)?|\.\d+|" + _REG + r")\s*(?:sec|mm)\s*,\s*(?:P-SPS|POINT_LOGIC|CALL\s+\w+"
+    r"(?:\([^)]*\))?|" + _SIGNAL + r")"  # timing: a signal or a call before or after the point
+    r"|Time\s+(?:Before|After)\s+[\d.]+\s*sec\s*,?\s*(?:CALL\s+\w+(?:\([^)]*\))?|" + _SIGNAL + r")"
+    r"|Distance\s+Before\s+[\d.]+\s*mm\s*,?\s*(?:CALL\s+\w+(?:\([^)]*\))?|" + _SIGNAL + r")"
+    r"|Skip\s*,\s*" + _LABEL + r"(?:\s*,\s*" + _PR + r"\s*=\s*[LJ]POS)?"  # high-speed skip: the target stays
+    r"|Arc\s+(?:Start|End)\s*\[[^\]]*\]|Weld\s+(?:Start|End)\s*\[[^\]]*\]|SPOT\s*\[[^\]]*\]|Weave\s*\[[^\]]*\]"
+    r")(?=\s|$)", re.I)
+#: options that change a motion's target as the program runs (named as such)
+_CHANGING = re.compile(r"^\s*(Offset|Tool_Offset|INC|VOFFSET|VTOOL|RTCP|COORD)\b", re.I)
 POSE_KEYS = ("X", "Y", "Z", "W", "P", "R")
 JOINT_KEYS = ("J1", "J2", "J3", "J4", "J5", "J6")
 
@@ -66,17 +90,65 @@ def _config_fields(body: str, offset: int) -> tuple[dict[str, Field], dict]:
     return fields, config
 
 
+def _instructions(text: str, lines: Lines):
+    """The ``/MN`` section's instructions, continuation lines (``   :  …``) joined to the numbered
+    line they continue: (text, line of its number), the text without its trailing ``;``."""
+    main_end = text.find("/POS")
+    main = text[:main_end if main_end >= 0 else len(text)]
+    start = main.find("/MN")
+    body, at = (main[start:], start) if start >= 0 else (main, 0)
+    current, first = None, 0
+    for raw in body.splitlines(keepends=True):
+        numbered, continued = _NUMBERED.match(raw), _CONTINUED.match(raw)
+        if numbered:
+            if current is not None:
+                yield current, first
+            current, first = numbered.group(2), lines.of(at)
+        elif continued and current is not None:
+            current = current.rstrip().rstrip(";") + " " + continued.group(1)
+        at += len(raw)
+    if current is not None:
+        yield current, first
+
+
+def _unsupported_option(rest: str) -> tuple[str, bool] | None:
+    """The first option of a motion robocal does not take as leaving the target as written, and
+    whether it is one that changes the target as the program runs; None when every one is harmless."""
+    rest = rest.strip().rstrip(";").strip()
+    while rest:
+        changing = _CHANGING.match(rest)
+        if changing:
+            return changing.group(1), True
+        m = _HARMLESS.match(rest)
+        if m is None or not m.group().strip():
+            return rest.split()[0], False
+        rest = rest[m.end():].lstrip().lstrip(",").strip()
+    return None
+
+
 def _motions(text: str, lines: Lines) -> dict[str, list[tuple[str | None, int]]]:
-    """Position number → [(why its motion changes it at run time or None, line), …]; PR motions
-    are listed under ``PR n``."""
-    main = text.split("/POS", 1)[0]
+    """Position number → [(why its motion leaves it as written or None, line), …]; position
+    register and indirect motions are listed under ``PR n`` and ``P[R[n]]``."""
     out: dict[str, list] = {}
-    for pattern in (_MOTION, _MORE):
-        for m in pattern.finditer(main):
-            kind, number, rest = (m.group(2), m.group(3), m.group(4)) if pattern is _MOTION else m.groups()
-            change = _CHANGING.search(rest)
-            key = number if kind == "P" else f"PR {number}"
-            out.setdefault(key, []).append((change.group(1) if change else None, lines.of(m.start())))
+    for instruction, line in _instructions(text, lines):
+        body = instruction.split("//", 1)[0]  # a commented-out instruction (//) moves nothing
+        m = _INSTRUCTION.match(body)
+        if m is None:
+            continue
+        option = _unsupported_option(m.group(4).rstrip().rstrip(";"))
+        why = None
+        if option is not None:
+            name, changing = option
+            why = (f"a motion with {name} (line {line}) changes it as the program runs" if changing else
+                   f"a motion with the option {name!r} (line {line}), which robocal does not know to leave the "
+                   "target as written")
+        for ref in (m.group(2), m.group(3)):
+            if ref is None:
+                continue
+            r = _POSITION_REF.match(ref)
+            kind, number = r.group(1), r.group(2)
+            key = f"PR {number}" if kind == "PR" else number if number.isdigit() else f"P[{number}]"
+            out.setdefault(key, []).append((why, line))
     return out
 
 
@@ -93,51 +165,71 @@ def read(path: Path, frames_file: Path | None = None) -> Program:
     for m in _POSITION.finditer(text, max(pos, 0)):
         number, body, offset = m.group(1), m.group(3), m.start(3)
         line = lines.of(m.start())
-        groups = list(_GROUP.finditer(body))
-        first = groups[0] if groups else None
-        end = groups[1].start() if len(groups) > 1 else len(body)
-        gp1 = body[first.end() if first else 0:end]
-        gp1_at = offset + (first.end() if first else 0)
-        frames = _FRAMES.search(gp1)
-        values = {v.group(1): Field(gp1_at + v.start(2), gp1_at + v.end(2), v.group(2)) for v in _VALUE.finditer(gp1)}
         name = f"P[{number}]" + (f" {m.group(2).strip()}" if m.group(2) and m.group(2).strip() else "")
-        if all(k in values for k in POSE_KEYS):
-            cfg_fields, config = _config_fields(gp1, gp1_at)
-            p = np.array([values[k].value for k in "XYZ"])
-            R = rpy_to_matrix(np.radians([values[k].value for k in "WPR"]))
-            t = Target(name, line, "pose", {**values, **cfg_fields}, p, R, config=config)
-        elif all(k in values for k in JOINT_KEYS):
-            t = Target(name, line, "joints", values, q=np.radians([values[k].value for k in JOINT_KEYS]))
-        else:
-            missing = [k for k in POSE_KEYS if k not in values]
-            raise InputError(f"P[{number}]: no number for {', '.join(missing)} (and not a joint position J1…J6)",
-                             source=source, where=f"line {line}")
-        if frames:
-            t.user, t.tool = str(int(frames.group(1))), str(int(frames.group(2)))
-        used = motions.get(number, [])
-        changing = [(why, at) for why, at in used if why]
-        if changing:
-            t.unsupported = f"a motion with {changing[0][0]} (line {changing[0][1]}) changes it as the program runs"
-        program.targets.append(t)
+        program.targets.append(_position(number, name, body, offset, line, source, motions.get(number, [])))
     for key, used in motions.items():
         if key.startswith("PR "):
             program.targets.append(Target(f"PR[{key[3:]}]", used[0][1], "pose", {},
                                           unsupported="a position register: its value lives in the controller"))
+        elif key.startswith("P["):
+            program.targets.append(Target(key, used[0][1], "pose", {}, unsupported="an indirect position: the "
+                                          "register that numbers it is set as the program runs"))
     declared = {t.name.split()[0] for t in program.targets}
     for number, used in motions.items():
-        if not number.startswith("PR ") and f"P[{number}]" not in declared:
+        if number.isdigit() and f"P[{number}]" not in declared:
             raise InputError(f"P[{number}] is used by a motion but has no position in /POS", source=source,
                              where=f"line {used[0][1]}")
     if not program.targets:
         raise InputError("no targets found (positions P[n] of a /POS section)", source=source)
     program.targets.sort(key=lambda t: t.line)
     for t in program.targets:
-        for kind, name in (("tool", t.tool), ("user frame", t.user)):
+        for kind, name in (("tool", t.tool), ("user", t.user)):
             if name is not None and name != "0":
-                program.missing.setdefault(name, f"FANUC keeps {'UT' if kind == 'tool' else 'UF'} {name} in the "
-                                                 f"controller: give --{'tool' if kind == 'tool' else 'user-frame'} "
-                                                 f"{name}=x,y,z,w,p,r")
+                program.missing.setdefault(f"{kind}:{name}", f"FANUC keeps {'UT' if kind == 'tool' else 'UF'} {name} "
+                                           f"in the controller: give --{'tool' if kind == 'tool' else 'user-frame'} "
+                                           f"{name}=x,y,z,w,p,r")
     return program
+
+
+def _position(number: str, name: str, body: str, offset: int, line: int, source: str, used: list) -> Target:
+    """One position of /POS as a target: its group 1's pose or joints, its frames, what its motions
+    say of it.  An untaught position (asterisks), one with no group 1 (another group's alone) and
+    one taught in the frames active at run time (``UF : F``) are targets left as written, with why."""
+    groups = list(_GROUP.finditer(body))
+    first = next((g for g in groups if g.group(1) == "1"), None)
+    if groups and first is None:
+        return Target(name, line, "pose", {}, unsupported=f"it holds no group 1 position, only group "
+                      f"{', '.join(g.group(1) for g in groups)}'s: nothing of the arm to correct")
+    end = next((g.start() for g in groups if first is not None and g.start() > first.start()), len(body))
+    gp1 = body[first.end() if first else 0:end]
+    gp1_at = offset + (first.end() if first else 0)
+    if _UNTAUGHT.search(gp1):
+        return Target(name, line, "pose", {}, unsupported="untaught: the controller prints its numbers as asterisks "
+                      "(a motion that reaches it stops the program there)")
+    values = {v.group(1): Field(gp1_at + v.start(2), gp1_at + v.end(2), v.group(2)) for v in _VALUE.finditer(gp1)}
+    if all(k in values for k in POSE_KEYS):
+        cfg_fields, config = _config_fields(gp1, gp1_at)
+        p = np.array([values[k].value for k in "XYZ"])
+        R = rpy_to_matrix(np.radians([values[k].value for k in "WPR"]))
+        t = Target(name, line, "pose", {**values, **cfg_fields}, p, R, config=config)
+    elif all(k in values for k in JOINT_KEYS):
+        t = Target(name, line, "joints", values, q=np.radians([values[k].value for k in JOINT_KEYS]))
+    else:
+        missing = [k for k in POSE_KEYS if k not in values]
+        raise InputError(f"P[{number}]: no number for {', '.join(missing)} (and not a joint position J1…J6)",
+                         source=source, where=f"line {line}")
+    frames = _FRAMES.search(gp1)
+    if frames:
+        uf, ut = frames.group(1), frames.group(2)
+        if "F" in (uf.upper(), ut.upper()):
+            t.unsupported = (f"taught in the frames active at run time (UF : {uf}, UT : {ut}): which they are, the "
+                             "program does not say")
+        else:
+            t.user, t.tool = str(int(uf)), str(int(ut))
+    changing = [why for why, _ in used if why]
+    if changing and t.unsupported is None:
+        t.unsupported = changing[0]
+    return t
 
 
 def _turn_bounds(t: int) -> tuple[float, float]:
