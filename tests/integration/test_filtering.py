@@ -592,3 +592,71 @@ def test_fanuc_production_options_and_odd_positions(tmp_path, run_cli):
     code, _, err = run_cli("filter", nominal, program, "--nominal", nominal, "--out", tmp_path / "SAME.LS", "--tool",
                            "2=0,0,210,0,0,0")
     assert (tmp_path / "SAME.LS").read_bytes() == program.read_bytes()
+
+
+# --- KRL: S and T in binary and hex, FRAME data, spline motions' frames, unknown modifiers ----
+
+def _status_of(text: str) -> int:
+    text = text.strip()
+    return int(text[2:-1], 2 if text[1] in "Bb" else 16) if text.startswith("'") else int(text)
+
+
+def test_krl_status_in_every_spelling_frames_untouched_spline_frames_read(tmp_path, run_cli):
+    rng = np.random.default_rng(17)
+    B = ind.base_of("kr5-kuka")
+    nominal, accurate = _robots(tmp_path, "kr5-kuka", B)
+    g_nom, g_acc = ind.geometry("kr5-kuka"), ind.geometry("kr5-kuka", PLANTED)
+    tool, other, user = (ctl.frame([12.0, -5.0, 180.0], [0.0, 35.0, 10.0]), ctl.frame([0.0, 40.0, 95.0], [20, 0, 0]),
+                         ctl.frame([900.0, -300.0, 60.0], [0, 0, -15.0]))
+    q = _taught(rng, KUKA_BOX, 6)
+    q[::2, 4] *= -1.0
+    tools = [tool] * 5 + [other]  # the last reached by a spline motion whose FDAT names tool 3
+    world = [ind.pose(g_nom, qi, base=B, tool=tcp) for qi, tcp in zip(q, tools)]
+    st = [ctl.kuka_status("kr5-kuka", g_nom, qi) for qi in q]
+    src, dat = ctl.krl_program([np.linalg.inv(user) @ T for T in world[:5]], [], st[:5])
+    c, b, a = ctl.fixed_angles((np.linalg.inv(user) @ world[5])[:3, :3])
+    T6 = np.linalg.inv(user) @ world[5]
+    dat = dat.replace("ENDDAT", "\r\n".join([
+        "  DECL FDAT FP1={TOOL_NO 3,BASE_NO 1,IPO_FRAME #BASE,POINT2[] \" \"}",
+        f"  DECL E6POS XP6={{X {T6[0, 3]:.3f},Y {T6[1, 3]:.3f},Z {T6[2, 3]:.3f},A {a:.4f},B {b:.4f},C {c:.4f},"
+        f"S 'B{st[5][0]:03b}',T 'H{st[5][1]:02X}',E1 0.0,E2 0.0,E3 0.0,E4 0.0,E5 0.0,E6 0.0}}",
+        "  DECL FRAME BASE_MEAS[3]", "  BASE_MEAS[1]={X 101.5,Y 202.25,Z 3.0,A 0.0,B 0.0,C 0.0}",
+        "  BASE_MEAS[2]={X 501.5,Y 202.25,Z 3.0,A 0.0,B 0.0,C 0.0}", "ENDDAT"]))
+    # XP1 in binary, XP2 in hex: spelled as KUKA's editors write them
+    for i, style in ((1, "B"), (2, "H")):
+        s, t = st[i - 1]
+        spelled = f"S 'B{s:03b}',T 'B{t:06b}'" if style == "B" else f"S 'H{s:X}',T 'H{t:02X}'"
+        dat = re.sub(rf"(DECL E6POS XP{i}=\{{[^}}]*?)S {s},T {t}", lambda m: m.group(1) + spelled, dat)
+    src = src.replace("END\r\n", "  SPTP XP6 WITH $TOOL = STOOL2(FP1), $BASE = SBASE(FP1.BASE_NO), $IPO_MODE = "
+                      "SIPO_MODE(FP1.IPO_FRAME), $LOAD = SLOAD(FP1.TOOL_NO)\r\n"
+                      "  LIN XP3:{X 0,Y 0,Z 5,A 0,B 0,C 0}\r\nEND\r\n")
+    folder = tmp_path / "R1"
+    folder.mkdir()
+    (folder / "cell.src").write_bytes(src.encode())
+    (folder / "cell.dat").write_bytes(dat.encode())
+    (folder / "$config.dat").write_text(ctl.krl_config({2: tool, 3: other}, {1: user}))
+    out = tmp_path / "out.src"
+    code, _, err = run_cli("filter", accurate, folder / "cell.src", "--nominal", nominal, "--out", out, "--summary",
+                           tmp_path / "s.json")
+    rows = {r["target"]: r for r in json.loads((tmp_path / "s.json").read_text())["targets"]}
+    assert code == 3 and rows["XP3"]["status"] == "unsupported" and "':{X'" in rows["XP3"]["reason"], err
+    assert not any("BASE_MEAS" in name for name in rows)  # a FRAME: no target
+    new_dat = out.with_suffix(".dat").read_text()
+    for line in ("BASE_MEAS[1]={X 101.5,Y 202.25,Z 3.0,A 0.0,B 0.0,C 0.0}", "DECL FRAME BASE_MEAS[3]"):
+        assert line in new_dat
+    for i in (1, 2, 4, 5, 6):
+        assert rows[f"XP{i}"]["status"] == "ok", rows[f"XP{i}"]
+        m = re.search(rf"DECL E6POS XP{i}=\{{([^}}]*)\}}", new_dat)
+        v = {k.upper(): x for k, x in re.findall(r"(\w+) ('[^']*'|" + ctl.NUM + r")", m.group(1))}
+        T_new = user @ ctl.frame([float(v["X"]), float(v["Y"]), float(v["Z"])],
+                                 [float(v["C"]), float(v["B"]), float(v["A"])])
+        q_ctrl = ind.inverse(g_nom, T_new, q[i - 1], tool=tools[i - 1], base=B)
+        _lands(ind.pose(g_acc, q_ctrl, base=B, tool=tools[i - 1]), world[i - 1])
+        assert (_status_of(v["S"]), _status_of(v["T"])) == ctl.kuka_status("kr5-kuka", g_nom, q_ctrl)
+        if i in (1, 6):  # written back in the spelling it had
+            assert v["S"].startswith("'B")
+        if i == 2:
+            assert v["S"].startswith("'H") and v["T"].startswith("'H")
+    same = tmp_path / "same.src"
+    code, _, err = run_cli("filter", nominal, folder / "cell.src", "--nominal", nominal, "--out", same)
+    assert same.with_suffix(".dat").read_bytes() == dat.encode()

@@ -36,7 +36,9 @@ from .language import DECIMALS, Language, fixed_xyz, keep_on_boundary, set_numbe
 from .program import NUMBER, Field, Program, ProgramFile, Target, line_of, read_file
 
 _AGGREGATE = re.compile(r"\{([^{}]*)\}")
-_ITEM = re.compile(r"([A-Za-z_$][\w$]*)\s+(" + NUMBER + r"|#\w+)")
+#: an integer in KRL's binary or hex notation (Status and Turn are often written so): 'B110', 'H1A'
+_BASED = r"'[BbHh][0-9A-Fa-f]+'"
+_ITEM = re.compile(r"([A-Za-z_$][\w$]*)\s+(" + NUMBER + r"|#\w+|" + _BASED + r")")
 _DECL = re.compile(r"\bDECL\s+(?:GLOBAL\s+)?(E6POS|POS|E6AXIS|AXIS|FRAME|FDAT)\s+(\w+)\s*=\s*$", re.I)
 _MOTION = re.compile(r"\b(PTP|LIN|CIRC|SPTP|SLIN|SCIRC)(_REL)?\s+", re.I)
 _ASSIGN = re.compile(r"(\$?[\w\[\]]+)\s*=\s*$")
@@ -44,9 +46,40 @@ _DATA = re.compile(r"\b(TOOL|BASE)_DATA\s*\[\s*(\d+)\s*\]\s*=\s*\{([^{}]*)\}", r
 _SELECT = re.compile(r"\$(TOOL|BASE)\s*=\s*(?:(TOOL|BASE)_DATA\s*\[\s*(\d+)\s*\]|\$NULLFRAME|(\{[^{}]*\}))", re.I)
 _BAS = re.compile(r"\bBAS\s*\(\s*#(TOOL|BASE)\s*,\s*(\d+)\s*\)", re.I)
 _FDAT = re.compile(r"\bFDAT_ACT\s*=\s*(\w+|\{[^{}]*\})", re.I)
+#: a spline motion's frames from an FDAT: ``$TOOL = STOOL2(FP1)``, ``$BASE = SBASE(FP1.BASE_NO)``,
+#: ``$IPO_MODE = SIPO_MODE(FP1.IPO_FRAME)``
+_SPLINE_FRAMES = re.compile(r"\$(?:TOOL|BASE|IPO_MODE)\s*=\s*(?:STOOL2|SBASE|SIPO_MODE)\s*\(\s*(\w+)", re.I)
+#: a declaration, initialised or not: its type and name (arrays too)
+_TYPED = re.compile(r"\bDECL\s+(?:GLOBAL\s+)?(?:CONST\s+)?(\w+)\s+(\w+)\s*(?:\[|=|$)", re.I | re.M)
+#: what may follow a motion's target(s) and leave them as written: approximation and a CIRC's angle,
+#: and the WITH clause of a spline motion (its speeds, frames read above, approximation)
+_HARMLESS = re.compile(r"^(?:\s*(?:C_PTP|C_DIS|C_VEL|C_ORI|C_SPL|CA\s+" + NUMBER + r")\b)*\s*(?:WITH\b.*)?$",
+                       re.I | re.S)
+#: the types whose aggregates are targets (a FRAME is a frame: measured points, base calibrations)
+TARGET_TYPES = ("E6POS", "POS", "E6AXIS", "AXIS")
 POSE_KEYS = ("X", "Y", "Z", "A", "B", "C")
 JOINT_KEYS = ("A1", "A2", "A3", "A4", "A5", "A6")
 CONFIG_FILE = "$config.dat"
+
+
+def krl_int(text: str) -> int:
+    """A KRL integer in any notation: decimal, binary ``'B110'`` or hex ``'H1A'``."""
+    text = text.strip()
+    if text.startswith("'") and text.endswith("'") and len(text) > 3:
+        return int(text[2:-1], 2 if text[1] in "Bb" else 16)
+    return int(float(text))
+
+
+def krl_spelled(value: int, like: str) -> str:
+    """``value`` written as ``like`` is: decimal, or binary/hex with at least its digits (a Status
+    'B010' stays three bits wide)."""
+    like = like.strip()
+    if like.startswith("'") and len(like) > 3:
+        width = len(like) - 3
+        digits = format(value, "b" if like[1] in "Bb" else "X" if like[2:-1].isupper() or
+                        not any(c.isalpha() for c in like[2:-1]) else "x")
+        return f"'{like[1]}{digits.zfill(width)}'"
+    return str(value)
 
 
 def _items(body: str, offset: int) -> dict[str, Field]:
@@ -111,7 +144,8 @@ def _fdat(body: str, state: _State) -> None:
         state.external = items["IPO_FRAME"].upper() == "#TCP"
 
 
-def _parse(text: str, file: int, source: str, program: Program, fdats: dict, uses: dict, state: _State) -> None:
+def _parse(text: str, file: int, source: str, program: Program, fdats: dict, uses: dict, state: _State,
+           types: dict) -> None:
     """Targets of one file appended to the program; the frames each motion of it uses in ``uses``."""
     start = 0
     for line, raw in enumerate(text.splitlines(keepends=True), 1):
@@ -132,16 +166,24 @@ def _parse(text: str, file: int, source: str, program: Program, fdats: dict, use
                 _fdat(ref[1:-1], state)
             elif ref.upper() in fdats:
                 _fdat(fdats[ref.upper()], state)
+        for m in _SPLINE_FRAMES.finditer(code):
+            if m.group(1).upper() in fdats:
+                _fdat(fdats[m.group(1).upper()], state)
         motion = _MOTION.search(code)
+        why = None
         if motion:
             rest = code[motion.end():]
-            names = re.findall(r"^\s*(\$?[A-Za-z_]\w*)(?:\s*,?\s*([A-Za-z_]\w*))?", rest)
-            words = [w for w in (names[0] if names else ()) if w and not w.upper().startswith("C_")]
-            if motion.group(1).upper() not in ("CIRC", "SCIRC"):
-                words = words[:1]
-            for w in words:
-                uses.setdefault(w.upper(), []).append((state.tool, state.base, state.external, bool(motion.group(2)),
-                                                       line))
+            circ = motion.group(1).upper() in ("CIRC", "SCIRC")
+            named = re.match(r"\s*(\$?[A-Za-z_]\w*(?:\[[^\]]*\])?)" + (r"(?:\s*,\s*(\$?[A-Za-z_]\w*(?:\[[^\]]*\])?))?"
+                             if circ else ""), rest)
+            after = rest[named.end():] if named else re.sub(r"^\s*\{[^{}]*\}(?:\s*,\s*\{[^{}]*\})?", "", rest)
+            if not _HARMLESS.match(after):
+                token = after.strip().split()[0] if after.strip() else after.strip()
+                why = f"its motion (line {line}) goes on with {token!r}, which robocal does not take as leaving the " \
+                      "target as written"
+            for w in (g for g in (named.groups() if named else ()) if g):
+                uses.setdefault(re.sub(r"\s", "", w).upper(), []).append(
+                    (state.tool, state.base, state.external, bool(motion.group(2)), line, why))
         for m in _AGGREGATE.finditer(code):
             before = code[:m.start()]
             items = _items(m.group(1), start + m.start(1))
@@ -163,11 +205,14 @@ def _parse(text: str, file: int, source: str, program: Program, fdats: dict, use
                 continue  # a frame, not a target
             if assign and not decl and assign.group(1).startswith("$"):
                 continue  # a system variable ($TOOL, $BASE, $POS_ACT …), read above where it is a frame
+            if assign and not decl and not inline and types.get(assign.group(1).split("[")[0].upper(), "E6POS") \
+                    not in TARGET_TYPES:
+                continue  # a FRAME (measured points of a base calibration) or other data: not a target
             if not (decl or inline or assign):
                 continue
             if inline:
                 name = f"line {line}" + (" (.dat)" if file else "")
-                frames = (state.tool, state.base, state.external, bool(inline.group(2)), line)
+                frames = (state.tool, state.base, state.external, bool(inline.group(2)), line, why)
             else:
                 name = decl.group(2) if decl else assign.group(1)
                 frames = None
@@ -182,7 +227,7 @@ def _parse(text: str, file: int, source: str, program: Program, fdats: dict, use
 def _target(items: dict[str, Field], is_pose: bool, name: str, line: int, file: int) -> Target:
     if is_pose:
         p, R = pose_matrix(items)
-        config = {k: int(items[k].value) for k in ("S", "T") if k in items}
+        config = {k: krl_int(items[k].text) for k in ("S", "T") if k in items}
         return Target(name, line, "pose", items, p, R, config=config, file=file)
     return Target(name, line, "joints", items, q=np.radians([items[k].value for k in JOINT_KEYS]), file=file)
 
@@ -200,7 +245,10 @@ def _assign_frames(program: Program, uses: dict) -> None:
                 t.unsupported = "no motion of the program reaches it, and its motions use several tools or bases"
             continue
         frames = {(u[0], u[1]) for u in used}
-        if any(u[3] for u in used):
+        said = next((u[5] for u in used if u[5]), None)
+        if said:
+            t.unsupported = said
+        elif any(u[3] for u in used):
             t.unsupported = f"a relative motion ({'line ' + str(used[0][4])}) reaches it"
         elif any(u[2] for u in used):
             t.unsupported = "a motion with IPO_FRAME #TCP (a stationary tool) reaches it"
@@ -229,9 +277,11 @@ def read(path: Path, frames_file: Path | None = None) -> Program:
             decl = _DECL.search(dat_text[max(0, m.start() - 200):m.start()])
             if decl and decl.group(1).upper() == "FDAT":
                 fdats[decl.group(2).upper()] = m.group(1)
-    _parse(text, 0, str(src), program, fdats, uses, _State())
+    types = {m.group(2).upper(): m.group(1).upper() for body in (text, dat_text or "")
+             for m in _TYPED.finditer("\n".join(line.split(";", 1)[0] for line in body.splitlines()))}
+    _parse(text, 0, str(src), program, fdats, uses, _State(), types)
     if dat_text is not None:
-        _parse(dat_text, 1, str(dat), program, fdats, uses, _State())
+        _parse(dat_text, 1, str(dat), program, fdats, uses, _State(), types)
     declared = {t.name.upper() for t in program.targets}
     undeclared = [(name, used) for name, used in uses.items() if not name.startswith("#") and name not in declared]
     if undeclared and dat_text is None:
@@ -305,7 +355,7 @@ def write(t: Target, pose: np.ndarray | None, q: np.ndarray | None, config: dict
         set_number(out, f[k], float(v), DECIMALS["deg"])
     for k in ("S", "T"):
         if k in config and k in f:
-            set_text(out, f[k], str(config[k]))
+            set_text(out, f[k], krl_spelled(config[k], f[k].text))
     return out
 
 
