@@ -491,8 +491,8 @@ def test_a_reflector_near_the_flange_never_replaces_the_programs_tcp(tmp_path):
     """Calibrated with a reflector 4 mm from the flange, the program taught with the flange (tool0's
     data): every target lands for the flange, as taught, and the JSON says which TCP each used."""
     nominal, accurate, q, world, tool, _ = _rapid_cell(tmp_path, (3.0, -2.0, 2.0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
-    with warnings.catch_warnings(record=True) as said:
-        warnings.simplefilter("always")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
         result = filter_program(accurate, tmp_path / "cell.mod", nominal)
     assert result.counts() == {"ok": 10}
     assert np.max(_landing_mm(result, q, world, (tool, tool))) < CHECK_MM
@@ -626,7 +626,7 @@ def test_krl_status_in_every_spelling_frames_untouched_spline_frames_read(tmp_pa
     for i, style in ((1, "B"), (2, "H")):
         s, t = st[i - 1]
         spelled = f"S 'B{s:03b}',T 'B{t:06b}'" if style == "B" else f"S 'H{s:X}',T 'H{t:02X}'"
-        dat = re.sub(rf"(DECL E6POS XP{i}=\{{[^}}]*?)S {s},T {t}", lambda m: m.group(1) + spelled, dat)
+        dat = re.sub(rf"(DECL E6POS XP{i}=\{{[^}}]*?)S {s},T {t}", lambda m, w=spelled: m.group(1) + w, dat)
     src = src.replace("END\r\n", "  SPTP XP6 WITH $TOOL = STOOL2(FP1), $BASE = SBASE(FP1.BASE_NO), $IPO_MODE = "
                       "SIPO_MODE(FP1.IPO_FRAME), $LOAD = SLOAD(FP1.TOOL_NO)\r\n"
                       "  LIN XP3:{X 0,Y 0,Z 5,A 0,B 0,C 0}\r\nEND\r\n")
