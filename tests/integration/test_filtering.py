@@ -660,3 +660,36 @@ def test_krl_status_in_every_spelling_frames_untouched_spline_frames_read(tmp_pa
     same = tmp_path / "same.src"
     code, _, err = run_cli("filter", nominal, folder / "cell.src", "--nominal", nominal, "--out", same)
     assert same.with_suffix(".dat").read_bytes() == dat.encode()
+
+
+def test_targets_reached_through_a_function_or_a_path_correction_are_left_and_named(tmp_path, planted):
+    """RAPID's Offs() and RelTool() and the \\Corr switch, URScript's pose_add(): the motion's target
+    changes as the program runs, so the target is left as written and the function named."""
+    g = ind.geometry("irb120")
+    rng = np.random.default_rng(4)
+    q = _taught(rng, [(-150, 150), (-60, 70), (-80, 50), (-150, 150), (20, 110), (-350, 350)], 4)
+    world = [ind.pose(g, qi) for qi in q]
+    text = ctl.rapid_program(world, [ctl.abb_config("irb120", g, qi) for qi in q], [], np.eye(4), np.eye(4))
+    text = text.replace("MoveJ p2,", "MoveL Offs(p2,0,0,50),").replace("MoveJ p3,v500,fine,gun\\WObj:=table;",
+                                                                       "MoveJ p3,v500,fine,gun\\WObj:=table;\n    "
+                                                                       "MoveL RelTool(p3,0,0,-20),v500,fine,gun"
+                                                                       "\\WObj:=table;")
+    text = text.replace("MoveJ p4,v500,fine,gun", "MoveL p4,v500\\Corr,fine,gun")
+    (tmp_path / "m.mod").write_text(text)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        result = filter_program(planted["irb120"], tmp_path / "m.mod", "irb120")
+    status = {c.target.name: (c.status, c.reason) for c in result.corrections}
+    assert status["p1"][0] == "ok"
+    assert status["p2"][0] == "unsupported" and "Offs()" in status["p2"][1]
+    assert status["p3"][0] == "unsupported" and "RelTool()" in status["p3"][1]
+    assert status["p4"][0] == "unsupported" and "\\Corr" in status["p4"][1]
+    script = "def prog():\n  X = p[0.4, -0.2, 0.3, 3.14, 0.0, 0.0]\n  Y = p[0.4, 0.2, 0.3, 3.14, 0.0, 0.0]\n" \
+             "  movel(X)\n  movel(pose_add(X, p[0, 0, 0.05, 0, 0, 0]))\n  movel(Y)\nend\n"
+    (tmp_path / "p.script").write_text(script)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        result = filter_program(planted["ur10"], tmp_path / "p.script", "ur10")
+    status = {c.target.name: (c.status, c.reason) for c in result.corrections}
+    assert status["X"][0] == "unsupported" and "pose_add()" in status["X"][1]
+    assert status["Y"][0] == "ok"

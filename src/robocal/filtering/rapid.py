@@ -79,17 +79,25 @@ def _frame(xyz: str, quat: str, source: str, line: int) -> np.ndarray:
     return homogeneous(_rotation(_numbers(quat), source, line), _numbers(xyz))
 
 
-def _arguments(arguments: str) -> tuple[list[str], str | None, str | None]:
+#: the optional arguments of a motion that leave its target as written (timing, zones, loads, its
+#: work object); any other (``\\Corr``: a path correction written as the program runs) flags it
+HARMLESS_SWITCHES = frozenset(("conc", "id", "v", "t", "z", "inpos", "tload", "wobj", "noeoffs", "movestepon",
+                               "signal", "time", "dodelay", "posn"))
+
+
+def _arguments(arguments: str) -> tuple[list[str], str | None, str | None, list[str]]:
     """The positional arguments of a motion (aggregates as AGGREGATE), its tool (the last positional
-    one) and its work object (``\\WObj:=``)."""
+    one), its work object (``\\WObj:=``) and its optional arguments robocal does not take as
+    leaving the target as written."""
     flat = arguments
     while "[" in flat:  # aggregates out, innermost first
         flat = re.sub(r"\[[^\[\]]*\]", AGGREGATE, flat)
     wobj = re.search(r"\\WObj\s*:=\s*(\w+)", flat, re.I)
+    odd = [s for s in re.findall(r"\\(\w+)", flat) if s.lower() not in HARMLESS_SWITCHES]
     flat = re.sub(r"\\\w+(?:\s*:=\s*[\w\[\]]+)?", "", flat)  # switches and optional arguments
     positional = [a.strip() for a in split_top(flat) if a.strip()]
     tool = positional[-1] if positional and re.fullmatch(r"[A-Za-z_]\w*", positional[-1]) else None
-    return positional, tool, wobj.group(1) if wobj else "wobj0"
+    return positional, tool, wobj.group(1) if wobj else "wobj0", odd
 
 
 def read(path: Path, frames_file: Path | None = None) -> Program:
@@ -117,16 +125,24 @@ def read(path: Path, frames_file: Path | None = None) -> Program:
     uses: dict[str, list] = {}
     spans = []
     for m in _MOVE.finditer(code):
-        positional, tool, wobj = _arguments(m.group(2))
+        positional, tool, wobj, odd = _arguments(m.group(2))
         line = lines.of(m.start())
+        why = None if not odd else f"its motion (line {line}) has \\{odd[0]}, which robocal does not take as " \
+            "leaving the target as written" + (" (a path correction written as the program runs)"
+                                               if odd[0].lower() == "corr" else "")
         reach = positional[:2] if m.group(1).lower().startswith("movec") else positional[:1]
         for a in reach:
             if re.fullmatch(r"[A-Za-z_]\w*", a):
-                uses.setdefault(a.lower(), []).append((tool, wobj, line))
+                uses.setdefault(a.lower(), []).append((tool, wobj, line, why))
             elif a != AGGREGATE:
                 program.targets.append(Target(f"line {line}", line, "pose", {},
                                               unsupported=f"the target {a.strip()} is computed as the program runs"))
-        spans.append((m.start(2), m.end(2), tool, wobj, line))
+                call = re.match(r"(\w+)\s*\(\s*([A-Za-z_]\w*)\b", a)
+                if call:  # Offs(p10, …), RelTool(p10, …): p10 is reached only through the function
+                    uses.setdefault(call.group(2).lower(), []).append(
+                        (tool, wobj, line, f"a motion reaches it through {call.group(1)}() (line {line}), which "
+                                           "changes it as the program runs"))
+        spans.append((m.start(2), m.end(2), tool, wobj, line, why))
     _targets(text, code, program, spans, uses, lines)
     declared = {t.name.lower() for t in program.targets}
     for name, used in uses.items():  # a motion to a target this module does not hold: said, never skipped
@@ -161,9 +177,12 @@ def _targets(text: str, code: str, program: Program, spans: list, uses: dict, li
                 t = Target(name, line, "joints", items, q=np.radians([items[f"q{i + 1}"].value for i in range(6)]))
             k = bisect.bisect_right(starts, m.start()) - 1
             inline = [spans[k]] if k >= 0 and m.start() < spans[k][1] else []
-            used = [(s[2], s[3], s[4]) for s in inline] if not declared else uses.get(name.lower(), [])
+            used = [(s[2], s[3], s[4], s[5]) for s in inline] if not declared else uses.get(name.lower(), [])
             frames = {(u[0], u[1]) for u in used}
-            if len(frames) == 1:
+            said = next((u[3] for u in used if u[3]), None)
+            if said:
+                t.unsupported = said
+            elif len(frames) == 1:
                 t.tool, t.user = next(iter(frames))
             elif len(frames) > 1:
                 listed = ", ".join(f"{a} in {b}" for a, b in sorted(frames, key=str))

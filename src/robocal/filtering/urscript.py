@@ -86,6 +86,7 @@ class _Reader:
                 if lit:
                     self.literals.setdefault(name, []).append((kind, m.end() + lit.start(), m.end() + lit.end()))
         self.uses: dict[str, list] = {}  # variable → [(tool, user, hint, line)]
+        self.through: dict[str, str] = {}  # variable → how a motion reaches it through a computation
 
     def tool_at(self, index: int) -> str | None:
         before = [i for i, (at, _) in enumerate(self.tcps) if at < index]
@@ -140,6 +141,12 @@ class _Reader:
                 self.motion_target(args[1], starts[1], tool, args[0], hint)
                 return
         self.flag(arg.split("(")[0].strip() or arg, at, "the target is computed as the program runs")
+        call = re.match(r"(\w+)\s*\(", arg)
+        if call:  # pose_add(X, d), pose_trans(X, d) with X no feature: X is reached only through it
+            for name in _call_arguments(self.code, at + call.end() - 1)[0]:
+                if _NAME.fullmatch(name):
+                    self.through.setdefault(name, f"a motion reaches it through {call.group(1)}() (line {line}), "
+                                                  "which changes it as the program runs")
 
     def joints_of(self, text: str | None, at: int | None):
         """A hint: joints written inline or a variable assigned a joint list once."""
@@ -181,7 +188,9 @@ class _Reader:
             hints = [u[2] for u in used if u[2] is not None]
             pair = self.joints_of(name[:-2] + "_q", None) if name.endswith("_p") else None
             t.hint = hints[0] if hints else pair
-            if self.changed(name):
+            if name in self.through:
+                t.unsupported = self.through[name]
+            elif self.changed(name):
                 t.unsupported = f"{name} is assigned again or changed element by element as the program runs"
             elif len(frames) > 1:
                 t.unsupported = f"the motions reach {name} with different TCPs or features"
