@@ -693,3 +693,19 @@ def test_targets_reached_through_a_function_or_a_path_correction_are_left_and_na
     status = {c.target.name: (c.status, c.reason) for c in result.corrections}
     assert status["X"][0] == "unsupported" and "pose_add()" in status["X"][1]
     assert status["Y"][0] == "ok"
+
+
+def test_a_joint_target_at_a_wrist_singularity_is_flagged_not_moved_by_degrees(tmp_path, planted):
+    """A jointtarget taught with the wrist nearly straight (A5 = −0.14°): reaching its pose exactly
+    on the calibrated robot would swing axes 4 and 6 by degrees; it is left as taught and said."""
+    joints = np.radians([[10.0, 20.0, -15.0, 30.0, -0.14, -40.0], [15.0, 10.0, -10.0, 20.0, 45.0, 10.0]])
+    text = ctl.rapid_program([], [], joints, np.eye(4), np.eye(4))
+    (tmp_path / "j.mod").write_text(text)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        result = filter_program(planted["irb120"], tmp_path / "j.mod", "irb120")
+    status = {c.target.name: c for c in result.corrections}
+    assert status["j2"].status == "ok" and status["j2"].joints_deg < 1.0
+    assert status["j1"].status == "singular" and "left as taught" in status["j1"].reason
+    assert "joint 4" in status["j1"].reason or "joint 6" in status["j1"].reason
+    assert ctl.read_rapid(result.text)["j1"] == ctl.read_rapid(text)["j1"]

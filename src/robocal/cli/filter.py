@@ -36,6 +36,8 @@ def filter_cmd(
     as_json: bool = json_flag("the summary (every target's status, reason, correction, check and configuration)"),
     summary: Path | None = summary_option("the summary"),
     seed: int = typer.Option(0, "--seed", help="random starts of a nominal inverse with no closed form"),
+    verbose: bool = typer.Option(False, "--verbose", help="a table row and a stderr line for every target (default: "
+                                 "the flagged targets and the largest corrections, about 20 rows)"),
     base_link: str | None = base_link_option(),
     tip_link: str | None = tip_link_option(),
     quiet: bool = quiet_flag(),
@@ -50,7 +52,7 @@ def filter_cmd(
     from ..io.atomic import atomic_write, together
     from ..io.robotfile import load_robot
     from ..math.se3 import frame_from_values
-    from .common import check_outputs, console, one_line, print_json, print_warnings, table
+    from .common import check_outputs, console, print_json, print_notes, print_warnings, table
 
     language = language_of(program, fmt)
     tcp, tools, measured = opt.tool_frames(tool, "tool")
@@ -66,8 +68,9 @@ def filter_cmd(
                     user=None if user is None else frame_from_values(user), calibrated=measured)
     nom = load_robot(nominal, base_link=base_link, tip_link=tip_link)
     result = filter_program(calibrated, prog, nom, frames=frames, frames_file=controller_frames, seed=seed)
+    written = result.outputs(out)
     with together():
-        for path, data in result.outputs(out):
+        for path, data in written:
             atomic_write(path, data)
         if summary is not None:
             atomic_write(summary, result.json())
@@ -75,23 +78,93 @@ def filter_cmd(
     if as_json:
         print_json(result.json())
     elif not quiet:
-        rows = [(c.target.name, str(c.target.line), c.target.kind, c.status,
-                 "" if c.moved_mm is None or not c.corrected else f"{c.moved_mm:.3f}",
-                 "" if c.turned_deg is None or not c.corrected else f"{c.turned_deg:.4f}",
-                 "" if c.joints_deg is None or not c.corrected else f"{c.joints_deg:.4f}",
-                 "" if c.check_mm is None else f"{c.check_mm:.2g}") for c in result.corrections]
-        console().print(table(f"{program} → {out}: {len(rows) - len(flagged)} of {len(rows)} targets corrected",
-                              ("target", "line", "kind", "status", "moved mm", "turned °", "joints °", "check mm"),
-                              rows, text_columns=(0, 2, 3)))
+        rows = shown_rows(result.corrections, verbose)
+        n = len(result.corrections)
+        title = f"{program} → {out}: {n - len(flagged)} of {n} targets corrected"
+        if len(rows) < n:
+            title += f" ({len(rows)} shown: the flagged, then the largest corrections; --verbose shows every one)"
+        console().print(table(title, ("target", "line", "kind", "status", "moved mm", "turned °", "joints °",
+                                      "configuration", "check mm"),
+                              [_row(c) for c in rows], text_columns=(0, 2, 3, 7)))
     print_warnings(result.notes)
-    for c in flagged:
-        print(f"robocal: not corrected: {c.target.name} (line {c.target.line}): {c.status}: {one_line(c.reason)}",
-              file=sys.stderr)
+    for line in flagged_lines(flagged, verbose):
+        print(line, file=sys.stderr)
     counts = ", ".join(f"{v} {k}" for k, v in result.counts().items())
     if not quiet:
         print(f"robocal: {len(result.corrections)} targets: {counts}", file=sys.stderr)
+        print_notes([files_note(prog, written)])
     if flagged:
         raise typer.Exit(PARTIAL)
+
+
+#: rows a default run shows: the flagged targets first, then the largest corrections
+SHOWN_ROWS = 20
+#: stderr lines a default run gives per status before it counts the rest
+SHOWN_FLAGGED = 10
+
+
+def shown_rows(corrections, verbose: bool) -> list:
+    """Every target (``verbose``), else the flagged ones and the largest corrections, SHOWN_ROWS at
+    most, in program order."""
+    if verbose or len(corrections) <= SHOWN_ROWS:
+        return list(corrections)
+    flagged = [c for c in corrections if not c.corrected][:SHOWN_ROWS // 2]
+    room = SHOWN_ROWS - len(flagged)
+    largest = sorted((c for c in corrections if c.corrected), key=lambda c: -(c.moved_mm or c.joints_deg or 0.0))
+    keep = {id(c) for c in flagged + largest[:room]}
+    return [c for c in corrections if id(c) in keep]
+
+
+def config_change(c) -> str:
+    """A corrected target's configuration data that changed, before → after (``S 2→6``)."""
+    after = c.config_after or {}
+    return ", ".join(f"{k} {c.config_before.get(k)}→{v}" for k, v in after.items()
+                     if k in c.config_before and c.config_before.get(k) != v)
+
+
+def _row(c) -> tuple[str, ...]:
+    done = c.corrected
+    return (c.target.name, str(c.target.line), c.target.kind, c.status,
+            "" if c.moved_mm is None or not done else f"{c.moved_mm:.3f}",
+            "" if c.turned_deg is None or not done else f"{c.turned_deg:.4f}",
+            "" if c.joints_deg is None or not done else f"{c.joints_deg:.4f}",
+            config_change(c) if done else "", "" if c.check_mm is None else f"{c.check_mm:.2g}")
+
+
+def flagged_lines(flagged, verbose: bool) -> list[str]:
+    """One stderr line per flagged target, SHOWN_FLAGGED at most per status unless ``verbose``, the
+    rest counted."""
+    from collections import defaultdict
+
+    from .common import one_line
+
+    by_status: dict[str, list] = defaultdict(list)
+    for c in flagged:
+        by_status[c.status].append(c)
+    out = []
+    for status, cs in by_status.items():
+        shown = cs if verbose else cs[:SHOWN_FLAGGED]
+        out += [f"robocal: not corrected: {c.target.name} (line {c.target.line}): {status}: {one_line(c.reason)}"
+                for c in shown]
+        if len(cs) > len(shown):
+            out.append(f"robocal: not corrected: {len(cs) - len(shown)} more {status} (--verbose lists every one, "
+                       "--summary FILE writes them with their reasons)")
+    return out
+
+
+def files_note(program, written) -> str:
+    """Which files the run wrote, and which of them are the program's own bytes unchanged."""
+    parts = []
+    for f, (path, data) in zip(program.files, written):
+        same = data == _bytes_of(f)
+        parts.append(f"{path} ({'identical to ' + Path(f.path).name if same else 'its targets rewritten'})")
+    return "wrote " + " and ".join(parts)
+
+
+def _bytes_of(f) -> bytes:
+    from ..filtering.program import encode
+
+    return encode(f.text, f.encoding)
 
 
 def register(app: typer.Typer) -> None:

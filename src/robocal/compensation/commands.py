@@ -28,7 +28,7 @@ from .. import options as opt
 from ..cell.frames import make_cell
 from ..exceptions import InputError
 from ..inverse.local import ROT_WEIGHT, SINGULAR_CONDITION, solve_ik
-from ..inverse.solve import controller_joints
+from ..inverse.solve import all_solutions, controller_joints
 from ..io.atomic import atomic_write
 from ..io.goals import Goals
 from ..io.measurements import joints_to_file
@@ -165,6 +165,49 @@ def _check_goal_targets(calibrated: Robot, goals: Goals) -> list[str] | None:
     return list(goals.targets)
 
 
+def _other_branches(nominal: Robot, calibrated: Robot, T_des: np.ndarray, T_cal: np.ndarray, q_nom: np.ndarray,
+                    sol, rot_weight: float, inputs: JointInputs,
+                    nominal_status: list[str]) -> tuple[np.ndarray, list[str]]:
+    """Goals whose configuration robocal chose (no joints given) and whose correction left it (a
+    jump of tens of degrees, near a branch's singular edge), ran into a singularity or failed: every
+    other configuration of
+    the nominal model is tried, and the one the calibrated robot reaches with the smallest joint
+    correction is taken (``sol`` and the returned nominal joints updated in place of the first
+    choice); the notes say how many moved to another configuration."""
+    idx = [i for i, s in enumerate(sol.status) if s in ("branch", "no_convergence", "limit", "singular")
+           and nominal_status[i] == "ok"]
+    if not idx:
+        return q_nom, []
+    sols = all_solutions(nominal, T_des[idx])
+    lo, hi = nominal.limits[:, 0], nominal.limits[:, 1]
+    rows, seeds = [], []
+    for k, i in enumerate(idx):
+        for s in sols.q[k][sols.valid[k]]:
+            if np.all((s >= lo) & (s <= hi)):
+                rows.append(i)
+                seeds.append(s)
+    if not rows:
+        return q_nom, []
+    rows, seeds = np.array(rows), np.array(seeds)
+    tried = solve_ik(calibrated, T_cal[rows, :3, 3], T_cal[rows, :3, :3], seeds, rot_weight=rot_weight,
+                     inputs=inputs.subset(rows))
+    q_nom = q_nom.copy()
+    moved = 0
+    for i in idx:
+        ok = [k for k in np.flatnonzero(rows == i) if tried.status[k] == "ok"]
+        if not ok:
+            continue
+        k = min(ok, key=lambda k: tried.moved[k])
+        q_nom[i] = seeds[k]
+        for name in ("q", "position_error", "rotation_error", "iterations", "condition", "limit_margin", "moved"):
+            getattr(sol, name)[i] = getattr(tried, name)[k]
+        sol.status[i] = "ok"
+        moved += 1
+    said = [f"{moved} goal(s) solved on another configuration than the one chosen first: there the calibrated robot "
+            "needed a joint correction of tens of degrees (a singular edge), here a small one"] if moved else []
+    return q_nom, said
+
+
 def compensate(nominal: Robot, calibrated: Robot, goals: Goals, *, truth: Robot | None = None,
                position_only: bool | None = None, rot_weight: float = ROT_WEIGHT,
                payload: float | None = None, tool: np.ndarray | None = None,
@@ -214,12 +257,18 @@ def compensate(nominal: Robot, calibrated: Robot, goals: Goals, *, truth: Robot 
                          clock="s" if goals.time is not None else "")
     sol = solve_ik(calibrated, T_cal[:, :3, 3], T_cal[:, :3, :3] if full else None, q_nom, rot_weight=rot_weight,
                    inputs=inputs, targets=targets)
+    if goals.q is None and full and targets is None and nominal_status is not None:
+        q_nom, said = _other_branches(nominal, calibrated, T_des, T_cal, q_nom, sol, rot_weight, inputs,
+                                      nominal_status[0])
+        notes += said
     notes += [w for w in (missing_torques(calibrated.terms, goals.torques, goals.source),
                           drift_note(calibrated.terms, inputs, goals.source),
                                               region_note(calibrated, sol.q, targets, inputs)) if w]
     # a jump at a goal where the controller's own model is singular is the singularity's doing
     nominal_cond = condition_numbers(nominal, q_nom, full, rot_weight)
-    reasons = [sol.reason(i) if not (s == "branch" and c > SINGULAR_CONDITION) else
+    reasons = [(sol.reason(i) + (f"; the nominal model's joint Jacobian has condition number {c:.3g} there, and "
+                                 "no other configuration of the goal is reached with small joint corrections"
+                                 if s == "branch" else "")) if not (s == "branch" and c > SINGULAR_CONDITION) else
                f"the nominal model's joint Jacobian has condition number {c:.3g} there (a singularity): the "
                f"correction moves the joints by {np.degrees(sol.moved[i]):.3g}°" for i, (s, c) in
                enumerate(zip(sol.status, nominal_cond))]

@@ -40,6 +40,10 @@ from .program import Program, Target
 CHECK_MM, CHECK_DEG = 0.01, 0.001
 #: a correction beyond this (mm) is not a calibration's: two different robots or tools
 LARGE_CORRECTION_MM = 20.0
+#: a correction that turns a joint by more than this (deg) is not a calibration's either: near a
+#: singularity (a wrist nearly straight) a hundredth of a degree of the pose needs degrees of the
+#: wrist, and the target is left as taught and said, never moved by degrees
+LARGE_JOINT_MOVE_DEG = 3.0
 
 
 @dataclass
@@ -240,7 +244,8 @@ def _poses(program: Program, language: Language, cell: Cell, members, hints, see
         return out
     g = cell.to_accurate(goals[ok])
     sol = solve_ik(accurate, g[:, :3, 3], g[:, :3, :3], q_nom[ok])
-    singular = condition_numbers(nominal, q_nom[ok], True, 1000.0) > SINGULAR_CONDITION
+    cond = condition_numbers(nominal, q_nom[ok], True, 1000.0)
+    singular = cond > SINGULAR_CONDITION
     q_acc = sol.q
     new_world = nominal.fk(q_acc)
     new_prog = cell.in_user([users[k] for k in ok], new_world)
@@ -253,8 +258,10 @@ def _poses(program: Program, language: Language, cell: Cell, members, hints, see
         before = t.config or language.encode(J_nom[j], _facts(arm_nom, j), {})
         common = dict(q_nominal=J_nom[j], config_before=before, tool=t.tool, user=t.user, tcp=cell.label)
         st = "singular" if singular[j] and sol.status[j] in ("ok", "branch") else sol.status[j]
+        why = sol.reason(j) if st == sol.status[j] else "the nominal model is singular at its joints"
+        if st == "ok" and moved_deg[j] > LARGE_JOINT_MOVE_DEG:
+            st, why = "singular", _large_move(J_nom[j], J_acc[j], cond[j])
         if st != "ok":
-            why = sol.reason(j) if st == sol.status[j] else "the nominal model is singular at its joints"
             out[i] = Correction(t, st, why, **common)
             continue
         out[i] = Correction(t, "ok", "corrected", pose=new_prog[j], q=J_acc[j], moved_mm=float(moved_mm[j]),
@@ -270,18 +277,31 @@ def _joints(program: Program, language: Language, cell: Cell, members) -> dict[i
     q = nominal.from_controller(np.stack([t.q for t in targets]))
     intent = cell.to_accurate(nominal.fk(q))
     sol = solve_ik(accurate, intent[:, :3, 3], intent[:, :3, :3], q)
-    singular = condition_numbers(nominal, q, True, 1000.0) > SINGULAR_CONDITION
+    cond = condition_numbers(nominal, q, True, 1000.0)
+    singular = cond > SINGULAR_CONDITION
     out = {}
     for j, (t, i) in enumerate(zip(targets, idx)):
         common = dict(q_nominal=t.q, tool=t.tool, user=t.user, tcp=cell.label)
         st = "singular" if singular[j] and sol.status[j] in ("ok", "branch") else sol.status[j]
+        why = sol.reason(j) if st == sol.status[j] else "the nominal model is singular at the taught joints"
+        if st == "ok" and np.degrees(np.max(np.abs(sol.q[j] - q[j]))) > LARGE_JOINT_MOVE_DEG:
+            st, why = "singular", _large_move(nominal.to_controller(q[j]), nominal.to_controller(sol.q[j]), cond[j])
         if st != "ok":
-            out[i] = Correction(t, st, sol.reason(j) if st == sol.status[j] else
-                                "the nominal model is singular at the taught joints", **common)
+            out[i] = Correction(t, st, why, **common)
             continue
         out[i] = Correction(t, "ok", "corrected", q=nominal.to_controller(sol.q[j]),
                             joints_deg=float(np.degrees(np.max(np.abs(sol.q[j] - q[j])))), **common)
     return out
+
+
+def _large_move(before: np.ndarray, after: np.ndarray, condition: float) -> str:
+    """Why a correction that turns a joint by degrees is not made: which joint, how far, and the
+    conditioning that asks for it."""
+    moved = np.degrees(np.abs(after - before))
+    j = int(np.argmax(moved))
+    return (f"the correction would turn joint {j + 1} by {moved[j]:.3g}° (condition number {condition:.3g} of the "
+            f"nominal joint Jacobian: near a singularity, a hundredth of a degree of the pose needs degrees of the "
+            f"joints); left as taught")
 
 
 def check(program: Program, reread: Program, language: Language, corrections: list[Correction], nominal: Robot,

@@ -38,6 +38,9 @@ RANDOM_STARTS, RESTARTS = 16, 2
 TURNS = np.arange(-2, 3)
 #: goals chosen among at once (the candidates' arrays are goals × solutions × joints × turns)
 BLOCK = 2048
+#: how far (rad) a closed form's seed on a branch boundary is nudged each way, joint by joint, so
+#: that the polish finds both solutions that meet there
+NUDGE = 0.2
 
 
 @dataclass
@@ -144,18 +147,33 @@ def all_solutions(robot: Robot, T: np.ndarray, *, hint: np.ndarray | None = None
     kind, exact = closed_form.form_of(eq)
     if kind is not None:
         ideal = eq if exact else closed_form.idealized(eq, kind)
-        q, ok = closed_form.solve(ideal, kind, T)
+        q, ideal_ok = closed_form.solve(ideal, kind, T)
         if exact and robot.geometric:
-            return Solutions(*_pack(*_distinct(q, ok, robot.prismatic)), f"closed form ({kind})", 8)
-        q, reached = _polish(robot, T, q)
-        ok &= reached
+            return Solutions(*_pack(*_distinct(q, ideal_ok, robot.prismatic)), f"closed form ({kind})", 8)
+        if hint is not None:  # the taught joints seed a polish too: the branch they name is never lost
+            q = np.concatenate([q, np.asarray(hint, float)[:, None]], axis=1)
+        # a polished seed that meets its goal is a solution, whatever the ideal form said of the seed
+        q, ok = _polish(robot, T, q)
+        # where the ideal form has no solution for some branch (the goal near a stretched or folded
+        # arm, or by the shoulder, where two branches meet), its seeds sit on that boundary and their
+        # polish may find one of two nearby solutions: the seeds are nudged each way, joint by joint
+        doubtful = ~ideal_ok.all(axis=1)
+        if doubtful.any():
+            seeds = closed_form.solve(ideal, kind, T[doubtful])[0]
+            nudges = np.concatenate([np.eye(robot.n_joints) * s * NUDGE for s in (-1.0, 1.0)])
+            nudged = (seeds[:, :, None, :] + nudges[None, None]).reshape(len(seeds), -1, robot.n_joints)
+            more_q, more_ok = _polish(robot, T[doubtful], nudged)
+            q = np.concatenate([q, np.full((len(T),) + more_q.shape[1:], np.nan)], axis=1)
+            ok = np.concatenate([ok, np.zeros((len(T), more_q.shape[1]), bool)], axis=1)
+            q[doubtful, -more_q.shape[1]:], ok[doubtful, -more_q.shape[1]:] = more_q, more_ok
         missing = ~ok.any(axis=1)
         if missing.any():  # a goal the ideal form's solutions did not lead to: search it
             more_q, more_ok, _ = _multi_start(robot, T[missing], None if hint is None else hint[missing], seed)
+            k = q.shape[1]
             q = np.concatenate([q, np.full((len(T),) + more_q.shape[1:], np.nan)], axis=1)
             ok = np.concatenate([ok, np.zeros((len(T), more_q.shape[1]), bool)], axis=1)
-            q[missing, 8:], ok[missing, 8:] = more_q, more_ok
-        return Solutions(*_pack(*_distinct(q, ok, robot.prismatic)), f"closed form ({kind}), polished", 8)
+            q[missing, k:], ok[missing, k:] = more_q, more_ok
+        return Solutions(*_pack(*_distinct(q, ok, robot.prismatic)), f"closed form ({kind}), polished", q.shape[1])
     q, ok, searches = _multi_start(robot, T, hint, seed)
     return Solutions(*_pack(q, ok), "multi-start", searches)
 
