@@ -381,6 +381,56 @@ def w7_filter(repeats: int = 3, n: int = 10_000, label: str = "") -> list[Row]:
                 note=f"filter / FK: {result['filter'] / result['fk']:.0f}×")]
 
 
+_CLI = """
+import json, sys, time, warnings
+warnings.simplefilter("ignore")
+from robocal.cli import main
+t = time.perf_counter()
+try:
+    main({args!r})
+except SystemExit:
+    pass
+print(json.dumps({{"s": time.perf_counter() - t}}))
+"""
+
+
+def w7_command_line(repeats: int = 3, n: int = 10_000) -> list[Row]:
+    """W7 as a user runs it: ``robocal filter`` of a module of ``n`` robtargets (its default output:
+    the flagged and the largest corrections) beside ``robocal evaluate`` of as many poses, each a
+    fresh interpreter, interleaved; the filter's peak memory."""
+    import tempfile
+
+    from ..io.measurements import save_measurements
+
+    with tempfile.TemporaryDirectory() as d:
+        folder = Path(d)
+        (folder / "cell.mod").write_text(rapid_module(n))
+        nominal = load_robot("irb120")
+        g = nominal.geometry.copy()
+        g[1, 0] += 0.4
+        g[3, 3] -= 0.3
+        from ..io.robotfile import save_robot
+
+        save_robot(nominal.replace(geometry=g, name="planted"), folder / "cal.toml")
+        save_measurements(simulate(nominal, n, seed=1, noise=0.01).measurements, folder / "poses.csv")
+        filter_args = ["filter", str(folder / "cal.toml"), str(folder / "cell.mod"), "--nominal", "irb120", "--out",
+                       str(folder / "out.mod")]
+        evaluate_args = ["evaluate", str(folder / "cal.toml"), str(folder / "poses.csv")]
+        filtered, evaluated, peaks = [], [], []
+        for _ in range(repeats):
+            result, peak = run_measured(_CLI.format(args=filter_args))
+            filtered.append(result["s"])
+            peaks.append(peak)
+            evaluated.append(run_measured(_CLI.format(args=evaluate_args))[0]["s"])
+    ratio = statistics.median(f / e for f, e in zip(filtered, evaluated))
+    peak = max(peaks)
+    return [Row(f"W7 robocal filter, {n} RAPID robtargets (default output)", statistics.median(filtered), "s",
+                "≤ 0.3 GB", peak <= 0.3, note=f"{peak:.2f} GB peak"),
+            Row(f"W7 robocal evaluate, {n} poses", statistics.median(evaluated), "s", "—", None),
+            Row("W7 time ratio filter / evaluate, command line", ratio, "×", "≤ 6", ratio <= 6.0,
+                note="median of paired runs")]
+
+
 #: Universal Robots' published UR5 table (a, α, θ, d in mm and deg): the arm of W8
 UR5_TOML = 'name = "UR5"\nconvention = "dh"\n' + "".join(
     f"[[joint]]\na = {a}\nalpha = {alpha}\ntheta = 0.0\nd = {d}\nlimits = [-360.0, 360.0]\n"

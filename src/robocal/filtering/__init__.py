@@ -98,16 +98,17 @@ def filter_program(calibrated, program: str | Path | Program, nominal, *, frames
         language = language_of(Path(program), fmt)
         prog = language.read(Path(program), frames_path)
     corrections, notes = plan(prog, language, nom, accurate, frames, seed)
-    from .write import filtered_texts
+    from .write import filtered_texts, target_changes
 
-    texts = filtered_texts(prog, language, corrections)
+    changes = target_changes(language, corrections)
+    texts = filtered_texts(prog, language, corrections, changes)
     if any(c.corrected for c in corrections):
         again = _reread(prog, language, texts, frames_path)
         if len(again.targets) != len(prog.targets):
             raise RuntimeError("the filtered program reads back with another number of targets")
         check(prog, again, language, corrections, nom, accurate, frames, seed)
         if any(c.status == "check failed" for c in corrections):
-            texts = filtered_texts(prog, language, corrections)  # failed checks left as they were
+            texts = filtered_texts(prog, language, corrections, changes)  # failed checks left as they were
     return FilterResult(prog, language, texts, corrections, summary_notes(corrections, notes))
 
 

@@ -40,9 +40,9 @@ from .program import Program, Target
 CHECK_MM, CHECK_DEG = 0.01, 0.001
 #: a correction beyond this (mm) is not a calibration's: two different robots or tools
 LARGE_CORRECTION_MM = 20.0
-#: a correction that turns a joint by more than this (deg) is not a calibration's either: near a
-#: singularity (a wrist nearly straight) a hundredth of a degree of the pose needs degrees of the
-#: wrist, and the target is left as taught and said, never moved by degrees
+#: a joint target's correction that turns a joint by more than this (deg) is not a calibration's
+#: either: near a singularity (a wrist nearly straight) a hundredth of a degree of the pose needs
+#: degrees of the wrist, and the target is left as taught and said, never moved by degrees
 LARGE_JOINT_MOVE_DEG = 3.0
 
 
@@ -244,8 +244,7 @@ def _poses(program: Program, language: Language, cell: Cell, members, hints, see
         return out
     g = cell.to_accurate(goals[ok])
     sol = solve_ik(accurate, g[:, :3, 3], g[:, :3, :3], q_nom[ok])
-    cond = condition_numbers(nominal, q_nom[ok], True, 1000.0)
-    singular = cond > SINGULAR_CONDITION
+    singular = condition_numbers(nominal, q_nom[ok], True, 1000.0) > SINGULAR_CONDITION
     q_acc = sol.q
     new_world = nominal.fk(q_acc)
     new_prog = cell.in_user([users[k] for k in ok], new_world)
@@ -258,9 +257,9 @@ def _poses(program: Program, language: Language, cell: Cell, members, hints, see
         before = t.config or language.encode(J_nom[j], _facts(arm_nom, j), {})
         common = dict(q_nominal=J_nom[j], config_before=before, tool=t.tool, user=t.user, tcp=cell.label)
         st = "singular" if singular[j] and sol.status[j] in ("ok", "branch") else sol.status[j]
+        # (a Cartesian target's joints are the controller's to find: near a wrist singularity its own
+        # inverse swings axes 4 and 6 for the pose written, corrected or not)
         why = sol.reason(j) if st == sol.status[j] else "the nominal model is singular at its joints"
-        if st == "ok" and moved_deg[j] > LARGE_JOINT_MOVE_DEG:
-            st, why = "singular", _large_move(J_nom[j], J_acc[j], cond[j])
         if st != "ok":
             out[i] = Correction(t, st, why, **common)
             continue

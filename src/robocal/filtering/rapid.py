@@ -163,7 +163,7 @@ def _targets(text: str, code: str, program: Program, spans: list, uses: dict, li
     for kind, pattern in (("pose", ROBTARGET), ("joints", JOINTTARGET)):
         for m in pattern.finditer(code):
             f = fields_in(text[m.start():m.end()], m.start())
-            decl = _DECL.search(code[max(0, m.start() - 200):m.start()])
+            decl = _DECL.search(code, max(0, m.start() - 200), m.start())
             line = lines.of(m.start())
             declared = decl and decl.group(1).lower() == ("robtarget" if kind == "pose" else "jointtarget")
             name = decl.group(2) if declared else f"line {line}"

@@ -8,10 +8,18 @@ from .language import Language
 from .program import Program, rewrite
 
 
-def filtered_texts(program: Program, language: Language, corrections: list[Correction]) -> list[str]:
-    """The text of each of the program's files with its corrected targets."""
-    changes: list[list] = [[] for _ in program.files]
-    for c in corrections:
-        if c.corrected:
-            changes[c.target.file] += language.write(c.target, c.pose, c.q, c.config_after)
-    return [rewrite(f.text, ch) for f, ch in zip(program.files, changes)]
+def target_changes(language: Language, corrections: list[Correction]) -> list[list | None]:
+    """Each corrected target's changes of its numbers (None for a target left as it was)."""
+    return [language.write(c.target, c.pose, c.q, c.config_after) if c.corrected else None for c in corrections]
+
+
+def filtered_texts(program: Program, language: Language, corrections: list[Correction],
+                   changes: list[list | None] | None = None) -> list[str]:
+    """The text of each of the program's files with its corrected targets (``changes``: those of
+    :func:`target_changes`, already computed; those of targets no longer corrected are left out)."""
+    changes = target_changes(language, corrections) if changes is None else changes
+    per_file: list[list] = [[] for _ in program.files]
+    for c, ch in zip(corrections, changes):
+        if c.corrected and ch:
+            per_file[c.target.file] += ch
+    return [rewrite(f.text, ch) for f, ch in zip(program.files, per_file)]
