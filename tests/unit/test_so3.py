@@ -55,3 +55,16 @@ def test_left_jacobian_matches_finite_differences(rng, scale):
     # Exp(φ + hε) Exp(φ)ᵀ ≈ Exp(h J_l ε)
     fd = (log_so3(exp_so3(phi + h * eps) @ exp_so3(phi).T) - log_so3(exp_so3(phi - h * eps) @ exp_so3(phi).T)) / (2 * h)
     np.testing.assert_allclose(left_jacobian(phi) @ eps, fd, atol=1e-7)
+
+
+def test_quaternions_to_matrices_batched_match_scipy():
+    from robocal.math.so3 import matrix_quaternion, quaternion_matrix
+
+    rng = np.random.default_rng(4)
+    q = rng.normal(size=(50, 4))
+    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    want = Rotation.from_quat(q[:, [1, 2, 3, 0]]).as_matrix()  # scipy: scalar last
+    np.testing.assert_allclose(quaternion_matrix(q), want, atol=1e-14)
+    np.testing.assert_allclose(quaternion_matrix(q[7]), want[7], atol=1e-14)
+    back = np.array([matrix_quaternion(R) for R in want])
+    np.testing.assert_allclose(np.abs(np.sum(back * q, axis=1)), 1.0, atol=1e-12)

@@ -52,12 +52,13 @@ def filter_cmd(
     from ..io.atomic import atomic_write, together
     from ..io.robotfile import load_robot
     from ..math.se3 import frame_from_values
-    from .common import check_outputs, console, print_json, print_notes, print_warnings, table
+    from .common import check_outputs, console, many_small_objects, print_json, print_notes, print_warnings, table
 
     language = language_of(program, fmt)
     tcp, tools, measured = opt.tool_frames(tool, "tool")
     user, users = opt.named_frames(user_frame, "user_frame")
-    prog = load_program(program, language.name, controller_frames)  # reading it names its companion files
+    with many_small_objects():
+        prog = load_program(program, language.name, controller_frames)  # reading it names its companion files
     outputs = [out if f.out_suffix is None else out.with_suffix(f.out_suffix) for f in prog.files]
     inputs = (calibrated, nominal, controller_frames, *(f.path for f in prog.files))
     companions = {f.out_suffix.strip("."): path for f, path in zip(prog.files[1:], outputs[1:])}
@@ -67,7 +68,8 @@ def filter_cmd(
                                                                                      in users.items()},
                     user=None if user is None else frame_from_values(user), calibrated=measured)
     nom = load_robot(nominal, base_link=base_link, tip_link=tip_link)
-    result = filter_program(calibrated, prog, nom, frames=frames, frames_file=controller_frames, seed=seed)
+    with many_small_objects():
+        result = filter_program(calibrated, prog, nom, frames=frames, frames_file=controller_frames, seed=seed)
     written = result.outputs(out)
     with together():
         for path, data in written:

@@ -17,7 +17,6 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from ..exceptions import InputError
 from ..math.so3 import matrix_quaternion, matrix_to_rpy
@@ -120,6 +119,8 @@ def quaternion(R: np.ndarray, original: np.ndarray) -> np.ndarray:
 
 def rotation_vector(R: np.ndarray, original: np.ndarray) -> np.ndarray:
     """The rotation vector of R nearest the original's (a turn of θ or of θ − 2π the other way)."""
+    from scipy.spatial.transform import Rotation  # only URScript's targets: its import is a large share of a run
+
     r = Rotation.from_matrix(R).as_rotvec()
     angle = np.linalg.norm(r)
     if angle > 1e-12:

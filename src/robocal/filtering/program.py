@@ -39,8 +39,10 @@ class Field(NamedTuple):
         return float(self.text)
 
     def decimals(self) -> int:
-        mantissa = self.text.lower().partition("e")[0]
-        return len(mantissa) - mantissa.index(".") - 1 if "." in mantissa else 0
+        t = self.text
+        mantissa = t.lower().partition("e")[0] if "e" in t or "E" in t else t
+        dot = mantissa.find(".")
+        return len(mantissa) - dot - 1 if dot >= 0 else 0
 
     def formatted(self, value: float, minimum_decimals: int) -> str:
         """``value`` written in this field's style: as many decimals as it had, at least
@@ -62,7 +64,7 @@ class Field(NamedTuple):
         """Whether ``value`` differs from the written one by less than half a unit of the
         finest place robocal would write: then the text stays as it is (an identity filter is
         byte for byte the program)."""
-        return abs(value - self.value) < 0.5 * 10.0 ** -max(self.decimals(), minimum_decimals)
+        return abs(value - float(self.text)) < 0.5 * 10.0 ** -max(self.decimals(), minimum_decimals)
 
 
 def fields_in(text: str, offset: int = 0) -> list[Field]:

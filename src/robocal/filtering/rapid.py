@@ -32,6 +32,7 @@ from ..math.se3 import homogeneous
 from ..math.so3 import quaternion_matrix
 from .language import DECIMALS, Language, keep_on_boundary, quaternion, set_number, set_text
 from .program import (
+    NUMBER,
     SPACED_NUMBER,
     Field,
     Lines,
@@ -49,7 +50,8 @@ _LIST = lambda k: r"\[" + ",".join([_N] * k) + r"\]"  # noqa: E731
 ROBTARGET = re.compile(r"\[\s*" + _LIST(3) + r"\s*,\s*" + _LIST(4) + r"\s*,\s*" + _LIST(4) + r"\s*,\s*" + _LIST(6)
                        + r"\s*\]")
 JOINTTARGET = re.compile(r"\[\s*" + _LIST(6) + r"\s*,\s*" + _LIST(6) + r"\s*\]")
-_DECL = re.compile(r"\b(?:CONST|PERS|VAR|LOCAL\s+\w+)?\s*(robtarget|jointtarget)\s+(\w+)\s*:=\s*$", re.I)
+#: a declaration ``[CONST|PERS|VAR] robtarget NAME :=``, ending where its value begins
+_DECL = re.compile(r"\b(robtarget|jointtarget)\s+(\w+)\s*:=\s*", re.I)
 _TOOL = re.compile(r"\btooldata\s+(\w+)\s*:=\s*\[\s*(TRUE|FALSE)\s*,\s*\[\s*(" + _LIST(3) + r")\s*,\s*(" + _LIST(4)
                    + r")", re.I)
 _WOBJ = re.compile(r"\bwobjdata\s+(\w+)\s*:=\s*\[\s*(TRUE|FALSE)\s*,\s*(TRUE|FALSE)\s*,[^,\[]*,\s*\[\s*(" + _LIST(3)
@@ -67,16 +69,19 @@ def _numbers(text: str) -> np.ndarray:
     return np.array([f.value for f in fields_in(text)])
 
 
-def _rotation(q: np.ndarray, source: str, line: int) -> np.ndarray:
-    norm = float(np.linalg.norm(q))
-    if abs(norm - 1.0) > QUATERNION_NORM:
-        raise InputError(f"the quaternion [{', '.join(f'{v:g}' for v in q)}] has norm {norm:.9g}, not 1 "
-                         f"(within {QUATERNION_NORM:g})", source=source, where=f"line {line}")
-    return quaternion_matrix(q / norm)
+def _rotations(q: np.ndarray, source: str, lines: list[int]) -> np.ndarray:
+    """R (n, 3, 3) of quaternions (n, 4) as written, each of norm 1 to its decimals' rounding."""
+    norm = np.linalg.norm(q, axis=-1)
+    bad = np.flatnonzero(~(np.abs(norm - 1.0) <= QUATERNION_NORM))
+    if bad.size:
+        k = int(bad[0])
+        raise InputError(f"the quaternion [{', '.join(f'{v:g}' for v in q[k])}] has norm {norm[k]:.9g}, not 1 "
+                         f"(within {QUATERNION_NORM:g})", source=source, where=f"line {lines[k]}")
+    return quaternion_matrix(q / norm[:, None])
 
 
 def _frame(xyz: str, quat: str, source: str, line: int) -> np.ndarray:
-    return homogeneous(_rotation(_numbers(quat), source, line), _numbers(xyz))
+    return homogeneous(_rotations(_numbers(quat)[None], source, [line])[0], _numbers(xyz))
 
 
 #: the optional arguments of a motion that leave its target as written (timing, zones, loads, its
@@ -85,18 +90,25 @@ HARMLESS_SWITCHES = frozenset(("conc", "id", "v", "t", "z", "inpos", "tload", "w
                                "signal", "time", "dodelay", "posn"))
 
 
+_INNERMOST = re.compile(r"\[[^\[\]]*\]")
+_WOBJ_ARG = re.compile(r"\\WObj\s*:=\s*(\w+)", re.I)
+_SWITCH = re.compile(r"\\(\w+)")
+_OPTIONAL = re.compile(r"\\\w+(?:\s*:=\s*[\w\[\]]+)?")
+_NAME = re.compile(r"[A-Za-z_]\w*")
+
+
 def _arguments(arguments: str) -> tuple[list[str], str | None, str | None, list[str]]:
     """The positional arguments of a motion (aggregates as AGGREGATE), its tool (the last positional
     one), its work object (``\\WObj:=``) and its optional arguments robocal does not take as
     leaving the target as written."""
     flat = arguments
     while "[" in flat:  # aggregates out, innermost first
-        flat = re.sub(r"\[[^\[\]]*\]", AGGREGATE, flat)
-    wobj = re.search(r"\\WObj\s*:=\s*(\w+)", flat, re.I)
-    odd = [s for s in re.findall(r"\\(\w+)", flat) if s.lower() not in HARMLESS_SWITCHES]
-    flat = re.sub(r"\\\w+(?:\s*:=\s*[\w\[\]]+)?", "", flat)  # switches and optional arguments
+        flat = _INNERMOST.sub(AGGREGATE, flat)
+    wobj = _WOBJ_ARG.search(flat)
+    odd = [s for s in _SWITCH.findall(flat) if s.lower() not in HARMLESS_SWITCHES]
+    flat = _OPTIONAL.sub("", flat)  # switches and optional arguments
     positional = [a.strip() for a in split_top(flat) if a.strip()]
-    tool = positional[-1] if positional and re.fullmatch(r"[A-Za-z_]\w*", positional[-1]) else None
+    tool = positional[-1] if positional and _NAME.fullmatch(positional[-1]) else None
     return positional, tool, wobj.group(1) if wobj else "wobj0", odd
 
 
@@ -132,7 +144,7 @@ def read(path: Path, frames_file: Path | None = None) -> Program:
                                                if odd[0].lower() == "corr" else "")
         reach = positional[:2] if m.group(1).lower().startswith("movec") else positional[:1]
         for a in reach:
-            if re.fullmatch(r"[A-Za-z_]\w*", a):
+            if _NAME.fullmatch(a):
                 uses.setdefault(a.lower(), []).append((tool, wobj, line, why))
             elif a != AGGREGATE:
                 program.targets.append(Target(f"line {line}", line, "pose", {},
@@ -143,7 +155,7 @@ def read(path: Path, frames_file: Path | None = None) -> Program:
                         (tool, wobj, line, f"a motion reaches it through {call.group(1)}() (line {line}), which "
                                            "changes it as the program runs"))
         spans.append((m.start(2), m.end(2), tool, wobj, line, why))
-    _targets(text, code, program, spans, uses, lines)
+    _targets(code, program, spans, uses, lines)
     declared = {t.name.lower() for t in program.targets}
     for name, used in uses.items():  # a motion to a target this module does not hold: said, never skipped
         if name not in declared:
@@ -156,25 +168,37 @@ def read(path: Path, frames_file: Path | None = None) -> Program:
     return program
 
 
-def _targets(text: str, code: str, program: Program, spans: list, uses: dict, lines: Lines) -> None:
-    source = program.source
+#: a robtarget or jointtarget with each of its numbers captured (a large module has tens of thousands)
+_CAPTURED = r"\s*(" + NUMBER + r")\s*"
+_CAPTURED_LIST = lambda k: r"\[" + ",".join([_CAPTURED] * k) + r"\]"  # noqa: E731
+_ROBTARGET_FIELDS = re.compile(r"\[\s*" + _CAPTURED_LIST(3) + r"\s*,\s*" + _CAPTURED_LIST(4) + r"\s*,\s*"
+                               + _CAPTURED_LIST(4) + r"\s*,\s*" + _LIST(6) + r"\s*\]")
+_JOINTTARGET_FIELDS = re.compile(r"\[\s*" + _CAPTURED_LIST(6) + r"\s*,\s*" + _LIST(6) + r"\s*\]")
+
+
+_field = tuple.__new__
+
+
+def _targets(code: str, program: Program, spans: list, uses: dict, lines: Lines) -> None:
     everything = {(u[0], u[1]) for us in uses.values() for u in us}
     starts = [sp[0] for sp in spans]  # motions in order of the text
-    for kind, pattern in (("pose", ROBTARGET), ("joints", JOINTTARGET)):
-        for m in pattern.finditer(code):
-            f = fields_in(text[m.start():m.end()], m.start())
-            decl = _DECL.search(code, max(0, m.start() - 200), m.start())
+    poses: list[Target] = []
+    declarations = {m.end(): m for m in _DECL.finditer(code)}  # value's start → its declaration
+    for kind, pattern, keys in (("pose", _ROBTARGET_FIELDS, KEYS_POSE),
+                                ("joints", _JOINTTARGET_FIELDS, tuple(f"q{i + 1}" for i in range(6)))):
+        for m in pattern.finditer(code):  # (tuple.__new__: Field's own __new__ is a Python call, per number)
+            items = dict(zip(keys, [_field(Field, (a, b, s)) for (a, b), s in zip(m.regs[1:], m.groups())]))
+            values = [float(f.text) for f in items.values()]
+            decl = declarations.get(m.start())
             line = lines.of(m.start())
             declared = decl and decl.group(1).lower() == ("robtarget" if kind == "pose" else "jointtarget")
             name = decl.group(2) if declared else f"line {line}"
             if kind == "pose":
-                items = dict(zip(KEYS_POSE, f[:11]))
-                q = np.array([items[k].value for k in ("q1", "q2", "q3", "q4")])
-                t = Target(name, line, "pose", items, np.array([items[k].value for k in "xyz"]),
-                           _rotation(q, source, line), config={k: int(items[k].value) for k in KEYS_POSE[7:]})
+                t = Target(name, line, "pose", items, np.array(values[:3]), np.array(values[3:7]),
+                           config=dict(zip(KEYS_POSE[7:], map(int, values[7:]))))
+                poses.append(t)
             else:
-                items = {f"q{i + 1}": f[i] for i in range(6)}
-                t = Target(name, line, "joints", items, q=np.radians([items[f"q{i + 1}"].value for i in range(6)]))
+                t = Target(name, line, "joints", items, q=np.radians(values))
             k = bisect.bisect_right(starts, m.start()) - 1
             inline = [spans[k]] if k >= 0 and m.start() < spans[k][1] else []
             used = [(s[2], s[3], s[4], s[5]) for s in inline] if not declared else uses.get(name.lower(), [])
@@ -192,12 +216,16 @@ def _targets(text: str, code: str, program: Program, spans: list, uses: dict, li
             elif everything:
                 t.unsupported = "no motion of the module reaches it, and its motions use several tools or work objects"
             program.targets.append(t)
+    if poses:  # the quaternions, all at once (a target holds it in .rotation until here)
+        R = _rotations(np.array([t.rotation for t in poses]), program.source, [t.line for t in poses])
+        for t, r in zip(poses, R):
+            t.rotation = r
     read_names = {t.name for t in program.targets}
-    for m in re.finditer(r"\b(robtarget|jointtarget)\s+(\w+)\s*:=", code, re.I):
+    for m in declarations.values():
         if m.group(2) not in read_names:
             raise InputError(f"{m.group(1)} {m.group(2)}: its value is not [[x,y,z],[q1,q2,q3,q4],[cf1,cf4,cf6,cfx],"
-                             "[eax…]] (robtarget) or [[j1,…,j6],[eax…]] (jointtarget) of numbers", source=source,
-                             where=f"line {lines.of(m.start())}")
+                             "[eax…]] (robtarget) or [[j1,…,j6],[eax…]] (jointtarget) of numbers",
+                             source=program.source, where=f"line {lines.of(m.start())}")
 
 
 def _quadrant(angle: float, original: int | None) -> int:

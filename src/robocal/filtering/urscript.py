@@ -20,7 +20,6 @@ import re
 from pathlib import Path
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from ..exceptions import InputError
 from ..math.se3 import homogeneous
@@ -64,6 +63,8 @@ def _call_arguments(code: str, open_paren: int) -> tuple[list[str], list[int]]:
 
 
 def _pose_of(values: list[float]) -> tuple[np.ndarray, np.ndarray]:
+    from scipy.spatial.transform import Rotation  # here: every language is imported on any filter run
+
     v = np.array(values)
     return v[:3] * 1000.0, Rotation.from_rotvec(v[3:]).as_matrix()
 

@@ -158,11 +158,13 @@ def project_to_so3(M: np.ndarray) -> np.ndarray:
 
 
 def quaternion_matrix(q: np.ndarray) -> np.ndarray:
-    """R (3, 3) of a unit quaternion (w, x, y, z), scalar first."""
-    w, x, y, z = q
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+    """R (..., 3, 3) of unit quaternions (..., 4) (w, x, y, z), scalar first."""
+    w, x, y, z = np.moveaxis(np.asarray(q, dtype=float), -1, 0)
+    R = np.empty(np.shape(w) + (3, 3))
+    R[..., 0, 0], R[..., 0, 1], R[..., 0, 2] = 1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)
+    R[..., 1, 0], R[..., 1, 1], R[..., 1, 2] = 2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)
+    R[..., 2, 0], R[..., 2, 1], R[..., 2, 2] = 2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)
+    return R
 
 
 def matrix_quaternion(R: np.ndarray) -> np.ndarray:
