@@ -559,6 +559,11 @@ def _production_ls(tmp_path):
            "\tJ1=    10.000 deg,\tJ2=    20.000 deg,\tJ3=   -10.000 deg,",
            "\tJ4=     5.000 deg,\tJ5=    40.000 deg,\tJ6=    30.000 deg", "};"]
     pos = pos.replace("/END", "\r\n".join(odd) + "\r\n/END")
+    # CONFIG as controllers and editors also write it: letters run together (P[4]), turns of 0 left out
+    configs = dict(re.findall(r"P\[(\d+)\]\{[^}]*?CONFIG : '([^']*)'", pos))
+    bare = next(k for k in ("8", "7", "3") if configs[k].endswith(", 0, 0, 0"))
+    for k, spelled in (("4", configs["4"].replace(" ", "")), (bare, configs[bare][:-len(", 0, 0, 0")])):
+        pos = re.sub(rf"(P\[{k}\]\{{[^}}]*?CONFIG : ')[^']*'", lambda m, c=spelled: m.group(1) + c + "'", pos)
     (tmp_path / "PROD.LS").write_bytes((main + "/POS" + pos).encode())
     return tmp_path / "PROD.LS", q, world, tool
 
@@ -588,6 +593,9 @@ def test_fanuc_production_options_and_odd_positions(tmp_path, run_cli):
     for k in (1, 2, 5, 6, 11):
         assert new[k] == old[k]
     assert "******** mm" in out.read_text()
+    spelled = [dict(re.findall(r"P\[(\d+)\]\{[^}]*?CONFIG : '([^']*)'", f.read_text())) for f in (program, out)]
+    assert [k for k, c in spelled[0].items() if "," not in c] == [k for k, c in spelled[1].items() if "," not in c]
+    assert " " not in spelled[1]["4"] and len(spelled[1]) == len(spelled[0])  # each kept its spelling
     # the calibrated model of the nominal itself: the program comes back byte for byte
     code, _, err = run_cli("filter", nominal, program, "--nominal", nominal, "--out", tmp_path / "SAME.LS", "--tool",
                            "2=0,0,210,0,0,0")
@@ -627,8 +635,9 @@ def test_krl_status_in_every_spelling_frames_untouched_spline_frames_read(tmp_pa
         s, t = st[i - 1]
         spelled = f"S 'B{s:03b}',T 'B{t:06b}'" if style == "B" else f"S 'H{s:X}',T 'H{t:02X}'"
         dat = re.sub(rf"(DECL E6POS XP{i}=\{{[^}}]*?)S {s},T {t}", lambda m, w=spelled: m.group(1) + w, dat)
-    src = src.replace("END\r\n", "  SPTP XP6 WITH $TOOL = STOOL2(FP1), $BASE = SBASE(FP1.BASE_NO), $IPO_MODE = "
-                      "SIPO_MODE(FP1.IPO_FRAME), $LOAD = SLOAD(FP1.TOOL_NO)\r\n"
+    src = src.replace("END\r\n", "  SPLINE WITH $VEL = SVEL_CP(2.0, , LCPDAT1)\r\n"
+                      "    SPL XP6 WITH $TOOL = STOOL2(FP1), $BASE = SBASE(FP1.BASE_NO), $IPO_MODE = "
+                      "SIPO_MODE(FP1.IPO_FRAME), $LOAD = SLOAD(FP1.TOOL_NO)\r\n  ENDSPLINE\r\n"
                       "  LIN XP3:{X 0,Y 0,Z 5,A 0,B 0,C 0}\r\nEND\r\n")
     folder = tmp_path / "R1"
     folder.mkdir()

@@ -135,11 +135,15 @@ def test_kuka_status_and_turn_name_the_taught_solution(rng):
         assert krl.encode(q[i], facts, {"S": 0, "T": 0}) == {"S": s, "T": t}
 
 
-def test_abb_and_fanuc_configuration_data_follow_their_manuals(rng):
+@pytest.mark.parametrize("offset", [0.0, -70.0], ids=["irb120", "no wrist offset"])
+def test_abb_and_fanuc_configuration_data_follow_their_manuals(rng, offset):
     from robocal.filtering import fanuc, rapid
 
-    robot = load_robot("irb120")
-    g = ind.geometry("irb120")
+    robot = load_robot("irb120")  # and the same arm with axis 4 in line with axis 3 (a3 = 0)
+    geometry = robot.geometry.copy()
+    geometry[2, 0] += offset
+    robot = robot.replace(geometry=geometry)
+    g = ind.geometry("irb120", {"a3": offset})
     lim = np.radians(ind.LIMITS_DEG["irb120"])
     q = rng.uniform(lim[:, 0], lim[:, 1], (200, 6))
     arm = arm_configuration(robot, q)

@@ -2,7 +2,7 @@
 
 Aggregates ``{X …, Y …, Z …, A …, B …, C …, S …, T …, E1 …}`` (E6POS, POS; mm and degrees,
 R = Rz(A)·Ry(B)·Rx(C)) and ``{A1 …, …, A6 …, E1 …}`` (E6AXIS, AXIS; degrees) are targets where a
-``DECL E6POS|POS|E6AXIS|AXIS`` declares them, where a motion (PTP, LIN, CIRC, SPTP, SLIN, SCIRC)
+``DECL E6POS|POS|E6AXIS|AXIS`` declares them, where a motion (PTP, LIN, CIRC, SPTP, SLIN, SCIRC, SPL)
 takes them inline, and where a variable is assigned one.  Everything after ``;`` on a line
 (comments, folds) is left alone.
 
@@ -40,7 +40,7 @@ _AGGREGATE = re.compile(r"\{([^{}]*)\}")
 _BASED = r"'[BbHh][0-9A-Fa-f]+'"
 _ITEM = re.compile(r"([A-Za-z_$][\w$]*)\s+(" + NUMBER + r"|#\w+|" + _BASED + r")")
 _DECL = re.compile(r"\bDECL\s+(?:GLOBAL\s+)?(E6POS|POS|E6AXIS|AXIS|FRAME|FDAT)\s+(\w+)\s*=\s*$", re.I)
-_MOTION = re.compile(r"\b(PTP|LIN|CIRC|SPTP|SLIN|SCIRC)(_REL)?\s+", re.I)
+_MOTION = re.compile(r"\b(PTP|LIN|CIRC|SPTP|SLIN|SCIRC|SPL)(_REL)?\s+", re.I)
 _ASSIGN = re.compile(r"(\$?[\w\[\]]+)\s*=\s*$")
 _DATA = re.compile(r"\b(TOOL|BASE)_DATA\s*\[\s*(\d+)\s*\]\s*=\s*\{([^{}]*)\}", re.I)
 _SELECT = re.compile(r"\$(TOOL|BASE)\s*=\s*(?:(TOOL|BASE)_DATA\s*\[\s*(\d+)\s*\]|\$NULLFRAME|(\{[^{}]*\}))", re.I)
@@ -48,7 +48,7 @@ _BAS = re.compile(r"\bBAS\s*\(\s*#(TOOL|BASE)\s*,\s*(\d+)\s*\)", re.I)
 _FDAT = re.compile(r"\bFDAT_ACT\s*=\s*(\w+|\{[^{}]*\})", re.I)
 #: a spline motion's frames from an FDAT: ``$TOOL = STOOL2(FP1)``, ``$BASE = SBASE(FP1.BASE_NO)``,
 #: ``$IPO_MODE = SIPO_MODE(FP1.IPO_FRAME)``
-_SPLINE_FRAMES = re.compile(r"\$(?:TOOL|BASE|IPO_MODE)\s*=\s*(?:STOOL2|SBASE|SIPO_MODE)\s*\(\s*(\w+)", re.I)
+_SPLINE_FRAMES = re.compile(r"\$(?:TOOL|BASE|IPO_MODE)\s*=\s*(?:STOOL2?|SBASE2?|SIPO_MODE)\s*\(\s*(\w+)", re.I)
 #: a declaration, initialised or not: its type and name (arrays too)
 _TYPED = re.compile(r"\bDECL\s+(?:GLOBAL\s+)?(?:CONST\s+)?(\w+)\s+(\w+)\s*(?:\[|=|$)", re.I | re.M)
 #: what may follow a motion's target(s) and leave them as written: approximation and a CIRC's angle,
