@@ -1,6 +1,14 @@
-"""Workload W1 of robocal's speed targets; prints its rows. Run: python benchmarks/bench_w1.py"""
+"""Workload W1 of robocal's speed targets (Wen 2019's IPSO, 20 × 2000, 32 full poses): warm,
+beside a straightforward numpy IPSO and robocal's own numpy path; and as the first run after
+install meets it (an empty numba cache), beside the same naive IPSO.  Prints its rows.
+
+Run: python benchmarks/bench_w1.py
+"""
 
 from robocal.bench.timing import print_rows
-from robocal.bench.workloads import w1_ipso
+from robocal.bench.workloads import busy_cores, w1_first_run, w1_ipso, w1_naive_ratio
 
-print_rows(w1_ipso())
+rows = w1_ipso() + w1_naive_ratio(5) + w1_first_run(3)
+with busy_cores() as busy:
+    rows += w1_naive_ratio(3, label=f" ({busy.n} busy)")
+print_rows(rows)

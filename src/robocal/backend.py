@@ -1,10 +1,9 @@
-"""Which implementation runs the hot loops: compiled numba kernels or plain numpy.
+"""Which implementation runs the hot loops, and on how many threads.
 
-The choice is explicit: functions that have a compiled path take ``backend=`` (``auto``,
-``numba``, ``numpy``) and resolve it here, at call time.  ``auto`` means numba when it is
-installed (the ``fast`` extra) and the environment variable ``ROBOCAL_NO_NUMBA`` is not
-set.  Both paths give the same numbers (the tests check it); numba is only imported the
-first time a kernel runs, so neither importing robocal nor its command line pays for it.
+Functions that have a compiled path take ``backend=`` (``auto``, ``numba``, ``numpy``);
+:func:`robocal.model.compiled.resolve` turns it into one of the two (``auto``: numba when it
+is installed, ``ROBOCAL_NO_NUMBA`` is not set and its kernels are compiled).  Here: whether
+numba is installed, and how many threads a kernel call, BLAS and a worker pool get.
 """
 
 from __future__ import annotations
@@ -13,7 +12,7 @@ import functools
 import importlib.util
 import os
 
-from .exceptions import InputError, RobocalWarning
+from .exceptions import RobocalWarning
 
 BACKENDS = ("auto", "numba", "numpy")
 
@@ -21,19 +20,6 @@ BACKENDS = ("auto", "numba", "numpy")
 @functools.cache
 def numba_installed() -> bool:
     return importlib.util.find_spec("numba") is not None
-
-
-def resolve(backend: str = "auto") -> str:
-    """``numba`` or ``numpy`` for a requested backend (see the module docstring)."""
-    if backend not in BACKENDS:
-        raise InputError(f"unknown backend {backend!r} (expected {' | '.join(BACKENDS)})", option="backend")
-    if backend == "numpy":
-        return "numpy"
-    if backend == "numba":
-        if not numba_installed():
-            raise InputError("numba is not installed (pip install 'robocal[fast]')", option="backend")
-        return "numba"
-    return "numba" if numba_installed() and not os.environ.get("ROBOCAL_NO_NUMBA") else "numpy"
 
 
 #: chain evaluations per kernel call below which the numba kernels run on one thread.  Measured
@@ -111,6 +97,16 @@ class threads_for:
 
         numba.set_num_threads(self.previous)
         return False
+
+
+def run_kernel(serial, parallel, work: int, *args):
+    """A compiled kernel's call of ``work`` chain evaluations: its serial entry point where one
+    thread is all the call should have (:func:`kernel_threads`; a serial kernel also starts no
+    OpenMP layer), else its parallel one on the idle cores."""
+    if kernel_threads(work) == 1:
+        return serial(*args)
+    with threads_for(work):
+        return parallel(*args)
 
 
 #: matrices smaller than this on a side run BLAS/LAPACK on one thread: on the 2-core development

@@ -7,8 +7,9 @@ import sys
 
 import pytest
 
-from robocal.backend import numba_installed, resolve
+from robocal.backend import numba_installed
 from robocal.exceptions import InputError
+from robocal.model.compiled import resolve
 
 
 def _python(code: str, env_extra: dict | None = None) -> str:
@@ -29,6 +30,9 @@ def test_explicit_choices_and_bad_values(monkeypatch):
 
 @pytest.mark.skipif(not numba_installed(), reason="numba (fast extra) not installed")
 def test_environment_variable_is_read_at_call_time_not_import_time(monkeypatch):
+    from robocal.model import compiled
+
+    monkeypatch.setattr(compiled, "kernels_compiled", lambda: True)
     monkeypatch.delenv("ROBOCAL_NO_NUMBA", raising=False)
     assert resolve("auto") == "numba"
     monkeypatch.setenv("ROBOCAL_NO_NUMBA", "1")
@@ -165,3 +169,28 @@ def test_idle_cores_now_sees_busy_processes_the_minute_average_has_not_yet():
         for p in busy:
             p.kill()
             p.wait()
+
+
+@pytest.mark.skipif(not numba_installed(), reason="numba (fast extra) not installed")
+def test_a_cold_cache_runs_numpy_and_compiles_for_the_next_process(tmp_path):
+    """The first process after install finds numba's cache empty: it runs numpy (no compiling in
+    its time) and starts the compile in the background; the next process runs the kernels."""
+    import time
+
+    env = {"NUMBA_CACHE_DIR": str(tmp_path / "cache"), "TMPDIR": str(tmp_path)}  # its own cache and lock
+    ask = ("import json, time\nfrom robocal.model.compiled import resolve\nt = time.perf_counter()\n"
+           "b = resolve('auto')\nprint(json.dumps({'backend': b, 's': time.perf_counter() - t}))")
+    first = json.loads(_python(ask, env).splitlines()[-1])
+    assert first["backend"] == "numpy" and first["s"] < 5.0  # asked, not compiled
+    lock = tmp_path / f"robocal-compile-{os.getuid()}.lock"
+    assert lock.exists()
+    assert json.loads(_python(ask, env).splitlines()[-1])["backend"] == "numpy"  # still compiling: no second one
+    deadline = time.time() + 55
+    while time.time() < deadline:
+        names = {p.name.split("-")[0] for p in (tmp_path / "cache").rglob("*.nbi")}
+        if {"kernels.objective", "kernels.objective_joints", "kernels.apply_right_jacobian_inv",
+                "kernels.objective_parallel"} <= names:
+            break
+        time.sleep(0.5)
+    time.sleep(1.0)  # the last index written
+    assert json.loads(_python(ask, env).splitlines()[-1])["backend"] == "numba"

@@ -16,7 +16,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..backend import resolve
+from ..model.compiled import resolve
 from ..model.parameters import is_angle, is_frame
 from ..optimize.lm import levenberg_marquardt
 from ..optimize.result import OptimizeResult, Progress

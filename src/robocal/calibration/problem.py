@@ -26,8 +26,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..backend import resolve, threads_for
+from ..backend import run_kernel
 from ..math.so3 import apply_right_jacobian_inv, orientation_error
+from ..model.compiled import resolve
 from ..model.kinematics import joint_kinds
 from ..model.measurements import Measurements
 from ..model.parameters import ParameterSpace, is_angle
@@ -105,8 +106,8 @@ def warm_up(backend: str, full_pose: bool) -> float:
     """Compile (or load from numba's cache) the kernel the full-pose Jacobian uses before any
     fit, registration included, so that no optimizer's time includes it; returns the seconds
     spent (a first run after install compiles, about 1 s; later runs load, milliseconds).  Only
-    when the run will use it: an OpenMP kernel run here makes a later fork of this process
-    (the study's and the ladder's workers) abort."""
+    when the run will use it.  The serial kernel is the one loaded: it starts no OpenMP layer,
+    which would make a later fork of this process (the study's and the ladder's workers) abort."""
     import time
 
     if not full_pose or resolve(backend) != "numba":
@@ -286,13 +287,12 @@ class Problem:
         common = (c["qtrig"], c["tidx"], c["pm"], c["Rm"], self._Rm is not None, self.k,
                   0 if kind == "sum_squares" else 1)
         work = len(X) * self.meas.n_poses
-        with threads_for(work):
-            if not self._frames_active:
-                # each particle adds its joint deviations to the nominal geometry inside the kernel
-                return kernels.objective_joints(c["conv"], self.space.robot.geometry, c["geom_cols"], X, c["base"],
-                                                c["tools"], *common)
-            geom, base, tools = self.space.expand(self.full(X))
-            return kernels.objective(c["conv"], geom, base, tools, *common)
+        if not self._frames_active:
+            # each particle adds its joint deviations to the nominal geometry inside the kernel
+            return run_kernel(kernels.objective_joints, kernels.objective_joints_parallel, work, c["conv"],
+                              self.space.robot.geometry, c["geom_cols"], X, c["base"], c["tools"], *common)
+        geom, base, tools = self.space.expand(self.full(X))
+        return run_kernel(kernels.objective, kernels.objective_parallel, work, c["conv"], geom, base, tools, *common)
 
     def residuals(self, x: np.ndarray) -> np.ndarray:
         """Whitened residual vector [δp/σp (3m), δ/σr (3m)] of one solution (k_active,): its
@@ -331,8 +331,8 @@ class Problem:
             if self._backend == "numba":  # this kernel is convention-free
                 from ..model import kernels
 
-                with threads_for(w.size):
-                    Jr = kernels.apply_right_jacobian_inv(dr, w)
+                Jr = run_kernel(kernels.apply_right_jacobian_inv, kernels.apply_right_jacobian_inv_parallel,
+                                w.size // 3, dr, w)
             else:
                 Jr = apply_right_jacobian_inv(dr, w)
             out[:, 3 * m : 6 * m] = -self._wr * Jr.reshape(k, 3 * m)

@@ -98,40 +98,68 @@ def chain_frames(convention: str, geom: np.ndarray, q: np.ndarray, base: np.ndar
     return Rs, origins
 
 
+def _turning(geom: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """cos and sin of each joint's angle t = q + θ (q·(1 − slide) + θ with a sliding joint) and
+    its d, (..., m, n), by the addition theorem from the sines and cosines of q (m, n) and of θ
+    (..., n): a swarm's particles share the poses, and numpy's cos costs ten times a product."""
+    if geom.shape[-1] > PRISMATIC:
+        slide = geom[..., PRISMATIC]
+        kind = slide.reshape(-1, slide.shape[-1])[0]
+        if np.any(slide != kind):  # a joint sliding in one chain and turning in another: as written
+            t, d = _joint_values(geom[..., None, :, :], q)
+            return np.cos(t), np.sin(t), d
+        q_turn, d = q * (1 - kind), geom[..., None, :, D] + q * kind
+    else:
+        q_turn, d = q, geom[..., None, :, D] + 0 * q
+    cq, sq = np.cos(q_turn), np.sin(q_turn)
+    theta = geom[..., None, :, THETA]
+    c0, s0 = np.cos(theta), np.sin(theta)
+    return cq * c0 - sq * s0, sq * c0 + cq * s0, d
+
+
 def apply_chain(convention: str, geom: np.ndarray, q: np.ndarray, V: np.ndarray) -> np.ndarray:
     """Apply A_1 ⋯ A_n to the column vectors of V, from the flange back to the base.
 
     V: (..., m, 3, c) vectors in the flange frame; its last column is a point
     (translations apply to it), the others are directions.  Working backwards on
     vectors needs only elementwise rotations about x, y, z (no 3×3 products), and
-    for positions alone V is a single column.
+    for positions alone V is a single column.  A swarm's call holds a few thousand numbers,
+    where each numpy operation costs its overhead and a broadcast operand twice a full one:
+    every factor is laid out once at the full shape, joint first, and translations are added
+    in place to the point column.
     """
     n = geom.shape[-2]
-    x, y, z = V[..., 0, :], V[..., 1, :], V[..., 2, :]
-    e = np.zeros(V.shape[-1])
-    e[-1] = 1.0  # translations act on the last column only
+    ct, st, d = _turning(geom, q)  # (..., m, n)
+    full = np.broadcast_shapes(ct.shape[:-1] + V.shape[-1:], V.shape[:-2] + V.shape[-1:])
+
+    def per_joint(values):  # (..., m or 1, n) → (n, ..., m, c), contiguous
+        return np.ascontiguousarray(np.broadcast_to(np.moveaxis(values, -1, 0)[..., None], (n,) + full))
+
+    CT, ST = per_joint(ct), per_joint(st)
+    alpha = geom[..., None, :, ALPHA]
+    CA, SA = per_joint(np.cos(alpha)), per_joint(np.sin(alpha))
+    if convention == "hayati":
+        beta = geom[..., None, :, BETA]
+        CB, SB = per_joint(np.cos(beta)), per_joint(np.sin(beta))
+    a = np.moveaxis(np.broadcast_to(geom[..., None, :, A], full[:-1] + (n,)), -1, 0)
+    d = np.moveaxis(np.broadcast_to(d, full[:-1] + (n,)), -1, 0)
+    x, y, z = (np.array(np.broadcast_to(V[..., r, :], full)) for r in range(3))  # own copies: added to in place
     for i in range(n - 1, -1, -1):
-        g = geom[..., i, :]
-        a = g[..., A, None]  # (..., 1): broadcast over poses
-        ca, sa = np.cos(g[..., ALPHA])[..., None, None], np.sin(g[..., ALPHA])[..., None, None]
-        t, d = _joint_values(g[..., None, :], q[..., i])
-        ct, st = np.cos(t)[..., None], np.sin(t)[..., None]
         if convention == "craig":
             # Rx(α) · Tx(a) · Rz(t) · Tz(d)
-            z = z + d[..., None] * e
-            x, y = ct * x - st * y, st * x + ct * y
-            x = x + a[..., None] * e
-            y, z = ca * y - sa * z, sa * y + ca * z
+            z[..., -1] += d[i]
+            x, y = CT[i] * x - ST[i] * y, ST[i] * x + CT[i] * y
+            x[..., -1] += a[i]
+            y, z = CA[i] * y - SA[i] * z, SA[i] * y + CA[i] * z
         else:
             if convention == "hayati":
-                cb, sb = np.cos(g[..., BETA])[..., None, None], np.sin(g[..., BETA])[..., None, None]
-                x, z = cb * x + sb * z, cb * z - sb * x
+                x, z = CB[i] * x + SB[i] * z, CB[i] * z - SB[i] * x
             # Rz(t) · Tz(d) · Tx(a) · Rx(α)
-            y, z = ca * y - sa * z, sa * y + ca * z
-            x = x + a[..., None] * e
-            z = z + d[..., None] * e
-            x, y = ct * x - st * y, st * x + ct * y
-    return np.stack(np.broadcast_arrays(x, y, z), axis=-2)
+            y, z = CA[i] * y - SA[i] * z, SA[i] * y + CA[i] * z
+            x[..., -1] += a[i]
+            z[..., -1] += d[i]
+            x, y = CT[i] * x - ST[i] * y, ST[i] * x + CT[i] * y
+    return np.stack((x, y, z), axis=-2)
 
 
 def twist_jacobian(convention: str, geom: np.ndarray, q: np.ndarray, base=None, tool=None):

@@ -1,8 +1,13 @@
 """Compiled kernels of the chain (the ``numba`` backend; imported only when it runs).
 
 One compiled loop per particle runs the whole backward chain, the residuals and the
-objective without temporaries, and particles run in parallel.  The results equal the
-numpy path of :mod:`robocal.calibration.problem` (the tests check 1e-9 mm).
+objective; each joint runs over all poses in one contiguous loop, so that the compiler's vector
+lanes take several poses at once, and the measurements are compared in the robot's base frame
+(moved there once per call, not once per particle).  Each entry point comes twice: a serial
+one, for the calls a swarm makes (a few hundred chain evaluations: a thread pool costs more
+than it gains, and a serial kernel starts no OpenMP layer), and a parallel one for large
+calls (``*_parallel``).  The results
+equal the numpy path of :mod:`robocal.calibration.problem` (the tests check 1e-9 mm).
 """
 
 from __future__ import annotations
@@ -34,55 +39,9 @@ def chain_constants(geom: np.ndarray) -> np.ndarray:
 
 
 def joint_trig(q: np.ndarray) -> np.ndarray:
-    """(m, n, 2) cos and sin of the joint values."""
-    return np.ascontiguousarray(np.stack([np.cos(q), np.sin(q)], -1))
-
-
-@njit(cache=True, inline="always")
-def _chain(conv, g, q, base, tool, V, ncol):
-    """Apply base · A_1 ⋯ A_n to the point column (ncol = 1) or all columns of V (3×4) in place."""
-    n = g.shape[0]
-    for c in range(4):
-        for r in range(3):
-            V[r, c] = tool[r, c]
-    start = 3 if ncol == 1 else 0
-    for i in range(n - 1, -1, -1):
-        a = g[i, 0]
-        ca = g[i, 1]
-        sa = g[i, 2]
-        ct = q[i, 0] * g[i, 3] - q[i, 1] * g[i, 4]  # cos(q + θ)
-        st = q[i, 1] * g[i, 3] + q[i, 0] * g[i, 4]  # sin(q + θ)
-        d = g[i, 5]
-        cb = g[i, 6]
-        sb = g[i, 7]
-        for c in range(start, 4):
-            x = V[0, c]
-            y = V[1, c]
-            z = V[2, c]
-            if conv == 2:
-                if c == 3:
-                    z += d
-                x, y = ct * x - st * y, st * x + ct * y
-                if c == 3:
-                    x += a
-                y, z = ca * y - sa * z, sa * y + ca * z
-            else:
-                if conv == 1:
-                    x, z = cb * x + sb * z, cb * z - sb * x
-                y, z = ca * y - sa * z, sa * y + ca * z
-                if c == 3:
-                    x += a
-                    z += d
-                x, y = ct * x - st * y, st * x + ct * y
-            V[0, c] = x
-            V[1, c] = y
-            V[2, c] = z
-    for c in range(start, 4):
-        x = V[0, c]
-        y = V[1, c]
-        z = V[2, c]
-        for r in range(3):
-            V[r, c] = base[r, 0] * x + base[r, 1] * y + base[r, 2] * z + (base[r, 3] if c == 3 else 0.0)
+    """(n, 2, m) cos and sin of the joint values q (m, n), joint first: the kernels run each
+    joint over all poses in one contiguous loop."""
+    return np.ascontiguousarray(np.stack([np.cos(q.T), np.sin(q.T)], 1))
 
 
 @njit(cache=True, inline="always")
@@ -100,72 +59,189 @@ def _constants_one(geom, g):
 
 
 @njit(cache=True, inline="always")
-def _particle_objective(conv, g, base, tools, q, tidx, pm, Rm, use_rot, k, kind, V):
-    """Objective of one particle whose chain constants are g (n, 8)."""
-    ncol = 4 if use_rot else 1
+def _tool_columns(tools, tidx, S):
+    """S (12, m): per pose, the tool frame's axes x, y, z and its point, three rows each."""
+    for j in range(tidx.shape[0]):
+        T = tools[tidx[j]]
+        for c in range(4):
+            for r in range(3):
+                S[3 * c + r, j] = T[r, c]
+
+
+@njit(cache=True, inline="always")
+def _chain_columns(conv, g, q, S, first):
+    """Turn the columns of S (12, m) from column ``first`` on (3: the point alone) by
+    A_n, …, A_1 in turn, each joint over all poses in one loop (the compiler's vector lanes
+    take several poses at once).  DH and Hayati A_i = Rz(q+θ)·Tz(d)·Tx(a)·Rx(α)[·Ry(β)], Craig
+    Rx(α)·Tx(a)·Rz(q+θ)·Tz(d); q (n, 2, m) from :func:`joint_trig`, g (n, 8)."""
+    m = S.shape[1]
+    for i in range(g.shape[0] - 1, -1, -1):
+        a, ca, sa, c0, s0, d, cb, sb = g[i, 0], g[i, 1], g[i, 2], g[i, 3], g[i, 4], g[i, 5], g[i, 6], g[i, 7]
+        cq = q[i, 0]
+        sq = q[i, 1]
+        for col in range(first, 4):
+            X = S[3 * col]
+            Y = S[3 * col + 1]
+            Z = S[3 * col + 2]
+            ta = a if col == 3 else 0.0
+            td = d if col == 3 else 0.0
+            if conv == 2:
+                for j in range(m):
+                    ct = cq[j] * c0 - sq[j] * s0  # cos(q + θ)
+                    st = sq[j] * c0 + cq[j] * s0
+                    x, y, z = X[j], Y[j], Z[j] + td
+                    x, y = ct * x - st * y + ta, st * x + ct * y
+                    X[j], Y[j], Z[j] = x, ca * y - sa * z, sa * y + ca * z
+            elif conv == 1:
+                for j in range(m):
+                    ct = cq[j] * c0 - sq[j] * s0
+                    st = sq[j] * c0 + cq[j] * s0
+                    x, y, z = X[j], Y[j], Z[j]
+                    x, z = cb * x + sb * z, cb * z - sb * x
+                    y, z = ca * y - sa * z, sa * y + ca * z
+                    x += ta
+                    X[j], Y[j], Z[j] = ct * x - st * y, st * x + ct * y, z + td
+            else:
+                for j in range(m):
+                    ct = cq[j] * c0 - sq[j] * s0
+                    st = sq[j] * c0 + cq[j] * s0
+                    x, y, z = X[j], Y[j], Z[j]
+                    y, z = ca * y - sa * z, sa * y + ca * z
+                    x += ta
+                    X[j], Y[j], Z[j] = ct * x - st * y, st * x + ct * y, z + td
+
+
+@njit(cache=True, inline="always")
+def _in_base(base, pm, Rm, use_rot, P, Q):
+    """The measurements in the robot's base frame B: P (m, 3) = B_Rᵀ (p_m − b), Q (m, 3, 3) =
+    B_Rᵀ R_m.  Distances and rotation angles are the same there, and the chain's frame is then
+    compared as it comes out, without a product by B per particle and pose."""
+    for j in range(pm.shape[0]):
+        for r in range(3):
+            P[j, r] = (base[0, r] * (pm[j, 0] - base[0, 3]) + base[1, r] * (pm[j, 1] - base[1, 3])
+                       + base[2, r] * (pm[j, 2] - base[2, 3]))
+            if use_rot:
+                for c in range(3):
+                    Q[j, r, c] = base[0, r] * Rm[j, 0, c] + base[1, r] * Rm[j, 1, c] + base[2, r] * Rm[j, 2, c]
+
+
+@njit(cache=True, inline="always")
+def _errors(S, P, Q, use_rot, k, kind):
+    """Σ over poses of |δp|² + k θ² (kind 0) or |δp| (kind 1), the chain's frames S (12, m)
+    against P and Q of :func:`_in_base`; θ the angle of Q·Rᵀ (R's columns are S's first three),
+    from its trace and antisymmetric part at full precision."""
     acc = 0.0
-    for j in range(q.shape[0]):
-        _chain(conv, g, q[j], base, tools[tidx[j]], V, ncol)
-        dx = pm[j, 0] - V[0, 3]
-        dy = pm[j, 1] - V[1, 3]
-        dz = pm[j, 2] - V[2, 3]
+    for j in range(S.shape[1]):
+        dx = P[j, 0] - S[9, j]
+        dy = P[j, 1] - S[10, j]
+        dz = P[j, 2] - S[11, j]
         s = dx * dx + dy * dy + dz * dz
         if kind == 1:
             acc += math.sqrt(s)
-        else:
-            acc += s
-            if use_rot:
-                # M = R_m Rᵀ: trace and antisymmetric part give the angle at full precision
-                tr = 0.0
-                for r in range(3):
-                    tr += Rm[j, r, 0] * V[r, 0] + Rm[j, r, 1] * V[r, 1] + Rm[j, r, 2] * V[r, 2]
-                m21 = Rm[j, 2, 0] * V[1, 0] + Rm[j, 2, 1] * V[1, 1] + Rm[j, 2, 2] * V[1, 2]
-                m12 = Rm[j, 1, 0] * V[2, 0] + Rm[j, 1, 1] * V[2, 1] + Rm[j, 1, 2] * V[2, 2]
-                m02 = Rm[j, 0, 0] * V[2, 0] + Rm[j, 0, 1] * V[2, 1] + Rm[j, 0, 2] * V[2, 2]
-                m20 = Rm[j, 2, 0] * V[0, 0] + Rm[j, 2, 1] * V[0, 1] + Rm[j, 2, 2] * V[0, 2]
-                m10 = Rm[j, 1, 0] * V[0, 0] + Rm[j, 1, 1] * V[0, 1] + Rm[j, 1, 2] * V[0, 2]
-                m01 = Rm[j, 0, 0] * V[1, 0] + Rm[j, 0, 1] * V[1, 1] + Rm[j, 0, 2] * V[1, 2]
-                w0 = m21 - m12
-                w1 = m02 - m20
-                w2 = m10 - m01
-                theta = math.atan2(0.5 * math.sqrt(w0 * w0 + w1 * w1 + w2 * w2), 0.5 * (tr - 1.0))
-                acc += k * theta * theta
+            continue
+        acc += s
+        if use_rot:
+            # M[a, b] = Σ_c Q[a, c] R[b, c], R[b, c] = S[3c + b]: its trace and antisymmetric part
+            x0, y0, z0 = S[0, j], S[1, j], S[2, j]
+            x1, y1, z1 = S[3, j], S[4, j], S[5, j]
+            x2, y2, z2 = S[6, j], S[7, j], S[8, j]
+            q0, q1, q2 = Q[j, 0, 0], Q[j, 0, 1], Q[j, 0, 2]
+            r0, r1, r2 = Q[j, 1, 0], Q[j, 1, 1], Q[j, 1, 2]
+            t0, t1, t2 = Q[j, 2, 0], Q[j, 2, 1], Q[j, 2, 2]
+            trace = q0 * x0 + q1 * x1 + q2 * x2 + r0 * y0 + r1 * y1 + r2 * y2 + t0 * z0 + t1 * z1 + t2 * z2
+            w0 = (t0 * y0 + t1 * y1 + t2 * y2) - (r0 * z0 + r1 * z1 + r2 * z2)  # M21 − M12
+            w1 = (q0 * z0 + q1 * z1 + q2 * z2) - (t0 * x0 + t1 * x1 + t2 * x2)  # M02 − M20
+            w2 = (r0 * x0 + r1 * x1 + r2 * x2) - (q0 * y0 + q1 * y1 + q2 * y2)  # M10 − M01
+            theta = math.atan2(0.5 * math.sqrt(w0 * w0 + w1 * w1 + w2 * w2), 0.5 * (trace - 1.0))
+            acc += k * theta * theta
     return acc
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, inline="always")
+def _joints_particle(conv, geom0, cols, x, S0, q, P, Q, use_rot, k, kind):
+    """Objective of the particle whose joint deviations x sit at the flat positions ``cols`` of
+    the geometry geom0 (n, 5), its chain run on the tool columns S0 (12, m)."""
+    n = geom0.shape[0]
+    geom = geom0.copy()
+    flat = geom.reshape(n * geom.shape[1])
+    for c in range(cols.shape[0]):
+        flat[cols[c]] += x[c]
+    g = np.empty((n, 8))
+    _constants_one(geom, g)
+    S = S0.copy()
+    _chain_columns(conv, g, q, S, 0 if use_rot else 3)
+    return _errors(S, P, Q, use_rot, k, kind)
+
+
+@njit(cache=True, inline="always")
+def _frames_particle(conv, geom, base, tools, q, tidx, pm, Rm, use_rot, k, kind):
+    """Objective of a particle with its own geometry (n, 5), base (4, 4) and tools (T, 4, 4)."""
+    m = tidx.shape[0]
+    g = np.empty((geom.shape[0], 8))
+    _constants_one(geom, g)
+    S = np.empty((12, m))
+    _tool_columns(tools, tidx, S)
+    _chain_columns(conv, g, q, S, 0 if use_rot else 3)
+    P = np.empty((m, 3))
+    Q = np.empty((m if use_rot else 1, 3, 3))
+    _in_base(base, pm, Rm, use_rot, P, Q)
+    return _errors(S, P, Q, use_rot, k, kind)
+
+
+@njit(cache=True)
 def objective(conv, geom, base, tools, q, tidx, pm, Rm, use_rot, k, kind):  # pragma: no cover
     """Objective per particle: kind 0 = Σ |δp|² + k θ², kind 1 = Σ |δp| (θ: angle of R_m Rᵀ).
 
     geom (P, n, 5), base (P, 4, 4), tools (P, T, 4, 4), q from :func:`joint_trig`.
     """
-    P = geom.shape[0]
-    out = np.empty(P)
-    for p in prange(P):
-        V = np.empty((3, 4))
-        g = np.empty((geom.shape[1], 8))
-        _constants_one(geom[p], g)
-        out[p] = _particle_objective(conv, g, base[p], tools[p], q, tidx, pm, Rm, use_rot, k, kind, V)
+    out = np.empty(geom.shape[0])
+    for p in range(geom.shape[0]):
+        out[p] = _frames_particle(conv, geom[p], base[p], tools[p], q, tidx, pm, Rm, use_rot, k, kind)
     return out
 
 
 @njit(cache=True, parallel=True)
+def objective_parallel(conv, geom, base, tools, q, tidx, pm, Rm, use_rot, k, kind):  # pragma: no cover
+    """:func:`objective`, particles in parallel."""
+    out = np.empty(geom.shape[0])
+    for p in prange(geom.shape[0]):
+        out[p] = _frames_particle(conv, geom[p], base[p], tools[p], q, tidx, pm, Rm, use_rot, k, kind)
+    return out
+
+
+@njit(cache=True, inline="always")
+def _shared(base, tools, tidx, pm, Rm, use_rot):
+    """What the particles of :func:`objective_joints` share: the tool columns and the
+    measurements in the base frame."""
+    m = tidx.shape[0]
+    S0 = np.empty((12, m))
+    _tool_columns(tools, tidx, S0)
+    P = np.empty((m, 3))
+    Q = np.empty((m if use_rot else 1, 3, 3))
+    _in_base(base, pm, Rm, use_rot, P, Q)
+    return S0, P, Q
+
+
+@njit(cache=True)
 def objective_joints(conv, geom0, cols, X, base, tools, q, tidx, pm, Rm, use_rot, k, kind):  # pragma: no cover
     """:func:`objective` when only joint parameters vary: particle p has geometry geom0 (n, 5)
     with X[p] added at the flat positions ``cols``; base (4, 4) and tools (T, 4, 4) are shared.
     No per-generation array of geometries is built."""
-    P = X.shape[0]
-    n = geom0.shape[0]
-    out = np.empty(P)
-    for p in prange(P):
-        V = np.empty((3, 4))
-        geom = geom0.copy()
-        flat = geom.reshape(n * geom.shape[1])
-        for c in range(cols.shape[0]):
-            flat[cols[c]] += X[p, c]
-        g = np.empty((n, 8))
-        _constants_one(geom, g)
-        out[p] = _particle_objective(conv, g, base, tools, q, tidx, pm, Rm, use_rot, k, kind, V)
+    S0, P, Q = _shared(base, tools, tidx, pm, Rm, use_rot)
+    out = np.empty(X.shape[0])
+    for p in range(X.shape[0]):
+        out[p] = _joints_particle(conv, geom0, cols, X[p], S0, q, P, Q, use_rot, k, kind)
+    return out
+
+
+@njit(cache=True, parallel=True)
+def objective_joints_parallel(conv, geom0, cols, X, base, tools, q, tidx, pm, Rm, use_rot, k,
+                              kind):  # pragma: no cover
+    """:func:`objective_joints`, particles in parallel."""
+    S0, P, Q = _shared(base, tools, tidx, pm, Rm, use_rot)
+    out = np.empty(X.shape[0])
+    for p in prange(X.shape[0]):
+        out[p] = _joints_particle(conv, geom0, cols, X[p], S0, q, P, Q, use_rot, k, kind)
     return out
 
 
@@ -173,25 +249,51 @@ def objective_joints(conv, geom0, cols, X, base, tools, q, tidx, pm, Rm, use_rot
 def points(conv, g, base, tool, q):  # pragma: no cover
     """Positions (P, m, 3) mm of the tool point.
 
-    g (P, n, 8) from :func:`chain_constants`, q (m, n, 2) from :func:`joint_trig`,
+    g (P, n, 8) from :func:`chain_constants`, q (n, 2, m) from :func:`joint_trig`,
     base (P, 4, 4), tool (4, 4).
     """
     P = g.shape[0]
-    m = q.shape[0]
+    m = q.shape[2]
     out = np.empty((P, m, 3))
     for p in prange(P):
-        V = np.empty((3, 4))
+        S = np.empty((12, m))
         for j in range(m):
-            _chain(conv, g[p], q[j], base[p], tool, V, 1)
-            out[p, j, 0] = V[0, 3]
-            out[p, j, 1] = V[1, 3]
-            out[p, j, 2] = V[2, 3]
+            for r in range(3):
+                S[9 + r, j] = tool[r, 3]
+        _chain_columns(conv, g[p], q, S, 3)
+        for j in range(m):
+            for r in range(3):
+                out[p, j, r] = base[p, r, 0] * S[9, j] + base[p, r, 1] * S[10, j] + base[p, r, 2] * S[11, j] \
+                    + base[p, r, 3]
+    return out
+
+
+@njit(cache=True)
+def apply_right_jacobian_inv(phi, w):  # pragma: no cover
+    """:func:`robocal.math.so3.apply_right_jacobian_inv` for w (k, m, 3), fused."""
+    k, m = w.shape[0], w.shape[1]
+    out = np.empty_like(w)
+    for j in range(m):
+        a0, a1, a2 = phi[j, 0], phi[j, 1], phi[j, 2]
+        th = math.sqrt(a0 * a0 + a1 * a1 + a2 * a2)
+        if th < 1e-4:
+            c = 1.0 / 12.0 + th * th / 720.0
+        else:
+            c = 1.0 / (th * th) - (1.0 + math.cos(th)) / (2.0 * th * math.sin(th))
+        for i in range(k):
+            b0, b1, b2 = w[i, j, 0], w[i, j, 1], w[i, j, 2]
+            p0 = a1 * b2 - a2 * b1
+            p1 = a2 * b0 - a0 * b2
+            p2 = a0 * b1 - a1 * b0
+            out[i, j, 0] = b0 + 0.5 * p0 + c * (a1 * p2 - a2 * p1)
+            out[i, j, 1] = b1 + 0.5 * p1 + c * (a2 * p0 - a0 * p2)
+            out[i, j, 2] = b2 + 0.5 * p2 + c * (a0 * p1 - a1 * p0)
     return out
 
 
 @njit(cache=True, parallel=True)
-def apply_right_jacobian_inv(phi, w):  # pragma: no cover
-    """:func:`robocal.math.so3.apply_right_jacobian_inv` for w (k, m, 3), fused."""
+def apply_right_jacobian_inv_parallel(phi, w):  # pragma: no cover
+    """:func:`apply_right_jacobian_inv`, poses in parallel."""
     k, m = w.shape[0], w.shape[1]
     out = np.empty_like(w)
     for j in prange(m):
@@ -210,3 +312,8 @@ def apply_right_jacobian_inv(phi, w):  # pragma: no cover
             out[i, j, 1] = b1 + 0.5 * p1 + c * (a2 * p0 - a0 * p2)
             out[i, j, 2] = b2 + 0.5 * p2 + c * (a0 * p1 - a1 * p0)
     return out
+
+
+#: each serial kernel and its parallel twin (:func:`robocal.backend.run_kernel` picks one per call)
+TWINS = ((objective, objective_parallel), (objective_joints, objective_joints_parallel),
+         (apply_right_jacobian_inv, apply_right_jacobian_inv_parallel))

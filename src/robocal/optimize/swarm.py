@@ -37,7 +37,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from ..backend import resolve
+from ..model.compiled import resolve
 from .result import OptimizeResult, Progress
 
 Objective = Callable[[np.ndarray], np.ndarray]
@@ -75,8 +75,10 @@ class SwarmEngine:
         self.hi = np.asarray(upper, float)
         self.vmax = 0.5 * (self.hi - self.lo)
         self.B, self.P, self.k = np.shape(x0)
-        self.x = np.clip(np.asarray(x0, float).reshape(-1, self.k), self.lo, self.hi)
-        self.v = np.clip(np.asarray(v0, float).reshape(-1, self.k), -self.vmax, self.vmax)
+        # C order from the start, as the kernels return them: a Halton start comes in Fortran order,
+        # and each layout is a kernel specialisation of its own (seconds of compiling on a first run)
+        self.x = np.ascontiguousarray(np.clip(np.asarray(x0, float).reshape(-1, self.k), self.lo, self.hi))
+        self.v = np.ascontiguousarray(np.clip(np.asarray(v0, float).reshape(-1, self.k), -self.vmax, self.vmax))
         self.kernels = None
         if resolve(backend) == "numba":
             from . import kernels

@@ -1,0 +1,40 @@
+"""Compile every numba kernel into numba's cache, with the types robocal's runs call them with.
+
+``python -m robocal.calibration.precompile`` is what :func:`robocal.model.compiled.resolve` starts in the
+background the first time a process finds the cache cold: that process runs the numpy path
+(the same numbers), and the processes after it load the compiled kernels in milliseconds.
+The kernels are compiled by running robocal's own calls on a dozen simulated poses (full pose
+and position only, with and without frames, a swarm and Levenberg–Marquardt), so their
+signatures are the ones real runs use; each parallel twin is compiled for its serial kernel's
+signatures.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+
+def compile_kernels() -> None:
+    """Compile (or load) every kernel, serial and parallel, on the calls robocal makes."""
+    from ..io.robotfile import load_robot
+    from ..model import kernels
+    from ..optimize import kernels as swarm_kernels
+    from ..simulation import simulate
+    from . import calibrate
+
+    robot = load_robot("er10l-c10")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for measure in ("pose", "position"):
+            sim = simulate(robot, 12, deviations="paper", seed=0, measure=measure)
+            for frames in ("none", "base+tool"):
+                calibrate(robot, sim.measurements, "ipso", frames=frames, iterations=2, particles=4, backend="numba")
+            calibrate(robot, sim.measurements, "lm", frames="none", backend="numba")
+    swarm_kernels.warm_up()
+    for serial, parallel in kernels.TWINS:
+        for signature in serial.signatures:
+            parallel.compile(signature)
+
+
+if __name__ == "__main__":
+    compile_kernels()
