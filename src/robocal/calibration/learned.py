@@ -98,6 +98,51 @@ def cross_validate_residuals(ladder: list[tuple[FoldData, CrossValidation, tuple
     return out
 
 
+#: poses a screening process is tuned on: its tuning costs the cube of their number, an eighth of
+#: a full one on a thousand poses
+SCREEN_POINTS = 500
+#: a process whose screen predicts held-out poses worse than the best learned candidate by this
+#: factor of RMS, and worse by the paired test at SCREEN_SIGNIFICANCE, is not tuned in full: a
+#: process is simpler than trees, and wins where the paired test cannot tell it worse, so the
+#: margin covers what a kernel tuned on fewer poses misses
+SCREEN_RATIO = 1.5
+SCREEN_SIGNIFICANCE = 1e-4
+
+
+def _conditioned(piece) -> np.ndarray:
+    """One fold of a screen: the process with the given kernels, not re-tuned, conditioned on the
+    fold's training poses, predicting the held-out ones."""
+    q_train, e_train, q_test, seed, kernels = piece
+    return fit_residual(q_train, e_train, seed, kernels)[0].predict(q_test)
+
+
+@staged("model")
+def screened_process(data: FoldData, cv: CrossValidation, seed: int | None, pool: worker_pool = SERIAL) -> np.ndarray:
+    """Held-out position errors (m, 3) mm of a quick residual process on a parametric fit: its
+    kernel tuned on :data:`SCREEN_POINTS` poses of all the data, each fold conditioned on its
+    training poses without re-tuning.  Near the full figure, on either side: its kernel has seen
+    the held-out poses (optimistic) but fewer poses (it may miss structure)."""
+    kernels = tune_kernels(data.q, data.e[:, :3], seed, points=SCREEN_POINTS, pool=pool)
+    pieces = [args for _, args in data.process_folds(seed, kernels)]
+    corrected = np.array(cv.errors, copy=True)
+    for (test, _), prediction in zip(data.folds, pool.map(_conditioned, pieces)):
+        corrected[test] -= prediction
+    return corrected
+
+
+def screen_loses(screen: np.ndarray, base: np.ndarray, best: Candidate, groups: np.ndarray) -> bool:
+    """Whether a screened process cannot change the choice: it takes nothing from its base's
+    held-out errors ``base`` (its kernel found noise alone), or it loses clearly to the best
+    learned candidate so far."""
+    from .choice import worse_p_value
+    from .crossval import rms
+
+    if rms(screen) >= rms(base):
+        return True
+    return rms(screen) > SCREEN_RATIO * best.cv_rms and \
+        worse_p_value(screen, best.errors, groups) < SCREEN_SIGNIFICANCE
+
+
 def instrument_noise(sigma: np.ndarray | None) -> float:
     """The trace (mm²) of an instrument's stated position noise σ (m, 3) mm, averaged over the
     poses (0 unstated)."""

@@ -53,18 +53,23 @@ SIGNIFICANCE_SIGMAS = 2.0
 class LadderRow:
     """One rung of ``--model auto``: its cross-validated position RMS (mm), its parameter count,
     for a residual process the points it is conditioned on, and with validation data its
-    position RMS there (mm; a residual process's only for the one chosen, the one fitted)."""
+    position RMS there (mm; a residual process's only for the one chosen, the one fitted).
+    ``screened``: a residual process judged by its screen alone (a kernel tuned on fewer poses,
+    not re-tuned per fold), which lost clearly and was not tuned in full."""
 
     model: str
     cv_rms_mm: float
     n_params: int
     residual_points: int | None = None
     validation_rms_mm: float | None = None
+    screened: bool = False
 
     def to_dict(self) -> dict:
         out = {"model": self.model, "cv_rms_mm": self.cv_rms_mm, "n_params": self.n_params}
         if self.validation_rms_mm is not None:
             out["validation_rms_mm"] = self.validation_rms_mm
+        if self.screened:
+            out["screened"] = True
         return out if self.residual_points is None else {**out, "residual_points": self.residual_points}
 
 

@@ -10,7 +10,12 @@ calibration data (K = 5, folds by ``pose_id``, so the reflectors of one pose sta
 4. + residual (a Gaussian process) and + trees (gradient-boosted trees,
    :mod:`robocal.calibration.trees`) on the parametric model chosen, and on geometry alone;
    and, where the trees predict better than the process and both better than their parametric
-   model, the trees with a process on what they leave (``trees+residual``).
+   model, the trees with a process on what they leave (``trees+residual``).  The trees come
+   first; each process is screened (a kernel tuned on a few hundred poses, each fold
+   conditioned, not re-tuned: a tenth of the work) and tuned in full only where its screen does
+   not lose clearly to them (:data:`~robocal.calibration.learned.SCREEN_RATIO` and the paired
+   test) and takes something from its model: a process that cannot change the choice costs no
+   more than its screen.
 
 Forward selection keeps the number of fits linear-ish in the number of terms (at most
 1 + k(k+1)/2 parametric fits for k terms) where every combination would be 2^k.
@@ -40,10 +45,12 @@ from ..model.robot import Robot
 from ..model.terms import TERMS
 from .choice import SIGNIFICANCE, TRIAL_ORDER, Candidate, choose, learned_of, model_name, with_term
 from .config import LEARNED, CalibrationConfig
-from .crossval import K_FOLDS, CrossValidation, FoldData, cross_validate, pose_groups, predict
+from .crossval import K_FOLDS, CrossValidation, FoldData, cross_validate, pose_groups, predict, rms
 from .inputs import Inputs
 from .learned import (
     MIN_RESIDUAL_POSES,
+    SCREEN_POINTS,
+    SCREEN_RATIO,
     chained_kernels,
     cross_validate_residuals,
     cross_validate_stacked,
@@ -52,6 +59,8 @@ from .learned import (
     learned_on_all,
     process_candidates,
     scratch_kernel,
+    screen_loses,
+    screened_process,
     stacked_candidate,
     tree_candidates,
     warm_kernels,
@@ -234,7 +243,7 @@ def fit_model(inputs: Inputs, config: CalibrationConfig, progress=None, stages=N
         # take structure that joint terms would have taken more coarsely
         candidates = [c for c, _ in ladder]
         on = [(c, cv) for c, cv in ladder if residuals and c.terms in dict.fromkeys((parametric.terms, ()))]
-        skipped = None
+        skipped = screened = None
         if on:
             done = len(candidates)
 
@@ -252,7 +261,24 @@ def fit_model(inputs: Inputs, config: CalibrationConfig, progress=None, stages=N
             tell(f"{model_name(kept[0].terms + ('trees',))}: inner cross-validation")
             settings = choose_settings(data[-1].q, data[-1].e, data[-1].groups, config.seed, pool)
             trees = tree_candidates([kept], data[-1:], settings, meas, config.seed, pool, tell)
-            if geometry and pays(trees):  # both bases: the kernel of geometry's richer residuals leads
+            # a quick process first on each base a process would be tried on: where it takes nothing
+            # from its model or loses clearly to the trees, no process (nor one stacked on the trees)
+            # can change the choice
+            both = bool(geometry) and pays(trees)
+            tried = on if both else [kept]
+            tell(f"{', '.join(model_name(c.terms + ('residual',)) for c, _ in tried)}: screen")
+            screens = [screened_process(d, cv, config.seed, pool)
+                       for d, (_, cv) in zip(data if both else data[-1:], tried)]
+            against = trees[0]
+            if all(screen_loses(e, cv.errors, against, groups) for e, (_, cv) in zip(screens, tried)):
+                processes = []
+                if both:
+                    trees = tree_candidates(geometry, data[:1], settings, meas, config.seed, pool, tell) + trees
+                elif geometry:
+                    skipped = kept[0]
+                screened = [LadderRow(model_name(c.terms + ("residual",)), rms(e), c.fit.n_params, screened=True)
+                            for (c, _), e in zip(tried, screens)]
+            elif both:  # both bases: the kernel of geometry's richer residuals leads
                 tell(f"{', '.join(model_name(c.terms + ('residual',)) for c, _ in on)}: kernels")
                 kernels = chained_kernels(data, config.seed, pool)
                 processes = process_candidates(list(zip(on, data, kernels)), config.seed, pool, tell)
@@ -289,6 +315,12 @@ def fit_model(inputs: Inputs, config: CalibrationConfig, progress=None, stages=N
     notes = [f"model auto: {chosen.name} (cross-validated position RMS {chosen.cv_rms:.4g} mm; geometric "
              f"{candidates[0].cv_rms:.4g} mm; a richer model is kept only if it predicts held-out poses "
              f"better, paired test p < {SIGNIFICANCE:g})"]
+    if screened:
+        rows += screened
+        notes.append(f"model auto: residual processes not tuned in full: screened with a kernel tuned on "
+                     f"{SCREEN_POINTS} poses, each takes nothing from its model or predicts held-out poses more "
+                     f"than {SCREEN_RATIO:g}× worse than {against.name} ({against.cv_rms:.4g} mm; the best screen "
+                     f"{min(r.cv_rms_mm for r in screened):.4g} mm)")
     if skipped is not None:
         notes.append(f"model auto: learned corrections not tried on geometry alone: neither improves on "
                      f"{skipped.name}, which holds more")

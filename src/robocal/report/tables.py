@@ -135,7 +135,8 @@ def ladder_rows(result: CalibrationResult) -> list[tuple[str, ...]]:
     rows = []
     for r in result.model_selection:
         val = () if not with_validation else ("" if r.validation_rms_mm is None else f"{r.validation_rms_mm:.4f}",)
-        rows.append((r.model, f"{r.cv_rms_mm:.4f}", str(r.n_params), *val, "chosen" if r.model == result.model else ""))
+        last = "chosen" if r.model == result.model else "screened: not tuned in full" if r.screened else ""
+        rows.append((r.model, f"{r.cv_rms_mm:.4f}", str(r.n_params), *val, last))
     return rows
 
 
