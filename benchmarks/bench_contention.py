@@ -1,4 +1,4 @@
-"""W1 (compiled kernels beside the numpy path) and W6 (--model auto beside a geometric LM), quiet
+"""W1 (compiled kernels beside a naive numpy IPSO) and W6 (--model auto beside a geometric LM), quiet
 and with one busy process per core, side by side in one run.
 
 Run from the source tree: python benchmarks/bench_contention.py [--no-w6]
