@@ -194,3 +194,21 @@ def test_a_cold_cache_runs_numpy_and_compiles_for_the_next_process(tmp_path):
         time.sleep(0.5)
     time.sleep(1.0)  # the last index written
     assert json.loads(_python(ask, env).splitlines()[-1])["backend"] == "numba"
+
+
+def test_a_study_worker_runs_what_its_parent_resolved(monkeypatch):
+    """A worker process may find numba's cache warm where its parent found it cold (the compile
+    finished in between): the engine hands each task the parent's backend, so a run gives the
+    same numbers wherever it runs."""
+    import inspect
+
+    from robocal.model import compiled
+    from robocal.study import engine
+
+    monkeypatch.setattr(compiled, "_PINNED", [])
+    monkeypatch.setattr(compiled, "kernels_compiled", lambda: True)
+    monkeypatch.delenv("ROBOCAL_NO_NUMBA", raising=False)
+    assert resolve("auto") == ("numba" if numba_installed() else "numpy")
+    compiled.pin("numpy")
+    assert resolve("auto") == "numpy" and resolve("numpy") == "numpy"
+    assert "backend" in inspect.signature(engine.run_batch).parameters

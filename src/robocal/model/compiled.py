@@ -33,7 +33,23 @@ def resolve(backend: str = "auto") -> str:
         return "numba"
     if not numba_installed() or os.environ.get("ROBOCAL_NO_NUMBA"):
         return "numpy"
+    if _PINNED:
+        return _PINNED[-1]
     return "numba" if kernels_compiled() else "numpy"
+
+
+#: what ``auto`` means in this process when a parent process said so (:func:`pin`)
+_PINNED: list[str] = []
+
+
+def pin(backend: str) -> None:
+    """Make ``auto`` mean ``backend`` (``numba`` or ``numpy``) in this process from now on: a
+    study's worker runs what its parent resolved, whatever it finds in numba's cache itself."""
+    if backend not in ("numba", "numpy"):
+        raise ValueError(f"pin numba or numpy, not {backend!r}")
+    if backend == "numba" and not numba_installed():
+        backend = "numpy"
+    _PINNED[:] = [backend]
 
 
 @functools.cache

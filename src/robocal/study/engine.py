@@ -46,13 +46,26 @@ def one_thread() -> None:
         pass
 
 
-def run_batch(fn: Callable[[Any], Any], items: Sequence, setup: Callable[[], None] | None = None) -> list:
-    """One task on a worker: one thread per process, ``setup()`` once (warm caches, load a
-    robot), then ``fn`` on every item."""
+def run_batch(fn: Callable[[Any], Any], items: Sequence, setup: Callable[[], None] | None = None,
+              backend: str | None = None) -> list:
+    """One task on a worker: one thread per process, ``auto`` meaning the parent's ``backend``
+    (so that a run gives the same numbers wherever it runs, whatever each process finds in numba's
+    cache), ``setup()`` once (warm caches, load a robot), then ``fn`` on every item."""
     one_thread()
+    if backend is not None:
+        from ..model.compiled import pin
+
+        pin(backend)
     if setup is not None:
         setup()
     return [fn(item) for item in items]
+
+
+def _parents_backend() -> str:
+    """What ``auto`` means in this process (numba where its kernels are compiled), for its workers."""
+    from ..model.compiled import resolve
+
+    return resolve("auto")
 
 
 #: seconds to connect to a scheduler's address, and to wait for its greeting
@@ -122,7 +135,8 @@ def _map_local(fn, items: list, workers: int, setup, batch: int | None, progress
     chunks = [items[i:i + size] for i in range(0, len(items), size)]
     done = 0
     with ProcessPoolExecutor(max_workers=workers) as pool:
-        futures = {pool.submit(run_batch, fn, chunk, setup): chunk for chunk in chunks}
+        backend = _parents_backend()
+        futures = {pool.submit(run_batch, fn, chunk, setup, backend): chunk for chunk in chunks}
         try:
             for future in as_completed(futures):
                 chunk = futures[future]
@@ -191,7 +205,8 @@ def map_runs(fn: Callable[[Any], Any], items: Sequence, *, workers: int | None =
         size = batch or batch_size(len(items), n_workers)
         chunks = [items[i:i + size] for i in range(0, len(items), size)]
         study = uuid.uuid4().hex
-        futures = {client.submit(run_batch, fn, chunk, setup, key=f"robocal-runs-{study}-{k}"): chunk
+        backend = _parents_backend()
+        futures = {client.submit(run_batch, fn, chunk, setup, backend, key=f"robocal-runs-{study}-{k}"): chunk
                    for k, chunk in enumerate(chunks)}
         done = 0
         for future in as_completed(futures):
