@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from . import options as opt
-from .exceptions import InputError
+from .exceptions import InputError, Note
 from .io.measurements import load_measurements
 from .io.robotfile import load_robot
 from .model.candidates import FRAME_CHOICES
@@ -117,7 +117,7 @@ def evaluate(robot: str | Path | Robot, data: str | Path | Measurements, *, colu
             notes.append(f"{choice.sentence()}; evaluated as given: fit the frames first with frames auto or "
                          f"{choice.mode}")
         elif frames == "auto" and choice.mode != "none":
-            notes.append(f"frames auto: {choice.sentence()}")
+            notes.append(Note(f"frames auto: {choice.sentence()}"))
         mode = choice.mode if frames == "auto" else "none"
         if mode != "none":
             r = choice.robot

@@ -58,3 +58,20 @@ class Interrupted(BaseException):
 
 class RobocalWarning(UserWarning):
     """A degenerate-but-valid situation: robocal still answers, and says what is off."""
+
+
+class Note(str):
+    """A message that informs (a choice made, a frame registered, a source read), where a plain
+    message in a result's list is a warning: something to act on, or a reason to doubt a
+    figure.  The command line prints it as ``robocal: note:`` (hidden by ``--quiet``), a result
+    keeps it in ``notes``, and it is never raised as a Python warning."""
+
+    __slots__ = ()
+
+
+def split_notes(messages) -> tuple[list[str], list[str]]:
+    """(warnings, notes) of a list of messages, each in its order, as plain strings."""
+    warnings = [str(m) for m in messages if not isinstance(m, Note)]
+    notes = [str(m) for m in messages if isinstance(m, Note)]
+    return warnings, notes
+

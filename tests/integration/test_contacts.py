@@ -116,7 +116,7 @@ def _fit(nominal, meas, **kw):
     with warnings.catch_warnings(record=True) as said:
         warnings.simplefilter("always")
         res = calibrate(nominal, meas, "lm", **kw)
-    return res, [str(w.message) for w in said]
+    return res, [str(w.message) for w in said] + res.notes  # what it said: warnings and notes
 
 
 def test_fixed_points_with_a_known_distance_recover_the_robot_to_the_play(planted):

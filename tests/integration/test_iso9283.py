@@ -148,3 +148,21 @@ def test_measured_and_commanded_poses_in_two_frames_are_said(tmp_path, run_cli):
     code, out, err = run_cli("iso9283", "evaluate", tmp_path / "m.csv", "--json")
     assert code == 0 and rows
     assert "look like two frames" in err and json.loads(out)[0]["notes"]
+
+
+@pytest.mark.parametrize("dropped", ["rz", "crx"])
+def test_an_orientation_without_one_of_its_angles_is_refused(tmp_path, run_cli, dropped):
+    """Measured rx, ry without rz (or a commanded angle missing) would leave the orientation
+    figures meaningless: refused like calibrate refuses it, the missing column named, nothing written."""
+    _campaign_file(tmp_path / "m.csv", np.random.default_rng(3))
+    header, *rows = (tmp_path / "m.csv").read_text().splitlines()
+    names = header.split(",")
+    if dropped not in names:  # a commanded orientation: add crx, cry, crz and drop one of them
+        header, rows = header + ",crx,cry,crz", [r + ",0,0,0" for r in rows]
+        names = header.split(",")
+    keep = [i for i, n in enumerate(names) if n != dropped]
+    text = "\n".join(",".join(line.split(",")[i] for i in keep) for line in [header, *rows]) + "\n"
+    (tmp_path / "m.csv").write_text(text)
+    code, out, err = run_cli("iso9283", "evaluate", tmp_path / "m.csv", "--report", tmp_path / "r.html")
+    assert code == 2 and f"'{dropped}' is missing" in err and err.count("\n") == 1, err
+    assert "m.csv" in err and not (tmp_path / "r.html").exists()

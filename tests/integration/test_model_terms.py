@@ -60,7 +60,7 @@ def _calibrate(robot, meas, **kw):
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         result = calibrate(robot, meas, "lm", **kw)
-    return result, [str(w.message) for w in caught]
+    return result, [str(w.message) for w in caught] + result.notes  # what it said: warnings and notes
 
 
 @pytest.fixture(scope="module")

@@ -52,7 +52,7 @@ def _fit(meas, **kw):
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         result = calibrate("kr5-arc", meas, "lm", frames="none", **kw)
-    return result, [str(w.message) for w in caught]
+    return result, [str(w.message) for w in caught] + result.notes  # what it said: warnings and notes
 
 
 def _values(result, prefix):

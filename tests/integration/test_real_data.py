@@ -32,7 +32,7 @@ def _run(cal, val, method="lm", **kw):
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         res = calibrate("ur10", cal, method, validate=val, **kw)
-    return res, [str(w.message) for w in caught]
+    return res, [str(w.message) for w in caught] + res.notes  # what it said: warnings and notes
 
 
 @pytest.mark.slow

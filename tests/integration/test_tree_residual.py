@@ -54,7 +54,7 @@ def _calibrate(meas, **kw):
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         result = calibrate("kr5-arc", meas, "lm", frames="none", **kw)
-    return result, [str(w.message) for w in caught]
+    return result, [str(w.message) for w in caught] + result.notes  # what it said: warnings and notes
 
 
 @pytest.fixture(scope="module")

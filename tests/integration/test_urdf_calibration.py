@@ -62,7 +62,7 @@ def test_calibrated_urdf_predicts_fresh_poses_read_independently(tmp_path, rng):
     with warnings.catch_warnings(record=True) as said:
         warnings.simplefilter("always")
         res = calibrate(robot_file, meas, "lm", validate=fresh)
-    messages = [str(w.message) for w in said]
+    messages = [str(w.message) for w in said] + res.notes
     assert res.frames in ("base", "base+tool") and any(m.startswith("frames auto") for m in messages)
     assert res.metrics["validation_before"].position["rms"] > 1.0
     out = tmp_path / "calibrated.urdf"

@@ -8,7 +8,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..exceptions import InputError
+from ..exceptions import InputError, Note
 from ..io.measurements import load_measurements
 from ..io.robotfile import load_robot
 from ..model.kinematics import joint_parameter_names
@@ -48,8 +48,8 @@ def load_inputs(robot, data, validate, config: CalibrationConfig, columns=None) 
     notes: list[str] = []
     nominal = load_robot(robot)
     if nominal.residual is not None:  # a calibration learns its own correction from what its fit leaves
-        notes.append(f"the residual model of {nominal.source or nominal.name} is not used as a starting point: a "
-                     "calibration fits its own (with --model residual or auto)")
+        notes.append(Note(f"the residual model of {nominal.source or nominal.name} is not used as a starting point: a "
+                          "calibration fits its own (with --model residual or auto)"))
         nominal = nominal.replace(residual=None)
     if nominal.region is not None:  # a new calibration finds its own
         nominal = nominal.replace(region=None)
@@ -76,7 +76,7 @@ def load_inputs(robot, data, validate, config: CalibrationConfig, columns=None) 
     elif frames in ("auto", "none"):
         choice = choose_frames(nominal, meas)
         if frames == "auto" and choice.mode != "none":  # it changed what is calibrated: say so
-            notes.append(f"frames auto: {choice.sentence()}")
+            notes.append(Note(f"frames auto: {choice.sentence()}"))
         elif frames == "none" and choice.mode != "none":
             notes.append(f"frames none, but {choice.sentence()}: calibrate with frames auto or {choice.mode}")
         frames = choice.mode if frames == "auto" else "none"
@@ -115,10 +115,10 @@ def _contact_frames(frames: str, meas: Measurements) -> tuple[str, list[str]]:
     if frames != "auto":
         return frames, []
     if c.only:
-        return "tcp", ["frames auto: the rows touched points or planes whose place is unknown, so the base frame is "
-                        "not observable from them; the tool point is identified (frames tcp)"]
-    return "base+tool", ["frames auto: tracker rows beside rows that touched points or planes: base and tool are "
-                         "identified (frames base+tool)"]
+        return "tcp", [Note("frames auto: the rows touched points or planes whose place is unknown, so the base "
+                             "frame is not observable from them; the tool point is identified (frames tcp)")]
+    return "base+tool", [Note("frames auto: tracker rows beside rows that touched points or planes: base and tool are "
+                              "identified (frames base+tool)")]
 
 
 def _excluded(meas: Measurements, exclude: tuple[str, ...], notes: list[str]) -> Measurements:
@@ -136,8 +136,8 @@ def _excluded(meas: Measurements, exclude: tuple[str, ...], notes: list[str]) ->
     if not keep:
         raise InputError(f"leaves none of the {meas.n_poses} poses to calibrate on", source=meas.source,
                          option="exclude")
-    notes.append(f"{meas.n_poses - len(keep)} pose(s) left out as asked (--exclude): {', '.join(exclude[:10])}"
-                 + (" …" if len(exclude) > 10 else ""))
+    notes.append(Note(f"{meas.n_poses - len(keep)} pose(s) left out as asked (--exclude): {', '.join(exclude[:10])}"
+                      + (" …" if len(exclude) > 10 else "")))
     return meas.subset(keep)
 
 
@@ -147,13 +147,13 @@ def _instrument_sigmas(meas: Measurements, config: CalibrationConfig, notes: lis
     if config.instrument is not None:
         statement = Instrument.parse(config.instrument)
         if meas.sigma_position is not None:
-            notes.append(f"the sx, sy, sz columns of {meas.source} are replaced by {statement.sentence()}")
+            notes.append(Note(f"the sx, sy, sz columns of {meas.source} are replaced by {statement.sentence()}"))
         return replace(with_instrument(meas, statement), sigma_source=statement.sentence(),
                        sigma_orientation=meas.sigma_orientation)
     for block, stated, columns in (("sigma_position", config.noise, "sx, sy, sz"),
                                    ("sigma_orientation", config.angle_noise if config.k is None else 0.0,
                                     "srx, sry, srz")):
         if stated is not None and getattr(meas, block) is not None:
-            notes.append(f"the noise stated replaces the {columns} columns of {meas.source}")
+            notes.append(Note(f"the noise stated replaces the {columns} columns of {meas.source}"))
             meas = replace(meas, **{block: None})
     return meas

@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from ..backend import blas_threads
-from ..exceptions import RobocalWarning
+from ..exceptions import Note, RobocalWarning, split_notes
 from ..model.covariance import ParameterCovariance
 from ..model.measurements import Measurements
 from ..model.metrics import Metrics
@@ -70,8 +70,9 @@ def calibrate(
     (iteration, total, best objective).  stages: called as ``--model auto`` starts each model
     with (models done, models in all, a line saying which), for a progress display.  The result's ``time_s`` is the
     optimizers' wall time; ``timings`` splits the whole call into stages
-    (:mod:`robocal.calibration.timing`).  Warnings are issued as :class:`RobocalWarning` and
-    listed in the result.
+    (:mod:`robocal.calibration.timing`).  Warnings (something to act on, or a reason to doubt
+    a figure) are issued as :class:`RobocalWarning` and listed in ``result.warnings``; notes
+    (choices made, frames registered, sources read) are listed in ``result.notes`` only.
     """
     cfg = CalibrationConfig.build(config, **({"method": method} if config is None else {}), **options)
     with timed() as clock:
@@ -90,17 +91,17 @@ def order_notes(fit, meas: Measurements) -> list[str]:
     if "backlash" in terms:
         source = {"dir columns": "the dir1..dirN columns", "time order": "the time column's order",
                   "row order": "the rows' order (no dir1..dirN or time columns)"}.get(meas.order, "no order")
-        notes.append(f"backlash: each joint's direction of approach from {source} of {meas.source}")
+        notes.append(Note(f"backlash: each joint's direction of approach from {source} of {meas.source}"))
     if "drift" in terms:
         clock, reference = terms["drift"]
         if clock == "s":
-            notes.append(f"drift: time from the time column of {meas.source} (rates in deg/h); the model predicts "
+            notes.append(Note(f"drift: time from the time column of {meas.source} (rates in deg/h); the model predicts "
                          f"the robot as it was at t = {reference:g} s (the last pose), and data with a time column "
-                         "at their own time")
+                              "at their own time"))
         else:
-            notes.append(f"drift: {meas.source} has no time column, so its row numbers stand for time (rates in "
+            notes.append(Note(f"drift: {meas.source} has no time column, so its row numbers stand for time (rates in "
                          f"deg per 1000 rows); the model predicts the robot as it was at row {reference:g} (the "
-                         "last pose), and other files there")
+                              "last pose), and other files there"))
     return notes
 
 
@@ -212,7 +213,7 @@ def _calibrate(robot, data, validate, cfg: CalibrationConfig, columns, progress,
         config=cfg, robot=calibrated, initial=initial, nominal=inputs.nominal, names=est.problem.names, x=est.x,
         uncertainty=fit.uncertainty, identifiability=fit.identifiability, optimization=est.optimization,
         metrics=metrics, data=inputs.meas.source, n_poses=est.problem.meas.n_poses, full_pose=setup.full_pose,
-        warnings=notes, measurements=est.problem.meas,
+        warnings=split_notes(notes)[0], notes=split_notes(notes)[1], measurements=est.problem.meas,
         validation=inputs.validation, outliers=fit.screening.outliers, reexpression_gap_mm=est.reexpression_gap_mm,
         noise=fit.noise, goodness_of_fit=fit.goodness, covariance=fit.covariance, frames=inputs.frames,
         model=chosen.name, model_selection=_validated(chosen.table, chosen.name, metrics), error_budget=budget,

@@ -43,8 +43,10 @@ from .noise import NoiseEstimate
 #: ``tcp_uncertainty`` counts the residual process's own variance; 7 added the prior (per parameter
 #: ``prior_sigma``, ``prior_share``, ``pinned_by``; ``held_by_prior``), ``physical`` (the verdict),
 #: ``exports`` (what a TOML, a URDF and a YAML hand their receivers) and ``identifiability.at_estimate``;
-#: ``goodness_of_fit.dof`` counts the parameters' effective number and a plane row as one value
-SCHEMA_VERSION = 7
+#: ``goodness_of_fit.dof`` counts the parameters' effective number and a plane row as one value;
+#: 8 split ``notes`` (information: choices made, frames registered, sources read) from ``warnings``
+#: (something to act on, or a reason to doubt a figure), and marks screened ladder rows
+SCHEMA_VERSION = 8
 #: a deviation smaller than this many standard uncertainties is "not significant"
 SIGNIFICANCE_SIGMAS = 2.0
 
@@ -170,6 +172,7 @@ class CalibrationResult:
     n_poses: int = 0
     full_pose: bool = False
     warnings: list[str] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
     time_s: float = 0.0
     timings: dict = field(default_factory=dict)
     measurements: Measurements | None = field(default=None, repr=False)
@@ -407,6 +410,7 @@ class CalibrationResult:
             "history": [float(h) for h in opt.history],
             "outliers": list(self.outliers),
             "warnings": list(self.warnings),
+            "notes": list(self.notes),
             "time_s": self.time_s,
             "timings": dict(self.timings),
         }

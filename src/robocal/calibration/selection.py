@@ -37,7 +37,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..backend import worker_pool
-from ..exceptions import InputError
+from ..exceptions import InputError, Note
 from ..model.corrections import Correction
 from ..model.measurements import Measurements
 from ..model.metrics import Metrics, pose_errors
@@ -312,21 +312,21 @@ def fit_model(inputs: Inputs, config: CalibrationConfig, progress=None, stages=N
     rows = [LadderRow(c.name, c.cv_rms, c.fit.n_params,
                       int(min(len(c.errors), MAX_POINTS)) if "residual" in c.learned else None,
                       on_validation(c)) for c in candidates]
-    notes = [f"model auto: {chosen.name} (cross-validated position RMS {chosen.cv_rms:.4g} mm; geometric "
+    notes = [Note(f"model auto: {chosen.name} (cross-validated position RMS {chosen.cv_rms:.4g} mm; geometric "
              f"{candidates[0].cv_rms:.4g} mm; a richer model is kept only if it predicts held-out poses "
-             f"better, paired test p < {SIGNIFICANCE:g})"]
+                  f"better, paired test p < {SIGNIFICANCE:g})")]
     if screened:
         rows += screened
-        notes.append(f"model auto: residual processes not tuned in full: screened with a kernel tuned on "
+        notes.append(Note(f"model auto: residual processes not tuned in full: screened with a kernel tuned on "
                      f"{SCREEN_POINTS} poses, each takes nothing from its model or predicts held-out poses more "
                      f"than {SCREEN_RATIO:g}× worse than {against.name} ({against.cv_rms:.4g} mm; the best screen "
-                     f"{min(r.cv_rms_mm for r in screened):.4g} mm)")
+                          f"{min(r.cv_rms_mm for r in screened):.4g} mm)"))
     if skipped is not None:
-        notes.append(f"model auto: learned corrections not tried on geometry alone: neither improves on "
-                     f"{skipped.name}, which holds more")
+        notes.append(Note(f"model auto: learned corrections not tried on geometry alone: neither improves on "
+                          f"{skipped.name}, which holds more"))
     if lacking:
-        notes.append(f"model auto: {' and '.join(lacking)} not tried: "
-                     + "; ".join(f"the {name} term needs {needs}" for name, needs in lacking.items()))
+        notes.append(Note(f"model auto: {' and '.join(lacking)} not tried: "
+                          + "; ".join(f"the {name} term needs {needs}" for name, needs in lacking.items())))
     chosen_cv = next(cv for c, cv in ladder if c.fit is chosen.fit)
     return Chosen(chosen.name, chosen.fit, residual, rows, notes + spent_dof(chosen.fit, residual),
                   geometric=candidates[0].fit, prediction=chosen_cv.metrics(chosen.errors),

@@ -8,6 +8,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from ..exceptions import Note
 from ..optimize.result import OptimizeResult
 from .config import CalibrationConfig
 from .instrument import MAX_ROUNDS, InstrumentFit, KindWeights, beyond_instrument, instrument_fit, kind_weights
@@ -63,7 +64,7 @@ def weigh_kinds(est: Estimate, config: CalibrationConfig, noise: NoiseEstimate) 
         if lm.status != "converged":
             break
     weights = est.problem.setup.instrument
-    return est, noise, [] if not isinstance(weights, KindWeights) else [f"weighed by kind: {weights.sentence()}"]
+    return est, noise, [] if not isinstance(weights, KindWeights) else [Note(f"weighed by kind: {weights.sentence()}")]
 
 
 

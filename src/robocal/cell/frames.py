@@ -35,6 +35,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..exceptions import Note
 from ..math.se3 import invert
 from ..math.so3 import orientation_error
 from ..model.robot import Robot
@@ -121,8 +122,8 @@ def make_cell(nominal: Robot, accurate: Robot, tool: np.ndarray | None = None, s
     notes = []
     if calibrated:
         if mm > 1e-9 or deg > 1e-9:
-            notes.append(f"the calibrated model's tool stands in for {source}, as asked: it is {mm:.3g} mm and "
-                         f"{deg:.3g}° from that tool's data")
+            notes.append(Note(f"the calibrated model's tool stands in for {source}, as asked: it is {mm:.3g} mm "
+                              f"and {deg:.3g}° from that tool's data"))
         return Cell(nominal.with_tool(tcp), accurate, tcp, source, True, tuple(notes))
     if (mm > 1e-9 or deg > 1e-9) and mm <= TOOL_NEAR_MM and deg <= TOOL_NEAR_DEG:
         notes.append(f"the calibrated model's tool is {mm:.3g} mm and {deg:.3g}° from {source}: the goals are for "
@@ -130,7 +131,7 @@ def make_cell(nominal: Robot, accurate: Robot, tool: np.ndarray | None = None, s
                      "measured that tool, say so (--tool NAME=calibrated, or --tool calibrated) and its measured "
                      "tool stands in")
     elif mm > TOOL_NEAR_MM or deg > TOOL_NEAR_DEG:
-        notes.append(f"the calibrated model's tool is {mm:.4g} mm and {deg:.3g}° from {source}: it is the point the "
-                     f"calibration measured, not the TCP; the goals are for {source} on the calibrated joints and base"
-                     + (" (give --tool to name another TCP)" if "nominal model" in source else ""))
+        notes.append(Note(f"the calibrated model's tool is {mm:.4g} mm and {deg:.3g}° from {source}: it is the point "
+                          f"the calibration measured, not the TCP; the goals are for {source} on the calibrated joints "
+                          "and base" + (" (give --tool to name another TCP)" if "nominal model" in source else "")))
     return Cell(nominal.with_tool(tcp), accurate.with_tool(tcp), tcp, source, False, tuple(notes))

@@ -223,10 +223,11 @@ def calibrate_cmd(
             atomic_write(poses_out, rows_to_csv(rows, POSE_COLUMNS + (("sigma_mm",) if rows and "sigma_mm" in rows[0]
                                                                       else ())))
     print_warnings(result.warnings)
+    print_notes(result.notes, quiet)
     compiled = result.timings.get("compile_s", 0.0)
-    if compiled >= COMPILE_SAID_S and not quiet:
-        print(f"robocal: compiled the numba kernels once ({compiled:.1f} s, not in time_s); later runs load them from "
-              "numba's cache", file=sys.stderr)
+    if compiled >= COMPILE_SAID_S:
+        print_notes([f"compiled the numba kernels once ({compiled:.1f} s, not in time_s); later runs load them from "
+                     "numba's cache"], quiet)
     if as_json:
         print_json(result.to_dict())
     elif not quiet:

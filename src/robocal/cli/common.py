@@ -19,8 +19,19 @@ def console():
 
 
 def print_warnings(messages) -> None:
+    """Something to act on, or a reason to doubt a figure: on stderr, even with --quiet."""
     for m in messages:
         print(f"robocal: warning: {one_line(m)}", file=sys.stderr)
+
+
+def print_said(messages, quiet: bool = False) -> None:
+    """A command's messages: its warnings, then its notes (:class:`~robocal.exceptions.Note`,
+    hidden by --quiet)."""
+    from ..exceptions import split_notes
+
+    warnings, notes = split_notes(messages)
+    print_warnings(warnings)
+    print_notes(notes, quiet)
 
 
 def print_notes(messages, quiet: bool = False) -> None:

@@ -43,7 +43,7 @@ def compensate_cmd(
     from ..io.atomic import atomic_write, together
     from ..io.goals import load_goals
     from ..io.robotfile import load_robot
-    from .common import check_outputs, console, metrics_table, one_line, print_json, print_warnings
+    from .common import check_outputs, console, metrics_table, one_line, print_json, print_said
 
     check_outputs((nominal, calibrated, goals, truth), out=out, summary=summary)
     tcp, _, measured = opt.tool_frames([tool] if tool else None, "tool")  # checked before any work
@@ -63,7 +63,7 @@ def compensate_cmd(
         result.save(out)
         if summary_path is not None:
             atomic_write(summary_path, json.dumps(document, indent=2) + "\n")
-    print_warnings(result.warnings)
+    print_said(result.warnings, quiet)
     missed = [i for i, s in enumerate(result.status) if s != "ok"]
     for i in missed[:10]:
         print(f"robocal: not reached: goal {g.ids[i]}: {result.status[i]}: {one_line(result.reasons[i])}",

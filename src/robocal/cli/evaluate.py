@@ -51,7 +51,7 @@ def evaluate_cmd(
     from .. import options as opt
     from ..evaluation import evaluate
     from ..requirements import parse_requirements
-    from .common import check_outputs, load, print_warnings, verdict
+    from .common import check_outputs, load, print_said, verdict
 
     checks = parse_requirements(require, "evaluate")
     check_outputs((robot, data), poses_out=poses_out)
@@ -59,7 +59,7 @@ def evaluate_cmd(
                   joint_unit=joint_unit, length_unit=length_unit, payload=payload, uncertainty=uncertainty,
                   delimiter=delimiter, decimal=decimal, euler=euler, point_distance=tuple(point_distance or ()),
                   distance_sigma=distance_sigma)
-    print_warnings(ev.notes)
+    print_said(ev.notes, quiet)
     if poses_out is not None:
         from ..io.atomic import atomic_write
         from ..io.table import rows_to_csv

@@ -52,7 +52,7 @@ def filter_cmd(
     from ..io.atomic import atomic_write, together
     from ..io.robotfile import load_robot
     from ..math.se3 import frame_from_values
-    from .common import check_outputs, console, many_small_objects, print_json, print_notes, print_warnings, table
+    from .common import check_outputs, console, many_small_objects, print_json, print_notes, print_said, table
 
     language = language_of(program, fmt)
     tcp, tools, measured = opt.tool_frames(tool, "tool")
@@ -88,13 +88,11 @@ def filter_cmd(
         console().print(table(title, ("target", "line", "kind", "status", "moved mm", "turned °", "joints °",
                                       "configuration", "check mm"),
                               [_row(c) for c in rows], text_columns=(0, 2, 3, 7)))
-    print_warnings(result.notes)
+    print_said(result.notes, quiet)
     for line in flagged_lines(flagged, verbose):
         print(line, file=sys.stderr)
     counts = ", ".join(f"{v} {k}" for k, v in result.counts().items())
-    if not quiet:
-        print(f"robocal: {len(result.corrections)} targets: {counts}", file=sys.stderr)
-        print_notes([files_note(prog, written)])
+    print_notes([f"{len(result.corrections)} targets: {counts}", files_note(prog, written)], quiet)
     if flagged:
         raise typer.Exit(PARTIAL)
 

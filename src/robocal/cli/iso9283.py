@@ -74,7 +74,7 @@ def evaluate_cmd(
     from ..iso9283.characteristics import characteristics
     from ..iso9283.files import load_campaign
     from ..report.iso9283 import distance_rows, pose_rows, write_iso9283_report
-    from .common import check_outputs, console, print_json, print_warnings, table
+    from .common import check_outputs, console, print_json, print_said, table
 
     check_outputs(tuple(measured) + ((robot,) if robot else ()), report=report, summary=summary)
     r = None if robot is None else load_robot(robot)
@@ -92,7 +92,7 @@ def evaluate_cmd(
             write_iso9283_report(results, [str(p) for p in measured], report)
         if summary is not None:
             atomic_write(summary, json.dumps(document, indent=2) + "\n")
-    print_warnings([n for res in results for n in res.notes])
+    print_said([n for res in results for n in res.notes], quiet)
     if as_json:
         print_json(document)
         return

@@ -26,7 +26,7 @@ import numpy as np
 
 from .. import options as opt
 from ..cell.frames import make_cell
-from ..exceptions import InputError
+from ..exceptions import InputError, Note
 from ..inverse.local import ROT_WEIGHT, SINGULAR_CONDITION, solve_ik
 from ..inverse.solve import all_solutions, controller_joints
 from ..io.atomic import atomic_write
@@ -250,9 +250,9 @@ def compensate(nominal: Robot, calibrated: Robot, goals: Goals, *, truth: Robot 
     directions = goals.directions
     if directions is None and calibrated.terms is not None and calibrated.terms.get("backlash") is not None:
         directions = move_directions(q_nom)
-        notes.append("backlash: the direction of approach to each goal is taken from the goals' order (the robot "
-                     f"moves through them as listed); the first goal's ({goals.ids[0]}) is unknown and its backlash "
-                     "left out")
+        notes.append(Note("backlash: the direction of approach to each goal is taken from the goals' order (the robot "
+                          f"moves through them as listed); the first goal's ({goals.ids[0]}) is unknown and its "
+                          "backlash left out"))
     inputs = JointInputs(torques=goals.torques, payload=load, directions=directions, time=goals.time,
                          clock="s" if goals.time is not None else "")
     sol = solve_ik(calibrated, T_cal[:, :3, 3], T_cal[:, :3, :3] if full else None, q_nom, rot_weight=rot_weight,

@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..exceptions import InputError
+from ..exceptions import InputError, Note
 from ..inverse.configuration import TOLERANCE_RAD
 from ..inverse.solve import Request
 from ..math.se3 import homogeneous
@@ -124,7 +124,7 @@ def _config_frames(path: Path, program: Program) -> None:
         frame = _frame_of(m.group(3), str(path), line_of(code, m.start()))
         (program.tools if kind == "tool" else program.users).setdefault(number, frame)
         found += 1
-    program.notes.append(f"frames read from {path}: {found} TOOL_DATA/BASE_DATA")
+    program.notes.append(Note(f"frames read from {path}: {found} TOOL_DATA/BASE_DATA"))
 
 
 class _State:

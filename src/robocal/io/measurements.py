@@ -130,14 +130,10 @@ def _pose_columns(table: CsvTable, has_joints: bool, require_position: bool) -> 
         table.require(POSITION)
     elif not has_joints:
         raise InputError("needs joint columns (q1..qn) or a position (x, y, z)", source=table.source)
-    have_rot = [c in table for c in ORIENTATION]
-    if any(have_rot) and not all(have_rot):
-        missing = [c for c, h in zip(ORIENTATION, have_rot) if not h]
-        raise InputError(f"orientation columns rx, ry, rz come together; '{missing[0]}' is missing",
-                         source=table.source)
-    if all(have_rot) and not all(have_pos):
+    have_rot = table.together(ORIENTATION, "orientation")
+    if have_rot and not all(have_pos):
         raise InputError("orientation columns rx, ry, rz need x, y, z too", source=table.source)
-    return all(have_pos), all(have_rot)
+    return all(have_pos), have_rot
 
 
 #: units a file may state instead of robocal's degrees and millimetres

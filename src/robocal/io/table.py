@@ -44,6 +44,17 @@ class CsvTable:
             if name not in self.header:
                 raise InputError(f"missing column '{name}'", source=self.source)
 
+    def together(self, names: Sequence[str], what: str) -> bool:
+        """Whether the table has the columns ``names`` (``what`` they are, for the message): all
+        of them or none; some without the others is refused (an angle dropped would leave the
+        rest meaningless)."""
+        have = [name in self.header for name in names]
+        if any(have) and not all(have):
+            missing = next(name for name, h in zip(names, have) if not h)
+            raise InputError(f"{what} columns {', '.join(names)} come together; '{missing}' is missing",
+                             source=self.source)
+        return all(have)
+
 
 def _looks_numeric(text: str) -> bool:
     try:

@@ -65,13 +65,13 @@ def load_campaign(path: str | Path, robot=None) -> Campaign:
                              "commanded cx, cy, cz [crx, cry, crz] or q1..qN)", source=source)
     labels, cycles = strings(table, "pose", required=True), strings(table, "cycle", required=True)
     measured = numbers(table, ["x", "y", "z"], MAX_MM, "mm")
-    orientation = all(c in table for c in ("rx", "ry", "rz"))
+    orientation = table.together(("rx", "ry", "rz"), "orientation")
     m_abc = _abc(numbers(table, ["rx", "ry", "rz"], MAX_DEG, "deg")) if orientation else None
     joints = [h for h in table.header if h.startswith("q") and h[1:].isdigit()]
     if "cx" in table:
         table.require(["cx", "cy", "cz"])
         commanded = numbers(table, ["cx", "cy", "cz"], MAX_MM, "mm")
-        turned = all(c in table for c in ("crx", "cry", "crz"))
+        turned = table.together(("crx", "cry", "crz"), "commanded orientation")
         c_abc = _abc(numbers(table, ["crx", "cry", "crz"], MAX_DEG, "deg")) if turned else None
     elif joints:
         if robot is None:

@@ -270,10 +270,6 @@ def _parameter_tables(result: CalibrationResult, d: dict) -> list[str]:
     return parts
 
 
-#: what a calibration says that informs rather than warns (drawn plainly, not amber)
-INFORMATIONAL = ("frames auto:", "backlash:", "drift:", "model auto:", "the noise stated replaces")
-
-
 def _run_header(result: CalibrationResult, command: str | None) -> str:
     """Who made the report, when, from what: version, date, command, input files with SHA-256,
     robot, poses and the campaign's temperature range."""
@@ -300,8 +296,8 @@ def _run_header(result: CalibrationResult, command: str | None) -> str:
 
 
 def _said(result: CalibrationResult) -> list[str]:
-    return [f"<p class='{'info' if w.startswith(INFORMATIONAL) else 'warn'}'>{html.escape(w)}</p>"
-            for w in result.warnings]
+    return [f"<p class='warn'>{html.escape(w)}</p>" for w in result.warnings] + \
+        [f"<p class='info'>{html.escape(n)}</p>" for n in result.notes]
 
 
 def _worst(result: CalibrationResult, count: int = 10) -> list[str]:
