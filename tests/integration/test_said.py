@@ -46,3 +46,15 @@ def test_the_command_line_prints_notes_as_notes_and_quiet_hides_them_only(tmp_pa
     assert "robocal: warning:" in err and "note:" not in err, err
     lines = [line for line in err.splitlines() if line.strip()]
     assert all(line.startswith(("robocal: warning:", "robocal: error:")) for line in lines), lines
+
+
+def test_export_is_repeatable_and_each_file_says_what_its_receiver_gets(tmp_path, run_cli):
+    path = _tracker_file(tmp_path)
+    out = [tmp_path / "arm.toml", tmp_path / "arm.urdf", tmp_path / "arm.yaml"]
+    code, _, err = run_cli("calibrate", "kr5-arc", path, "--export", out[0], "--export", out[1], "--export", out[2])
+    assert code == 0, err
+    assert all(p.is_file() and p.stat().st_size > 0 for p in out)
+    for p in out:
+        assert f"robocal: note: wrote {p}" in err
+    code, _, err = run_cli("calibrate", "kr5-arc", path, "--export", out[0], "--export", out[0])
+    assert code == 2 and "--export" in err and err.count("\n") == 1

@@ -123,12 +123,16 @@ def calibrate_cmd(
     halton: str = typer.Option("scrambled", "--halton", help="IPSO start: scrambled | plain"),
     backend: str = typer.Option("auto", "--backend", help="swarm objectives: auto | numba | numpy"),
     model: str = typer.Option("geometric", "--model", help="geometric | auto | TERM[+TERM…] with TERM compliance, "
-                              "harmonics, backlash, drift, residual (auto: chosen by 5-fold cross-validation)"),
+                              "harmonics, backlash, drift, residual, trees (auto: chosen by 5-fold "
+                              "cross-validation)"),
     harmonics: int = typer.Option(2, "--harmonics", help="harmonics per joint of the harmonics term"),
     payload: float | None = typer.Option(None, "--payload", help="payload mass, kg, for data without a payload "
                                          "column (centre of mass: the robot file's [gravity] payload_com)"),
     out: Path | None = typer.Option(None, "--out", help="result JSON to write"),
-    export: Path | None = typer.Option(None, "--export", help="calibrated robot TOML to write"),
+    export: list[Path] | None = typer.Option(None, "--export", help="the calibrated robot to write: a robot TOML "
+                                             "(.toml, robocal's whole model), a URDF (.urdf) or a UR kinematics YAML "
+                                             "(.yaml), each saying what its receiver gets; repeatable, one file per "
+                                             "format"),
     report: Path | None = typer.Option(None, "--report", help="self-contained HTML report to write"),
     poses_out: Path | None = typer.Option(None, "--poses-out", help="per-pose errors CSV to write (calibration and "
                                           "validation poses, outliers and poses outside the region flagged)"),
@@ -206,7 +210,7 @@ def calibrate_cmd(
     with together():  # all or nothing: a failure leaves every earlier output as it was
         if out is not None:
             result.save(out)
-        written = [] if export is None else result.export(export)
+        written = [result.export(path) for path in export or []]
         if report is not None:
             import shlex
             import sys
@@ -232,11 +236,11 @@ def calibrate_cmd(
         print_json(result.to_dict())
     elif not quiet:
         _print_summary(result, nominal.name, data)
-    if written and result.exports is not None:
-        sidecar = next((w for w in written[1:] if w.suffix == ".toml"), None)
-        parts = "" if written[0].suffix.lower() in (".urdf", ".yaml", ".yml") or len(written) < 2 else \
-            f" (with {' and '.join(map(str, written[1:]))} beside it: parts of the same model, keep them together)"
-        print_notes([f"wrote {result.exports.sentence(written[0], sidecar)}{parts}"], quiet)
+    for files in written if result.exports is not None else []:
+        sidecar = next((w for w in files[1:] if w.suffix == ".toml"), None)
+        parts = "" if files[0].suffix.lower() in (".urdf", ".yaml", ".yml") or len(files) < 2 else \
+            f" (with {' and '.join(map(str, files[1:]))} beside it: parts of the same model, keep them together)"
+        print_notes([f"wrote {result.exports.sentence(files[0], sidecar)}{parts}"], quiet)
     verdict(checks, result.figures())
 
 

@@ -190,7 +190,9 @@ def check_outputs(inputs=(), **paths) -> None:
 
     read = {Path(p).resolve(): p for p in inputs if p is not None and Path(p).is_file()}
     seen: dict = {}
-    for option, path in paths.items():
+    named = [(option, p) for option, value in paths.items()
+             for p in (value if isinstance(value, list | tuple) else [value])]  # a repeatable option: each file
+    for option, path in named:
         if path is None:
             continue
         check_output(path, option)

@@ -25,8 +25,15 @@ def reproduce_cmd(
 
     reproduce(scenario, out, quick=quick, runs=runs, seed=seed, say=say_on_stderr(quiet), workers=workers,
               scheduler=scheduler)
-    if not quiet:
-        console().print(f"wrote {out}")
+    if quiet:
+        return
+    from ..papers.reproduce import SCENARIOS, verdict_counts
+
+    for name in SCENARIOS if scenario == "all" else (scenario,):
+        summary = (out / name if scenario == "all" else out) / "summary.md"
+        counts = verdict_counts(summary.read_text(encoding="utf-8"))
+        said = ", ".join(f"{n} {label}" for label, n in counts.items() if n)
+        console().print(f"{name}: {sum(counts.values())} published figures: {said} (see {summary})")
 
 
 def register(app: typer.Typer) -> None:

@@ -53,3 +53,24 @@ def _run(names, name, out: Path, quick, runs, seed, say, workers, scheduler) -> 
 
             done[n] = chen2023_study(folder, quick=quick, seed=seed, say=say)
     return done
+
+
+#: how a summary's verdict begins, and what it counts as
+VERDICTS = (("beats", "beaten"), ("reproduces", "reproduced"), ("does not reproduce", "not reproduced"),
+            ("cannot reproduce", "need data robocal does not have"))
+
+
+def verdict_counts(summary: str) -> dict[str, int]:
+    """How many of the published figures a ``summary.md`` (its text) beats, reproduces, does not
+    reproduce, or cannot reproduce (the last column of its first table)."""
+    counts = {label: 0 for _, label in VERDICTS}
+    rows = summary.split("## Published against measured", 1)[-1].split("\n## ", 1)[0]
+    for line in rows.splitlines():
+        cells = [c.strip() for c in line.strip().strip("|").split("|")]
+        if len(cells) < 2 or cells[-1] in ("verdict", "") or set(cells[-1]) <= set("-:"):
+            continue
+        label = next((label for start, label in VERDICTS if cells[-1].startswith(start)), None)
+        if label is not None:
+            counts[label] += 1
+    return counts
+
