@@ -115,3 +115,31 @@ def test_a_joint_that_never_moved_ends_the_support_when_it_moves(rng):
     moved[:, 5] = 1.0
     np.testing.assert_array_equal(model.weight(moved), 0.0)
     assert "beyond the data of the learned correction (trees)" in correction_note(model, moved)
+
+
+def test_a_scikit_learn_that_lays_its_trees_out_otherwise_fails_loudly_at_fit_time(rng):
+    """robocal reads scikit-learn's private tree layout: a release that renames a field, or keeps
+    the names but changes a meaning, must stop the fit, never give a silently wrong correction."""
+    import copy
+
+    q = rng.uniform(-2, 2, (200, 6))
+    model, = _ensembles(q, _step(q)[:, :1], trees=10)[0]
+    Ensemble.of_sklearn(model, q)  # the layout of the release installed, read back exactly
+    renamed = copy.deepcopy(model)
+    from numpy.lib import recfunctions
+
+    for (predictor,) in renamed._predictors:  # a copy renamed: scikit-learn's record type is shared
+        predictor.nodes = recfunctions.rename_fields(predictor.nodes, {"num_threshold": "threshold"})
+    with pytest.raises(RuntimeError, match="lays out its fitted trees otherwise"):
+        Ensemble.of_sklearn(renamed, q)
+    # the same names with another meaning: a release whose leaves hold values before shrinkage
+    # (applied when it predicts) would read back as trees that predict twice what the model does
+    shifted = copy.deepcopy(model)
+    for (predictor,) in shifted._predictors:
+        predictor.nodes["value"] *= 2.0
+    shifted.predict = model.predict
+    with pytest.raises(RuntimeError, match="read back differently"):
+        Ensemble.of_sklearn(shifted, q)
+    del shifted._baseline_prediction
+    with pytest.raises(RuntimeError, match="lays out its fitted trees otherwise"):
+        Ensemble.of_sklearn(shifted, q)

@@ -174,7 +174,8 @@ def _ensembles(q, y, leaf: int, trees: int | None, seed) -> tuple[list[Ensemble]
     """The ensembles of y's columns, and each one's joint importance (outputs, n); trees None:
     as many as early stopping keeps."""
     models = _fitted(q, y, leaf, trees, seed)
-    return [Ensemble.of_sklearn(m) for m in models], _importance(models)
+    check = q[:: max(1, len(q) // 200)]  # the ensemble read back predicts as the model does
+    return [Ensemble.of_sklearn(m, check) for m in models], _importance(models)
 
 
 def _fold_piece(piece):

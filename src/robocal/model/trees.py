@@ -122,9 +122,14 @@ class Ensemble:
                                                                                                 roots))
 
     @classmethod
-    def of_sklearn(cls, model) -> Ensemble:
+    def of_sklearn(cls, model, check: np.ndarray | None = None) -> Ensemble:
         """The trees of a fitted ``HistGradientBoostingRegressor`` (numerical features, no missing
-        values: commanded joints are neither)."""
+        values: commanded joints are neither).  They are read from scikit-learn's private layout
+        (``_predictors``, each tree's ``nodes`` record array, ``_baseline_prediction``): a release
+        that changes it fails here, loudly (:func:`sklearn_layout`), and ``check`` (joints, (m, n))
+        compares the ensemble's predictions with the model's own, so that a changed meaning of a
+        field cannot pass as a wrong correction."""
+        sklearn_layout(model)
         parts, offset = [], 0
         for (predictor,) in model._predictors:
             nodes = predictor.nodes
@@ -137,8 +142,43 @@ class Ensemble:
             offset += len(nodes)
         feature, threshold, left, right, value = (np.concatenate([p[k] for p in parts]) for k in range(5))
         roots = np.array([p[5] for p in parts], dtype=np.int64)
-        return cls(feature, threshold, left, right, value, roots, float(np.ravel(model._baseline_prediction)[0]),
-                   _depth(feature, left, right, roots))
+        ensemble = cls(feature, threshold, left, right, value, roots, float(np.ravel(model._baseline_prediction)[0]),
+                       _depth(feature, left, right, roots))
+        if check is not None:
+            ours, theirs = ensemble.predict(np.asarray(check, float)), model.predict(np.asarray(check, float))
+            gap = float(np.max(np.abs(ours - theirs))) if len(ours) else 0.0
+            if not gap <= 1e-9 * (1.0 + float(np.max(np.abs(theirs), initial=0.0))):
+                raise RuntimeError(f"scikit-learn {_sklearn_version()}'s fitted trees read back differently "
+                                   f"(predictions {gap:.3g} apart): robocal supports scikit-learn {SKLEARN_TESTED}")
+        return ensemble
+
+
+#: the scikit-learn releases whose tree layout robocal reads (pyproject.toml bounds the install)
+SKLEARN_TESTED = ">=1.4.2, <1.10"
+#: what robocal reads of each tree's node records
+NODE_FIELDS = ("is_leaf", "feature_idx", "num_threshold", "left", "right", "value")
+
+
+def _sklearn_version() -> str:
+    import sklearn
+
+    return sklearn.__version__
+
+
+def sklearn_layout(model) -> None:
+    """Fail loudly unless a fitted ``HistGradientBoostingRegressor`` has the private layout robocal
+    reads: a list of one-predictor tuples, node records with :data:`NODE_FIELDS`, a baseline."""
+    try:
+        predictors = model._predictors
+        baseline = np.ravel(model._baseline_prediction)
+        ok = isinstance(predictors, list) and baseline.size == 1 and all(
+            isinstance(p, (list, tuple)) and len(p) == 1 and set(NODE_FIELDS) <= set(p[0].nodes.dtype.names or ())
+            for p in predictors)
+    except AttributeError:
+        ok = False
+    if not ok:
+        raise RuntimeError(f"scikit-learn {_sklearn_version()} lays out its fitted trees otherwise than robocal "
+                           f"reads them: robocal supports scikit-learn {SKLEARN_TESTED}")
 
 
 def _depth(feature, left, right, roots) -> int:
