@@ -45,3 +45,23 @@ def test_calibrate_and_evaluate_write_every_pose(tmp_path, run_cli):
     assert "poses have a predicted position uncertainty above 3× its median" in err
     code, _, err = run_cli("calibrate", "kr5-arc", data, "--exclude", "P99")
     assert code == 2 and "excluded pose 'P99' is not in the data" in err
+
+
+def test_contact_rows_carry_their_point_and_setup_and_every_row_an_id(tmp_path, run_cli):
+    """The tracker-free Panda data: each row names the socket it touched and the placement; a
+    file without pose ids gets the row's own name, as the messages say it."""
+    from pathlib import Path
+
+    folder = Path(__file__).resolve().parents[2] / "examples" / "mukca-panda2"
+    code, _, err = run_cli("calibrate", folder / "panda.urdf", folder / "panda_2.csv", "--tip-link", "ball_link",
+                           "--joint-unit", "rad", "--point-distance", "hole_0,hole_1=50", "--quiet",
+                           "--poses-out", tmp_path / "p.csv")
+    assert code == 0, err
+    rows = _rows(tmp_path / "p.csv")
+    with open(folder / "panda_2.csv") as fh:
+        source = list(csv.DictReader(fh))
+    assert len(rows) == len(source)
+    for r in rows:
+        original = source[int(r["row"]) - 2]  # the file's row: its header is row 1
+        assert r["contact"] == f"point {original['point']}" and r["setup"] == original["setup"]
+        assert r["pose_id"] == f"row {r['row']}"

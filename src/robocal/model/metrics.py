@@ -88,25 +88,31 @@ def table_rows(columns: dict[str, Metrics]) -> list[tuple[str, list[str]]]:
 
 
 #: the columns of a per-pose table (mm and deg)
-POSE_COLUMNS = ("set", "pose_id", "row", "reflector", "dx_mm", "dy_mm", "dz_mm", "error_mm", "rx_deg", "ry_deg",
-                "rz_deg", "angle_deg", "outlier", "outside_region_deg")
+POSE_COLUMNS = ("set", "pose_id", "row", "reflector", "contact", "setup", "dx_mm", "dy_mm", "dz_mm", "error_mm",
+                "rx_deg", "ry_deg", "rz_deg", "angle_deg", "outlier", "outside_region_deg")
 
 
 def per_pose(robot: Robot, meas: Measurements, label: str = "", outlier_rows=frozenset()) -> list[dict]:
-    """One row per pose: its id and file row, reflector, position error δp (mm, measuring
-    frame) and its norm, orientation error about x, y, z and its angle (deg; empty for
-    position data), whether it was left out as an outlier (``outlier_rows``: file rows), and how
-    far (deg, mm for a sliding joint) it lies outside the region the model was calibrated on."""
+    """One row per pose: its id (the file's ``pose_id``, else ``row N`` as messages name it) and
+    file row, reflector, for a row that touched a point or plane that contact and its setup,
+    position error δp (mm, measuring frame; a contact row's offset from its point or plane) and
+    its norm, orientation error about x, y, z and its angle (deg; empty for position data),
+    whether it was left out as an outlier (``outlier_rows``: file rows), and how far (deg, mm for
+    a sliding joint) it lies outside the region the model was calibrated on."""
     dp, dr = pose_errors(robot, meas)
     far = np.zeros(meas.n_poses)
     if robot.region is not None:  # degrees for a turning joint, mm for a sliding one
         d = robot.region.outside(meas.q)
         far = np.max(np.where(robot.prismatic, d, np.degrees(d)), axis=1)
     rows = []
+    c = meas.constraints
     for i in range(meas.n_poses):
+        touched = c is not None and c.group[i] >= 0
         rows.append({
-            "set": label, "pose_id": "" if meas.pose_ids is None else meas.pose_ids[i], "row": int(meas.rows[i]),
-            "reflector": "" if meas.targets is None else meas.targets[i],
+            "set": label, "pose_id": f"row {int(meas.rows[i])}" if meas.pose_ids is None else meas.pose_ids[i],
+            "row": int(meas.rows[i]), "reflector": "" if meas.targets is None else meas.targets[i],
+            "contact": f"{c.kind[c.group[i]]} {c.label[c.group[i]]}" if touched else "",
+            "setup": c.setup[c.group[i]] if touched else "",
             "dx_mm": float(dp[i, 0]), "dy_mm": float(dp[i, 1]), "dz_mm": float(dp[i, 2]),
             "error_mm": float(np.linalg.norm(dp[i])),
             **({"rx_deg": "", "ry_deg": "", "rz_deg": "", "angle_deg": ""} if dr is None else {
