@@ -104,7 +104,10 @@ def fit_map(problem: Problem, x0: np.ndarray, config: CalibrationConfig, progres
     if config.max_evaluations is not None and first.nfev >= config.max_evaluations:
         return problem, first  # the user's cap is spent: the fit stopped before converging, and says so
     second = _gauss_newton(problem, first.x, config) or fit_lm(problem, first.x, config)
-    return problem, first.then(second, method=second.method, history=second.history,
+    # the history is both fits', each evaluation's sum of squares under its own weights: the plot
+    # marks where the fit with the prior starts (its χ² is on the newly estimated σ, another scale)
+    return problem, first.then(second, method=second.method, extra={"history_phases": [len(first.history),
+                                                                                     len(second.history)]},
                                message=f"least squares for the data's scale (σp {sigmas[0]:.3g} mm, {first.nfev} "
                                        f"evaluations), then with the prior: {second.message}")
 

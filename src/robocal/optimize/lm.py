@@ -106,7 +106,8 @@ def levenberg_marquardt(
 ) -> OptimizeResult:
     """Minimise ½·Σρ(r²) from x0 with the analytic Jacobian; ``fun`` is the plain Σr² at x.
 
-    history holds the best sum of squared residuals after each residual evaluation.
+    history holds the best sum of squared residuals after each residual evaluation, the one at
+    x0 first; nfev counts them (scipy's count of MINPACK's is not the calls it made).
     """
     from scipy.optimize import least_squares
 
@@ -115,7 +116,7 @@ def levenberg_marquardt(
     r0 = residuals(x0)
     if loss == "linear" and r0.size > NORMAL_EQUATIONS_ROWS:
         return _lm_normal(residuals, jacobian, x0, tol, 200 if max_nfev is None else max_nfev, callback)
-    history: list[float] = []
+    history: list[float] = [float(r0 @ r0)]
 
     def fun(x):
         r = residuals(x)
@@ -142,7 +143,7 @@ def levenberg_marquardt(
         fun=final,
         history=np.array(history),
         nit=int(res.njev or 0),
-        nfev=int(res.nfev),
+        nfev=len(history),
         status=_status(res.status > 0, finite, res.status == 0),
         message=res.message,
         time_s=time.perf_counter() - start,

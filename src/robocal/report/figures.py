@@ -49,9 +49,14 @@ def _log_axis(axis, values=None) -> None:
 
 
 def convergence(histories: dict[str, np.ndarray], title: str, ylabel: str = "best objective",
-                xlabel: str = "iteration"):
-    """Best objective against iteration, log scale, one line per method; the y label carries the unit."""
+                xlabel: str = "iteration", marks: dict[float, str] | None = None):
+    """Best objective against iteration, log scale, one line per method; the y label carries the
+    unit; ``marks``: x positions → labels of vertical lines (where a phase starts)."""
     fig, ax = new_figure(7, 4)
+    for x, text in (marks or {}).items():
+        ax.axvline(x, color="0.5", ls="--", lw=1.0)
+        ax.annotate(text, (x, 1.0), xycoords=("data", "axes fraction"), xytext=(4, -12), textcoords="offset points",
+                    fontsize=8, color="0.3")
     for name, h in histories.items():
         h = np.asarray(h, dtype=float)
         if h.size == 0:
@@ -100,26 +105,58 @@ def error_distribution(errors: dict[str, np.ndarray], title: str):
     return fig
 
 
+#: the colour scale of an error map runs to this percentile of its values; points above it are
+#: drawn as outliers (ringed, in the top colour), so that one far pose does not darken every other
+ROBUST_PERCENTILE = 98.0
+
+
+#: values up to this factor above the percentile are no outliers: the scale then runs to the largest
+OUTLIER_FACTOR = 1.25
+
+
+def robust_limit(values: np.ndarray) -> float:
+    """The top of a colour scale for ``values``: their :data:`ROBUST_PERCENTILE`th percentile
+    where the largest lies more than :data:`OUTLIER_FACTOR` above it, else the largest (also
+    for fewer than 50 values)."""
+    v = np.asarray(values, float)
+    v = v[np.isfinite(v)]
+    if v.size == 0:
+        return 1.0
+    top = float(np.percentile(v, ROBUST_PERCENTILE)) if v.size >= 50 else float(v.max())
+    if top <= 0 or v.max() <= OUTLIER_FACTOR * top:  # no value far above the rest: the whole range
+        return float(v.max()) or 1.0
+    return top
+
+
 def workspace_errors(points: np.ndarray, errors: np.ndarray, title: str, label: str = "|δp| (mm)"):
     """Where in the workspace the error is: the points (mm) projected on XY, XZ and YZ, coloured
-    by a value per point (|δp| mm, or another ``label``)."""
+    by a value per point (|δp| mm, or another ``label``).  The colour scale runs to a robust
+    limit (:func:`robust_limit`); the points above it are ringed and counted in the legend."""
     from matplotlib.figure import Figure
     from matplotlib.ticker import MaxNLocator
 
     fig = Figure(figsize=(14, 4.4), layout="constrained")
     axes = fig.subplots(1, 3)
-    vmax = float(np.max(errors)) or 1.0  # the whole range: no value shown as a smaller one
+    vmax = robust_limit(errors)
     order = np.argsort(errors)  # the largest drawn last, on top
     points, errors = np.asarray(points)[order], np.asarray(errors)[order]
+    above = errors > vmax
     for ax, (i, j) in zip(axes, ((0, 1), (0, 2), (1, 2))):
-        sc = ax.scatter(points[:, i], points[:, j], c=errors, s=10, cmap="viridis", vmin=0.0, vmax=vmax)
+        sc = ax.scatter(points[:, i], points[:, j], c=np.minimum(errors, vmax), s=10, cmap="viridis", vmin=0.0,
+                        vmax=vmax)
+        if above.any():
+            ax.scatter(points[above, i], points[above, j], s=46, facecolors="none", edgecolors="tab:red",
+                       linewidths=1.2, label=f"{int(above.sum())} above {vmax:.3g} (up to {errors.max():.3g})")
         ax.set_xlabel(f"{'xyz'[i]} (mm)")
         ax.set_ylabel(f"{'xyz'[j]} (mm)")
         ax.set_aspect("equal", adjustable="datalim")
         ax.xaxis.set_major_locator(MaxNLocator(5))
         ax.yaxis.set_major_locator(MaxNLocator(5))
         ax.grid(True, alpha=0.3)
-    fig.colorbar(sc, ax=list(axes), label=label, shrink=0.9)
+    if above.any():
+        axes[0].legend(fontsize=8, loc="best")
+    fig.colorbar(sc, ax=list(axes), label=label + (f", scale to the {ROBUST_PERCENTILE:g}th percentile" if
+                                                   above.any() else ""), shrink=0.9)
     fig.suptitle(title)
     return fig
 

@@ -149,8 +149,9 @@ def _error_figures(result: CalibrationResult) -> list[str]:
     parts.append(f"<h2>Where the error is</h2><p>Measured points of the {label} poses in the robot's base frame "
                  + ("(where a row touched a point or plane, the calibrated model's tool point), " if
                     where.constraints is not None else "")
-                 + "coloured by the calibrated model's position error (the colour scale runs to the largest; the "
-                 "largest errors are drawn on top).</p>")
+                 + "coloured by the calibrated model's position error (the colour scale runs to the "
+                 f"{figures.ROBUST_PERCENTILE:g}th percentile, so that a few large errors do not darken the rest; the "
+                 "points above it are ringed in red, and the largest are drawn on top).</p>")
     parts.append(_img(figures.workspace_errors(in_base, after, f"{label} poses after calibration (base frame)")))
     parts += _uncertainty_map(result)
     geometric = result.geometric or (result.robot if result.robot.geometric else None)
@@ -319,14 +320,67 @@ def _worst(result: CalibrationResult, count: int = 10) -> list[str]:
             "<code>--poses-out</code> writes every pose.</p>", _table(head, body)]
 
 
+#: a figure this many times the instrument's floor is the model's, not the instrument's
+FLOOR_GAP = 3.0
+#: the predicted TCP uncertainty over the joint ranges this many times that at the measured poses
+#: asks for poses where it is large
+SPREAD_GAP = 2.0
+#: at most this many suggestions, the most pressing first
+MOST = 3
+
+
+def _headline(result: CalibrationResult) -> tuple[str, float] | None:
+    """The figure the advice weighs: the validation poses' position RMS, else the cross-validated
+    one (what the model does on poses it was not fitted to)."""
+    for key, what in (("validation_after", "on the validation poses"), ("predicted", "cross-validated")):
+        if key in result.metrics:
+            return what, float(result.metrics[key].position["rms"])
+    return None
+
+
+def _floor(result: CalibrationResult) -> float | None:
+    """The instrument's own noise as a position RMS (mm): the figure no model goes below."""
+    row = next((b for b in result.error_budget if b.model.startswith("the instrument's own noise")), None)
+    if row is not None:
+        return row.validation_rms_mm
+    sigma = None if result.measurements is None else result.measurements.sigma_position
+    if sigma is None:
+        return None
+    return float(np.sqrt(np.mean(np.sum(np.asarray(sigma, float) ** 2, axis=1))))
+
+
 def next_steps(result: CalibrationResult) -> list[str]:
-    """One or two concrete suggestions from the diagnostics, the verdict on physicality first."""
+    """At most :data:`MOST` concrete suggestions from the figures the report shows, the most
+    pressing first: physicality, the gap between the model's figure and the instrument's floor,
+    the predicted TCP uncertainty over the calibrated joint ranges, parameters the poses do not
+    pin, outliers, validation poses beyond the data, too few poses.  "Nothing calls for more"
+    only where the figure is near the floor and the uncertainty even over the ranges."""
     out = []
     meas = result.measurements
     if not result.physical.physical:
         out.append(f"The calibrated model is not physical: {html.escape(result.physical.listed())} (likely cause: "
                    f"{html.escape(result.physical.cause)}). Do not load it into a controller: check the nominal model, "
                    "and measure poses that move the joints these parameters belong to.")
+    headline, floor = _headline(result), _floor(result)
+    if headline is not None and floor is not None and headline[1] > FLOOR_GAP * floor:
+        what, figure = headline
+        if result.model == "geometric":
+            act = ("calibrate with <code>--model auto</code> to try joint terms (compliance, harmonics, backlash, "
+                   "drift) and learned corrections")
+        else:
+            act = ("the model chosen already holds what cross-validation could find; what remains is repeatable "
+                   "error robocal does not model (temperature, a loaded tool, the tracker's own setup) or poses "
+                   "too sparse for it: measure more poses over the working range")
+        out.append(f"The model predicts {figure:.3g} mm RMS {what}, {figure / floor:.0f}× the instrument's own "
+                   f"{floor:.3g} mm: the difference is the model's, not the instrument's. To take more of it, {act}.")
+    m = result.tcp_uncertainty
+    if m is not None and m.at_poses is not None and len(m.at_poses):
+        summary, at = m.summary(), float(np.median(m.at_poses))
+        if summary["median_mm"] > SPREAD_GAP * at:
+            out.append(f"Over the calibrated joint ranges the predicted TCP uncertainty is {summary['median_mm']:.3g} "
+                       f"mm (median; 95 % below {summary['p95_mm']:.3g} mm), {summary['median_mm'] / at:.1f}× that "
+                       "at the measured poses: the model is sure of itself only near them. Measure poses where the "
+                       "uncertainty map is bright before relying on it across the workspace.")
     if result.held:
         many = len(result.held) > 1
         out.append(f"The poses do not pin {html.escape(', '.join(result.held))}: {'they are' if many else 'it is'} "
@@ -334,8 +388,8 @@ def next_steps(result: CalibrationResult) -> list[str]:
                    f"measured. Poses that move {'their' if many else 'its'} joints more widely would measure "
                    f"{'them' if many else 'it'}.")
     g, inst = result.goodness_of_fit, result.instrument
-    if result.model == "geometric" and ((g is not None and g.misfit()) or (inst is not None and inst.reduced_chi2
-                                                                            and inst.reduced_chi2 > 4)):
+    if result.model == "geometric" and floor is None and ((g is not None and g.misfit()) or (
+            inst is not None and inst.reduced_chi2 and inst.reduced_chi2 > 4)):
         beyond = "" if inst is None else f" ({inst.reduced_chi2:.3g}× the instrument's noise in χ²)"
         out.append(f"The geometric model leaves systematic error{beyond}: calibrate with <code>--model auto</code> "
                    "to try joint terms (compliance, harmonics, backlash, drift) and a residual process.")
@@ -362,11 +416,14 @@ def next_steps(result: CalibrationResult) -> list[str]:
     if meas is not None and meas.n_poses < 5 * len(result.names):
         out.append(f"{meas.n_poses} poses for {len(result.names)} parameters: about {5 * len(result.names)} would "
                    "pin them down better.")
-    m = result.tcp_uncertainty
-    if not out and m is not None and m.at_poses is not None and m.summary()["p95_mm"] > 3 * np.median(m.at_poses):
-        out.append("The model is much less certain over the whole joint ranges than at the measured poses: add poses "
-                   "where the uncertainty map is bright.")
-    return out[:2] if out else ["Nothing calls for more: the model fits as well as these data allow."]
+    if out:
+        return out[:MOST]
+    if headline is None or floor is None:
+        return ["No diagnostic calls for more. The instrument's noise is not stated (sx, sy, sz columns, or "
+                "<code>--instrument</code>), so how far the model's figure lies above it is not known."]
+    return [f"Nothing calls for more: the model predicts {headline[1]:.3g} mm RMS {headline[0]}, within "
+            f"{FLOOR_GAP:g}× the instrument's own {floor:.3g} mm, and its predicted TCP uncertainty over the "
+            f"calibrated joint ranges is near that at the measured poses."]
 
 
 def calibration_html(result: CalibrationResult, command: str | None = None) -> str:
@@ -397,14 +454,27 @@ def calibration_html(result: CalibrationResult, command: str | None = None) -> s
     parts += _worst(result)
     parts += _model_tables(result)
     parts.append("<h2>Convergence</h2>")
-    if result.noise is not None and result.noise.refits:
-        refits = "refit" if result.noise.refits == 1 else f"{result.noise.refits} refits"
-        parts.append(f"<p>The first fit, with the weights it started from; the {refits} after reweighting by the "
-                     "estimated noise are not drawn (χ² under other weights is another scale), so the last point is "
-                     "not the final χ².</p>")
-    parts.append(_img(figures.convergence({result.method: result.optimization.history},
-                                          f"{result.method}: best objective", objective_label(result),
-                                          figures.iteration_label([result.method]))))
+    opt = result.optimization
+    drawn, phases, marks = len(opt.history), opt.extra.get("history_phases"), None
+    if result.config.spec.swarm is not None:  # a point per generation, each evaluating every particle
+        said = [f"one point per generation of the swarm and per residual evaluation of the LM after it "
+                f"({drawn} points; {opt.nfev} objective evaluations in all, a generation evaluating every particle)"]
+        drawn = opt.nfev
+    else:
+        said = [f"{drawn} of the {opt.nfev} residual evaluations are drawn" if drawn < opt.nfev else
+                f"all {drawn} residual evaluations are drawn"]
+    if phases and len(phases) == 2 and phases[1] and sum(phases) <= drawn:
+        marks = {phases[0] - 0.5: "with the prior"}
+        said.append(f"the first {phases[0]} fit the data alone, for the scale of their noise, the next {phases[1]} fit "
+                    "with the prior weighed by that noise (its χ² is on those weights: the curve steps there)")
+    if drawn < opt.nfev:
+        said.append(f"the other {opt.nfev - drawn}, refits after reweighting by the estimated or the instrument's "
+                    "noise, are not (χ² under other weights is another scale), so the last point is not the final "
+                    "χ²")
+    parts.append(f"<p>{'; '.join(said).capitalize()}.</p>")
+    parts.append(_img(figures.convergence({result.method: opt.history}, f"{result.method}: best objective",
+                                          objective_label(result), figures.iteration_label([result.method]),
+                                          marks)))
     parts += _parameter_tables(result, d)
     parts.append("<p>Generated by robocal.</p></body></html>")
     return "\n".join(parts)

@@ -130,11 +130,17 @@ def noise_line(result) -> str:
 
 def ladder_rows(result: CalibrationResult) -> list[tuple[str, ...]]:
     """The rungs of ``--model auto`` as table rows: model, cv RMS (mm), parameters, chosen; with
-    validation data, the validation RMS (mm) before the last column."""
+    validation data, the validation RMS (mm) before the last column, or why a rung has none (a
+    learned correction is fitted on all the poses only when chosen)."""
     with_validation = any(r.validation_rms_mm is not None for r in result.model_selection)
     rows = []
     for r in result.model_selection:
-        val = () if not with_validation else ("" if r.validation_rms_mm is None else f"{r.validation_rms_mm:.4f}",)
+        if not with_validation:
+            val = ()
+        elif r.validation_rms_mm is not None:
+            val = (f"{r.validation_rms_mm:.4f}",)
+        else:
+            val = ("— (only the chosen correction is fitted)",)
         last = "chosen" if r.model == result.model else "screened: not tuned in full" if r.screened else ""
         rows.append((r.model, f"{r.cv_rms_mm:.4f}", str(r.n_params), *val, last))
     return rows
@@ -142,7 +148,7 @@ def ladder_rows(result: CalibrationResult) -> list[tuple[str, ...]]:
 
 def ladder_columns(result: CalibrationResult) -> tuple[str, ...]:
     with_validation = any(r.validation_rms_mm is not None for r in result.model_selection)
-    return ("model", "cv RMS", "parameters", *(("validation RMS",) if with_validation else ()), "")
+    return ("model", "cv RMS", "parameters", *(("validation RMS",) if with_validation else ()), "choice")
 
 
 #: the columns of :func:`budget_rows`
