@@ -21,12 +21,15 @@ FAILED = 4
 FIGURES = {
     "calibrate": ("rms", "max", "cv_rms", "validation_rms", "validation_max"),
     "evaluate": ("rms", "mean", "std", "max", "point_spread_rms", "distance_error_rms", "plane_rms"),
+    # ISO 9283, of the last campaign given (the one after compensation): the largest over its poses
+    # (pairs of poses) of pose accuracy AP_p, repeatability RP_l, |distance accuracy AD_p| and RD
+    "iso9283": ("AP", "RP", "AD", "RD"),
 }
 #: verdicts a command can be held to, by a bare word: its figures hold True or False under the
 #: word, and the reason under ``WORD_reason``
-VERDICTS = {"calibrate": ("physical",), "evaluate": ()}
+VERDICTS = {"calibrate": ("physical",), "evaluate": (), "iso9283": ()}
 _OPS = {"<=": operator.le, "<": operator.lt, ">=": operator.ge, ">": operator.gt}
-_PATTERN = re.compile(r"^\s*([a-z_]+)\s*(<=|>=|<|>)\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*$")
+_PATTERN = re.compile(r"^\s*([A-Za-z_]+)\s*(<=|>=|<|>)\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*$")
 
 
 @dataclass(frozen=True)

@@ -166,3 +166,27 @@ def test_an_orientation_without_one_of_its_angles_is_refused(tmp_path, run_cli, 
     code, out, err = run_cli("iso9283", "evaluate", tmp_path / "m.csv", "--report", tmp_path / "r.html")
     assert code == 2 and f"'{dropped}' is missing" in err and err.count("\n") == 1, err
     assert "m.csv" in err and not (tmp_path / "r.html").exists()
+
+
+def test_a_specification_is_a_verdict_in_the_report_and_the_exit_status(tmp_path, run_cli):
+    """--require AP<=…,RP<=… holds the last campaign to a specification: the report heads with the
+    run (version, command, each file's SHA-256) and the verdict, and the exit status is 4 when not met."""
+    import hashlib
+
+    _campaign_file(tmp_path / "before.csv", np.random.default_rng(1), bias=(0.5, 0.3, -0.2))
+    _campaign_file(tmp_path / "after.csv", np.random.default_rng(2), bias=(0.02, 0.01, 0.0))
+    code, out, err = run_cli("iso9283", "evaluate", tmp_path / "before.csv", tmp_path / "after.csv", "--json")
+    figures = json.loads(out)[-1]["figures"]
+    loose = f"AP<={figures['AP'] * 1.1:.6f},RP<={figures['RP'] * 1.1:.6f}"
+    code, out, err = run_cli("iso9283", "evaluate", tmp_path / "before.csv", tmp_path / "after.csv", "--require",
+                             loose, "--report", tmp_path / "ok.html", "--quiet")
+    assert code == 0, err
+    text = (tmp_path / "ok.html").read_text()
+    assert "Specification met" in text and hashlib.sha256((tmp_path / "after.csv").read_bytes()).hexdigest() in text
+    tight = f"AP<={figures['AP'] * 0.9:.6f}"
+    code, out, err = run_cli("iso9283", "evaluate", tmp_path / "before.csv", tmp_path / "after.csv", "--require",
+                             tight, "--report", tmp_path / "no.html", "--quiet")
+    assert code == 4 and f"AP = {figures['AP']:.4g} mm" in err
+    assert "Specification not met" in (tmp_path / "no.html").read_text()  # the report is written all the same
+    code, out, err = run_cli("iso9283", "evaluate", tmp_path / "after.csv", "--require", "XY<=1")
+    assert code == 2 and "unknown figure 'XY'" in err

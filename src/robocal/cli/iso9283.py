@@ -64,6 +64,9 @@ def evaluate_cmd(
     report: Path | None = typer.Option(None, "--report", help="HTML report to write"),
     as_json: bool = json_flag("the characteristics of every campaign"),
     summary: Path | None = summary_option("the characteristics"),
+    require: list[str] | None = typer.Option(None, "--require", help="a specification the last campaign must "
+                                             "meet, e.g. AP<=0.3,RP<=0.05 (mm; AP, RP: the largest over the "
+                                             "poses; AD, RD: over the pairs); exit status 4 when not met"),
     quiet: bool = quiet_flag(),
 ) -> None:
     """Pose accuracy AP and repeatability RP, distance accuracy AD and repeatability RD (ISO 9283)."""
@@ -74,8 +77,10 @@ def evaluate_cmd(
     from ..iso9283.characteristics import characteristics
     from ..iso9283.files import load_campaign
     from ..report.iso9283 import distance_rows, pose_rows, write_iso9283_report
-    from .common import check_outputs, console, print_json, print_said, table
+    from ..requirements import parse_requirements
+    from .common import check_outputs, console, print_json, print_said, table, verdict
 
+    checks = parse_requirements(require, "iso9283")
     check_outputs(tuple(measured) + ((robot,) if robot else ()), report=report, summary=summary)
     r = None if robot is None else load_robot(robot)
     results = [characteristics(load_campaign(path, r)) for path in measured]
@@ -89,17 +94,20 @@ def evaluate_cmd(
     document = [res.to_dict() for res in results]
     with together():
         if report is not None:
-            write_iso9283_report(results, [str(p) for p in measured], report)
+            import shlex
+            import sys
+
+            write_iso9283_report(results, [str(p) for p in measured], report, "robocal " + shlex.join(sys.argv[1:]),
+                                 checks, robot)
         if summary is not None:
             atomic_write(summary, json.dumps(document, indent=2) + "\n")
     print_said([n for res in results for n in res.notes], quiet)
     if as_json:
         print_json(document)
-        return
-    if quiet:
-        return
-    console().print(table("ISO 9283 pose characteristics", *pose_rows(results), text_columns=(0, 1)))
-    console().print(table("ISO 9283 distance characteristics", *distance_rows(results), text_columns=(0, 1)))
+    elif not quiet:
+        console().print(table("ISO 9283 pose characteristics", *pose_rows(results), text_columns=(0, 1)))
+        console().print(table("ISO 9283 distance characteristics", *distance_rows(results), text_columns=(0, 1)))
+    verdict(checks, results[-1].figures())
 
 
 def register(app_: typer.Typer) -> None:

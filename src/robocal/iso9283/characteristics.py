@@ -137,7 +137,15 @@ class Iso9283Result:
 
     def to_dict(self) -> dict:
         return {"campaign": self.name, "poses": [p.to_dict() for p in self.poses],
-                "distances": [d.to_dict() for d in self.distances], "notes": list(self.notes)}
+                "distances": [d.to_dict() for d in self.distances], "notes": list(self.notes),
+                "figures": self.figures()}
+
+    def figures(self) -> dict[str, float]:
+        """What a specification holds a campaign to (mm): the largest AP_p and RP_l over its poses,
+        and the largest |AD_p| and RD over its pairs of poses."""
+        return {"AP": max(p.AP_p for p in self.poses), "RP": max(p.RP_l for p in self.poses),
+                "AD": max((abs(d.AD_p) for d in self.distances), default=0.0),
+                "RD": max((d.RD for d in self.distances), default=0.0)}
 
 
 def characteristics(c: Campaign) -> Iso9283Result:

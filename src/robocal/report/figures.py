@@ -365,12 +365,20 @@ def iso9283_bars(results: list, title: str):
     x = np.arange(len(labels))
     width = 0.8 / len(results)
     for ax, key, ylabel in ((axes[0], "AP_p", "pose accuracy AP (mm)"), (axes[1], "RP_l", "repeatability RP (mm)")):
+        every = []
         for k, r in enumerate(results):
-            values = [getattr(p, key) for p in r.poses]
-            ax.bar(x + (k - (len(results) - 1) / 2) * width, values, width, label=r.name)
+            values = np.maximum([getattr(p, key) for p in r.poses], 1e-6)
+            every.append(values)
+            bars = ax.bar(x + (k - (len(results) - 1) / 2) * width, values, width, label=r.name)
+            ax.bar_label(bars, labels=[f"{v:.3g}" for v in values], fontsize=7, padding=1)
+        # log scale: a compensated campaign is tens of times below the one before, and on a linear
+        # axis its bars vanish
+        ax.set_yscale("log")
+        _log_axis(ax.yaxis, np.concatenate(every))
+        ax.set_ylim(float(np.min(np.concatenate(every))) / 2.5, float(np.max(np.concatenate(every))) * 3.0)
         ax.set_xticks(x, labels)
         ax.set_ylabel(ylabel)
-        ax.grid(True, axis="y", alpha=0.3)
+        ax.grid(True, axis="y", which="major", alpha=0.3)
     axes[0].legend(fontsize=8)
     fig.suptitle(title)
     return fig

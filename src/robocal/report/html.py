@@ -13,6 +13,7 @@ from ..io.atomic import atomic_write
 from ..model.metrics import Metrics, pose_errors, table_rows
 from ..model.parameters import is_angle, is_frame
 from . import figures
+from .header import run_header
 from .tables import (
     FRAME_COLUMNS,
     LEARNED_COLUMNS,
@@ -274,26 +275,13 @@ def _parameter_tables(result: CalibrationResult, d: dict) -> list[str]:
 def _run_header(result: CalibrationResult, command: str | None) -> str:
     """Who made the report, when, from what: version, date, command, input files with SHA-256,
     robot, poses and the campaign's temperature range."""
-    import datetime
-    import hashlib
-
-    from .. import __version__
-
-    def digest(path) -> str:
-        p = Path(str(path))
-        return hashlib.sha256(p.read_bytes()).hexdigest() if p.is_file() else "(not a file)"
-
     files = [("data", result.data)] + ([("validation", result.validation.source)] if result.validation else [])
-    rows = [("robocal", __version__), ("date", datetime.datetime.now().astimezone().isoformat(timespec="seconds")),
-            ("command", command or "Python API (robocal.calibrate)"),
-            ("robot", f"{result.nominal.name} ({result.nominal.source or 'given as a Robot'})"),
-            *((f"{k} file", f"{v} — SHA-256 {digest(v)}") for k, v in files),
+    rows = [("robot", f"{result.nominal.name} ({result.nominal.source or 'given as a Robot'})"),
             ("poses", result.measurements.describe() if result.measurements else str(result.n_poses))]
     meas = result.all_rows or result.measurements
     if meas is not None and meas.temperature is not None:
         rows.append(("temperature", f"{np.min(meas.temperature):.2f} to {np.max(meas.temperature):.2f} °C"))
-    body = "".join(f"<tr><td>{html.escape(k)}</td><td class='l'>{html.escape(str(v))}</td></tr>" for k, v in rows)
-    return f"<table class='head'>{body}</table>"
+    return run_header(command, "robocal.calibrate", files, rows)
 
 
 def _said(result: CalibrationResult) -> list[str]:

@@ -40,14 +40,46 @@ def _table(head, rows) -> str:
     return f"<table><tr>{h}</tr>{b}</table>"
 
 
-def iso9283_html(results: list, sources: list[str]) -> str:
+def iso9283_html(results: list, sources: list[str], command: str | None = None, requirements=(),
+                 robot: str | None = None) -> str:
+    """The report of one or more campaigns side by side, headed like calibrate's (version, date,
+    command, each campaign's file with its SHA-256) and, with ``requirements``, the verdict of the
+    last campaign against them."""
+    from ..requirements import unmet
+    from .header import run_header
+
     campaigns = ", ".join(f"{html.escape(r.name)} (<code>{html.escape(s)}</code>, {r.poses[0].cycles} cycles)"
                           for r, s in zip(results, sources))
+    rows = [("robot", robot)] if robot else []
+    rows.append(("campaigns", ", ".join(f"{r.name}: {len(r.poses)} poses × {r.poses[0].cycles} cycles"
+                                        for r in results)))
+    verdict = []
+    if requirements:
+        last = results[-1]
+        failed = unmet(requirements, last.figures())
+        rows.append(("specification", ", ".join(str(r) for r in requirements) + f" (campaign {last.name})"))
+        rows.append(("verdict", "met" if not failed else "not met: " + "; ".join(
+            f.removeprefix("requirement not met: ") for f in failed)))
+        figures_of = last.figures()
+
+        def listed(group):
+            return ", ".join(f"{html.escape(str(r))} ({r.figure} = {figures_of[r.figure]:.4g} mm)" for r in group)
+
+        missed = [r for r in requirements if not r.met(figures_of)]
+        kept = [r for r in requirements if r.met(figures_of)]
+        verdict = [f"<p class='{'next' if not missed else 'warn'}'>Specification "
+                   + (f"met by {html.escape(last.name)}: {listed(kept)}" if not missed else
+                      f"not met by {html.escape(last.name)}: {listed(missed)}" + (f"; met: {listed(kept)}" if kept
+                                                                                  else "")) + ".</p>"]
     parts = [f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>ISO 9283</title><style>{_CSS}</style>"
              "</head><body><h1>ISO 9283 pose and distance characteristics</h1>",
+             run_header(command, "robocal.iso9283", [(f"campaign {r.name}", s) for r, s in zip(results, sources)],
+                        rows),
+             *verdict,
              f"<p>Campaigns: {campaigns}. Pose accuracy AP is the distance from the commanded pose to the "
              "barycentre of the attained ones; repeatability RP_l = l̄ + 3 S_l about that barycentre (ISO "
-             "9283:1998 §7.2); distance accuracy AD and repeatability RD between each pair of poses (§7.3).</p>",
+             "9283:1998 §7.2); distance accuracy AD and repeatability RD between each pair of poses (§7.3). "
+             "The bars are on a log scale, each labelled with its value.</p>",
              *(f"<p class='warn'>{html.escape(n)}</p>" for r in results for n in r.notes),
              _img(figures.iso9283_bars(results, "pose accuracy and repeatability")),
              "<h2>Pose characteristics</h2>", _table(*pose_rows(results)),
@@ -56,5 +88,6 @@ def iso9283_html(results: list, sources: list[str]) -> str:
     return "".join(parts)
 
 
-def write_iso9283_report(results: list, sources: list[str], path: str | Path) -> None:
-    atomic_write(path, iso9283_html(results, sources))
+def write_iso9283_report(results: list, sources: list[str], path: str | Path, command: str | None = None,
+                         requirements=(), robot: str | None = None) -> None:
+    atomic_write(path, iso9283_html(results, sources, command, requirements, robot))
