@@ -16,7 +16,12 @@ An HTML comment on the line before a block says what the test cannot see in it:
   on thousands of poses, a paper's whole experiment, a study on a Dask scheduler) or need what
   only a real cell has: their command lines are parsed by robocal's own parser without running,
   so option names and the types of their values cannot drift, and the files they read from
-  ``examples/`` must exist.
+  ``examples/`` must exist;
+- ``<!-- guide-test: figures A B … -->``: the figures the page quotes from the block's run (its
+  prose after it): each must appear in what the block's commands printed, and on the page after
+  the block, so that a changed number fails here instead of drifting;
+- ``<!-- guide-test: output -->`` before a ```text block: what the bash block before it prints;
+  each of its lines must appear in that output (whitespace aside: the terminal wraps).
 
 Any other line of a bash block is shell setup the guide shows for a user (a venv, pip, a Dask
 scheduler) and is named here, so that a misspelt command cannot pass unseen.  The command
@@ -134,10 +139,30 @@ def test_every_page_is_in_the_guide():
         assert re.search(rf"\b{re.escape(page.name)}\b", nav), f"{page.name} is not in mkdocs.yml's nav"
 
 
+def quoted_figures(notes: str) -> list[str]:
+    found = re.search(r"<!--\s*guide-test:\s*figures\s+([^>]*?)\s*-->", notes)
+    return found.group(1).split() if found else []
+
+
+def _flat(text: str) -> str:
+    """Text with its whitespace runs made one space and table rules dropped (the terminal wraps
+    and frames what the guide quotes on one line)."""
+    text = re.sub(r"[│┃┏┓┗┛┡┩┣┫━─┳┻╇╈╋┼┬┴├┤╭╮╰╯║═╔╗╚╝]", " ", text)
+    return " ".join(text.split())
+
+
 @pytest.mark.parametrize("page", [p for p in PAGES if runnable(p)], ids=lambda p: p.name)
 def test_every_guide_command_runs(page, workdir, run_cli):
     ran = 0
+    printed = ""  # what the last bash block run printed
+    text = page.read_text(encoding="utf-8")
     for lang, body, notes in blocks(page):
+        if lang == "text" and "guide-test: output" in notes:
+            for line in body.splitlines():
+                if line.strip() and line.strip() != "…":
+                    assert _flat(line) in _flat(printed), f"{page.name}: the quoted output {line!r} is not what " \
+                                                          "the commands before it printed"
+            continue
         if lang == "toml":
             first = body.splitlines()[0] if body else ""
             name = re.fullmatch(r"#\s*([\w.-]+\.toml)\s*", first)
@@ -150,13 +175,23 @@ def test_every_guide_command_runs(page, workdir, run_cli):
             continue
         if lang != "bash":
             continue
+        printed = ""
         for line in commands(body):
-            ran += run(line, parse_only(notes), expected_exit(notes), page, run_cli)
+            done, said = run(line, parse_only(notes), expected_exit(notes), page, run_cli)
+            ran += done
+            printed += said
+        figures = quoted_figures(notes)
+        assert not (figures and parse_only(notes)), f"{page.name}: figures quoted from a block that does not run"
+        after = text[text.index(body) + len(body):]
+        for figure in figures:
+            assert figure in printed, f"{page.name}: {figure} is quoted, the commands print otherwise"
+            assert figure in after, f"{page.name}: {figure} is listed for checking but not quoted after its block"
     assert ran, f"{page.name}: no command to run"
 
 
-def run(line: str, parse_only_: bool, code: int, page: Path, run_cli) -> int:
-    """Run (or parse) one command of the guide; returns 1 if it was robocal's or an example's."""
+def run(line: str, parse_only_: bool, code: int, page: Path, run_cli) -> tuple[int, str]:
+    """Run (or parse) one command of the guide: (1 if it was robocal's or an example's, else 0;
+    what it printed, stdout and stderr)."""
     where = f"{page.name}: `{line}`"
     args = shlex.split(line)
     if args[0] == "robocal":
@@ -172,25 +207,26 @@ def run(line: str, parse_only_: bool, code: int, page: Path, run_cli) -> int:
                 pytest.fail(f"{where}: {exc.format_message()}")
             for path in read_inputs(args):
                 assert Path(path).exists(), f"{where}: {path} does not exist"
-            return 1
+            return 1, ""
         got, stdout, stderr = run_cli(*args)
         assert got == code, f"{where}: exit {got}, expected {code}\n{stderr[-2000:]}"
         if out is not None:
             Path(out).write_text(stdout, encoding="utf-8")
-        return 1
+        return 1, stdout + stderr
     if line.startswith("python examples/"):
         script = args[1]
         assert Path(script).exists(), f"{where}: {script} does not exist"
         if not parse_only_:
             done = subprocess.run([sys.executable, *args[1:]], capture_output=True, text=True)
             assert done.returncode == code, f"{where}: exit {done.returncode}\n{done.stderr[-2000:]}"
-        return 1
+            return 1, done.stdout + done.stderr
+        return 1, ""
     if args[:2] == ["mkdir", "-p"]:
         for folder in args[2:]:
             os.makedirs(folder, exist_ok=True)
-        return 0
+        return 0, ""
     assert line.startswith(SETUP), f"{where}: a command the guide's test does not know (add it to SETUP?)"
-    return 0
+    return 0, ""
 
 
 def command_of(words: list[str]) -> list:

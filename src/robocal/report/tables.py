@@ -130,8 +130,9 @@ def noise_line(result) -> str:
 
 def ladder_rows(result: CalibrationResult) -> list[tuple[str, ...]]:
     """The rungs of ``--model auto`` as table rows: model, cv RMS (mm), parameters, chosen; with
-    validation data, the validation RMS (mm) before the last column, or why a rung has none (a
-    learned correction is fitted on all the poses only when chosen)."""
+    validation data, the validation RMS (mm) before the last column, or why a rung has none
+    ("folds only": a learned correction is fitted on all the poses, and so predicts the
+    validation poses, only when chosen)."""
     with_validation = any(r.validation_rms_mm is not None for r in result.model_selection)
     rows = []
     for r in result.model_selection:
@@ -140,7 +141,7 @@ def ladder_rows(result: CalibrationResult) -> list[tuple[str, ...]]:
         elif r.validation_rms_mm is not None:
             val = (f"{r.validation_rms_mm:.4f}",)
         else:
-            val = ("— (only the chosen correction is fitted)",)
+            val = ("— (folds only)",)
         last = "chosen" if r.model == result.model else "screened: not tuned in full" if r.screened else ""
         rows.append((r.model, f"{r.cv_rms_mm:.4f}", str(r.n_params), *val, last))
     return rows
