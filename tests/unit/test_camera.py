@@ -1,0 +1,94 @@
+"""The camera: OpenCV's lens model against OpenCV itself, and the camera files users have
+(OpenCV FileStorage YAML and JSON written by OpenCV, a ROS camera_info YAML), bad ones refused."""
+
+import numpy as np
+import pytest
+
+from robocal.exceptions import InputError
+from robocal.io.camera import load_camera, parse_camera
+from robocal.model.camera import Camera
+
+cv2 = pytest.importorskip("cv2")
+
+
+def _random_camera(rng) -> Camera:
+    return Camera("c", fx=rng.uniform(600, 1400), fy=rng.uniform(600, 1400), cx=rng.uniform(300, 700),
+                  cy=rng.uniform(200, 500), distortion=np.array([rng.uniform(-0.3, 0.3), rng.uniform(-0.1, 0.1),
+                                                                 rng.uniform(-0.01, 0.01), rng.uniform(-0.01, 0.01),
+                                                                 rng.uniform(-0.05, 0.05)]), width=1280, height=960)
+
+
+def test_the_lens_model_is_opencvs(rng):
+    for _ in range(5):
+        cam = _random_camera(rng)
+        p = np.column_stack([rng.uniform(-400, 400, 200), rng.uniform(-300, 300, 200), rng.uniform(500, 2500, 200)])
+        ours = cam.project(p)
+        theirs, _ = cv2.projectPoints(p.reshape(-1, 1, 3), np.zeros(3), np.zeros(3), cam.matrix, cam.distortion)
+        np.testing.assert_allclose(ours, theirs.reshape(-1, 2), rtol=0, atol=1e-9)
+    behind = cam.project(np.array([[0.0, 0.0, -1000.0], [10.0, 5.0, 800.0]]))
+    assert np.all(np.isnan(behind[0])) and np.all(np.isfinite(behind[1]))
+    assert cam.in_image(np.array([[10.0, 10.0], [-1.0, 10.0], [10.0, 961.0]])).tolist() == [True, False, False]
+
+
+@pytest.mark.parametrize("suffix", [".yaml", ".json"])
+def test_opencv_filestorage_files_written_by_opencv_are_read(tmp_path, rng, suffix):
+    cam = _random_camera(rng)
+    path = tmp_path / f"cam{suffix}"
+    fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_WRITE)
+    fs.write("image_width", 1280)
+    fs.write("image_height", 960)
+    fs.write("camera_matrix", cam.matrix)
+    fs.write("distortion_coefficients", cam.distortion.reshape(1, 5))
+    fs.release()
+    got = load_camera(path)
+    np.testing.assert_allclose(got.matrix, cam.matrix, rtol=1e-15)
+    np.testing.assert_allclose(got.distortion, cam.distortion, rtol=1e-15)
+    assert (got.width, got.height, got.name) == (1280, 960, "cam")
+
+
+ROS = """image_width: 640
+image_height: 480
+camera_name: wrist_cam
+camera_matrix:
+  rows: 3
+  cols: 3
+  data: [612.5, 0, 320.25,
+         0, 611.75, 241.5, 0, 0, 1]
+distortion_model: plumb_bob
+distortion_coefficients:
+  rows: 1
+  cols: 5
+  data: [0.1, -0.25, 0.001, -0.002, 0.05]
+rectification_matrix:
+  rows: 3
+  cols: 3
+  data: [1, 0, 0, 0, 1, 0, 0, 0, 1]
+projection_matrix:
+  rows: 3
+  cols: 4
+  data: [612.5, 0, 320.25, 0, 0, 611.75, 241.5, 0, 0, 0, 1, 0]
+"""
+
+
+def test_a_ros_camera_info_is_read():
+    cam = parse_camera(ROS, source="wrist.yaml")
+    assert (cam.name, cam.fx, cam.fy, cam.cx, cam.cy, cam.width, cam.height) == \
+        ("wrist_cam", 612.5, 611.75, 320.25, 241.5, 640, 480)
+    np.testing.assert_array_equal(cam.distortion, [0.1, -0.25, 0.001, -0.002, 0.05])
+
+
+@pytest.mark.parametrize("change, message", [
+    (lambda t: t.replace("camera_matrix", "camera_matrx"), "missing the intrinsics"),
+    (lambda t: t.replace("plumb_bob", "equidistant"), "distortion model 'equidistant'"),
+    (lambda t: t.replace("rows: 3\n  cols: 3\n  data: [612.5", "rows: 3\n  cols: 2\n  data: [612.5"),
+     "says 3 × 2 but holds 9"),
+    (lambda t: t.replace("612.5, 0, 320.25,", "-612.5, 0, 320.25,"), "fx, fy > 0"),
+    (lambda t: t.replace("image_width: 640", "image_width: 640.5"), "not a whole number of pixels"),
+    (lambda t: t.replace("cols: 5\n  data: [0.1, -0.25, 0.001, -0.002, 0.05]", "cols: 3\n  data: [0.1, -0.25, 0.001]"),
+     "holds 3 coefficients"),
+    (lambda t: t.replace("data: [612.5, 0, 320.25,", "data: [612.5, 0, nan,"), "not a finite number"),
+])
+def test_a_camera_file_that_cannot_be_used_is_refused_naming_what(change, message):
+    with pytest.raises(InputError, match=message) as caught:
+        parse_camera(change(ROS), source="wrist.yaml")
+    assert "wrist.yaml" in str(caught.value)
