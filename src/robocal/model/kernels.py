@@ -268,49 +268,40 @@ def points(conv, g, base, tool, q):  # pragma: no cover
     return out
 
 
+@njit(cache=True, inline="always")
+def _right_jacobian_inv_pose(phi, w, out, j):
+    """Pose j of :func:`apply_right_jacobian_inv`: w[:, j] (k, 3) into out[:, j]."""
+    a0, a1, a2 = phi[j, 0], phi[j, 1], phi[j, 2]
+    th = math.sqrt(a0 * a0 + a1 * a1 + a2 * a2)
+    if th < 1e-4:
+        c = 1.0 / 12.0 + th * th / 720.0
+    else:
+        c = 1.0 / (th * th) - (1.0 + math.cos(th)) / (2.0 * th * math.sin(th))
+    for i in range(w.shape[0]):
+        b0, b1, b2 = w[i, j, 0], w[i, j, 1], w[i, j, 2]
+        p0 = a1 * b2 - a2 * b1
+        p1 = a2 * b0 - a0 * b2
+        p2 = a0 * b1 - a1 * b0
+        out[i, j, 0] = b0 + 0.5 * p0 + c * (a1 * p2 - a2 * p1)
+        out[i, j, 1] = b1 + 0.5 * p1 + c * (a2 * p0 - a0 * p2)
+        out[i, j, 2] = b2 + 0.5 * p2 + c * (a0 * p1 - a1 * p0)
+
+
 @njit(cache=True)
 def apply_right_jacobian_inv(phi, w):  # pragma: no cover
     """:func:`robocal.math.so3.apply_right_jacobian_inv` for w (k, m, 3), fused."""
-    k, m = w.shape[0], w.shape[1]
     out = np.empty_like(w)
-    for j in range(m):
-        a0, a1, a2 = phi[j, 0], phi[j, 1], phi[j, 2]
-        th = math.sqrt(a0 * a0 + a1 * a1 + a2 * a2)
-        if th < 1e-4:
-            c = 1.0 / 12.0 + th * th / 720.0
-        else:
-            c = 1.0 / (th * th) - (1.0 + math.cos(th)) / (2.0 * th * math.sin(th))
-        for i in range(k):
-            b0, b1, b2 = w[i, j, 0], w[i, j, 1], w[i, j, 2]
-            p0 = a1 * b2 - a2 * b1
-            p1 = a2 * b0 - a0 * b2
-            p2 = a0 * b1 - a1 * b0
-            out[i, j, 0] = b0 + 0.5 * p0 + c * (a1 * p2 - a2 * p1)
-            out[i, j, 1] = b1 + 0.5 * p1 + c * (a2 * p0 - a0 * p2)
-            out[i, j, 2] = b2 + 0.5 * p2 + c * (a0 * p1 - a1 * p0)
+    for j in range(w.shape[1]):
+        _right_jacobian_inv_pose(phi, w, out, j)
     return out
 
 
 @njit(cache=True, parallel=True)
 def apply_right_jacobian_inv_parallel(phi, w):  # pragma: no cover
     """:func:`apply_right_jacobian_inv`, poses in parallel."""
-    k, m = w.shape[0], w.shape[1]
     out = np.empty_like(w)
-    for j in prange(m):
-        a0, a1, a2 = phi[j, 0], phi[j, 1], phi[j, 2]
-        th = math.sqrt(a0 * a0 + a1 * a1 + a2 * a2)
-        if th < 1e-4:
-            c = 1.0 / 12.0 + th * th / 720.0
-        else:
-            c = 1.0 / (th * th) - (1.0 + math.cos(th)) / (2.0 * th * math.sin(th))
-        for i in range(k):
-            b0, b1, b2 = w[i, j, 0], w[i, j, 1], w[i, j, 2]
-            p0 = a1 * b2 - a2 * b1
-            p1 = a2 * b0 - a0 * b2
-            p2 = a0 * b1 - a1 * b0
-            out[i, j, 0] = b0 + 0.5 * p0 + c * (a1 * p2 - a2 * p1)
-            out[i, j, 1] = b1 + 0.5 * p1 + c * (a2 * p0 - a0 * p2)
-            out[i, j, 2] = b2 + 0.5 * p2 + c * (a0 * p1 - a1 * p0)
+    for j in prange(w.shape[1]):
+        _right_jacobian_inv_pose(phi, w, out, j)
     return out
 
 

@@ -334,7 +334,9 @@ def _floor(result: CalibrationResult) -> float | None:
     sigma = None if result.measurements is None else result.measurements.sigma_position
     if sigma is None:
         return None
-    return float(np.sqrt(np.mean(np.sum(np.asarray(sigma, float) ** 2, axis=1))))
+    from ..calibration.learned import instrument_noise
+
+    return float(np.sqrt(instrument_noise(sigma)))
 
 
 def next_steps(result: CalibrationResult) -> list[str]:
