@@ -92,3 +92,42 @@ def test_a_camera_file_that_cannot_be_used_is_refused_naming_what(change, messag
     with pytest.raises(InputError, match=message) as caught:
         parse_camera(change(ROS), source="wrist.yaml")
     assert "wrist.yaml" in str(caught.value)
+
+
+def test_the_lens_models_derivative_is_its_finite_difference(rng):
+    cam = _random_camera(rng)
+    p = np.column_stack([rng.uniform(-400, 400, 50), rng.uniform(-300, 300, 50), rng.uniform(500, 2500, 50)])
+    uv, J = cam.project_jacobian(p)
+    np.testing.assert_allclose(uv, cam.project(p), atol=1e-12)
+    h = 1e-4
+    for k in range(3):
+        e = np.zeros(3)
+        e[k] = h
+        fd = (cam.project(p + e) - cam.project(p - e)) / (2 * h)
+        np.testing.assert_allclose(J[:, :, k], fd, rtol=1e-6, atol=1e-8)
+
+
+def test_undistorting_inverts_the_lens_model_as_opencv_does(rng):
+    cam = _random_camera(rng)
+    p = np.column_stack([rng.uniform(-400, 400, 50), rng.uniform(-300, 300, 50), rng.uniform(800, 2500, 50)])
+    uv = cam.project(p)
+    theirs = cv2.undistortPoints(uv.reshape(-1, 1, 2), cam.matrix, cam.distortion).reshape(-1, 2)
+    np.testing.assert_allclose(cam.normalized(uv), p[:, :2] / p[:, 2:], atol=1e-7)
+    np.testing.assert_allclose(cam.normalized(uv), theirs, atol=1e-6)
+
+
+def test_a_cameras_pose_from_points_and_pixels_is_opencvs_solvepnp(rng):
+    from scipy.spatial.transform import Rotation
+
+    cam = _random_camera(rng)
+    R = Rotation.from_rotvec(rng.normal(0, 1, 3)).as_matrix()
+    eye = rng.uniform(-500, 500, 3)
+    pc = np.column_stack([rng.uniform(-400, 400, 40), rng.uniform(-300, 300, 40), rng.uniform(1200, 2000, 40)])
+    world = pc @ R.T + eye  # the camera frame (R, eye) in the world
+    uv = cam.project(pc) + rng.normal(0, 0.3, (40, 2))
+    ours = cam.pose_of(world, uv)
+    ok, rvec, tvec = cv2.solvePnP(world, uv, cam.matrix, cam.distortion, flags=cv2.SOLVEPNP_ITERATIVE)
+    Rc = cv2.Rodrigues(rvec)[0]  # world → camera
+    np.testing.assert_allclose(ours[:3, :3], Rc.T, atol=1e-5)
+    np.testing.assert_allclose(ours[:3, 3], (-Rc.T @ tvec).ravel(), atol=1e-2)
+    assert np.linalg.norm(ours[:3, 3] - eye) < 5.0

@@ -142,6 +142,11 @@ class CalibrationConfig:
     ``all``, or a parameter name; mm or deg, ``free`` for none).  row_order: the rows are in the
     order they were measured, so that terms of time (drift) and of the direction of approach
     (backlash) may take it where the data have no time or dir1..dirN columns.
+    cameras: the cameras that saw the data's camera rows (``NAME=FILE`` or ``NAME=FILE,link=K``
+    items, or :class:`CameraSpec`): each one's intrinsics file and where it is, fixed (link 0) or on
+    the robot's link K; markers: a CSV of the markers' known offsets on the flange (``marker, x,
+    y, z``, mm), else they are identified; pixel_noise: the pixel σ (px) of the camera rows, else
+    estimated.
     """
 
     method: str = "lm"
@@ -176,6 +181,9 @@ class CalibrationConfig:
     distance_sigma: float = 0.05
     prior: Prior | None = None
     row_order: bool = False
+    cameras: tuple[CameraSpec, ...] = ()
+    markers: str | None = None
+    pixel_noise: float | None = None
 
     def __post_init__(self) -> None:
         set_ = object.__setattr__
@@ -211,6 +219,9 @@ class CalibrationConfig:
             set_(self, "prior", None if self.prior is None else Prior.parse(self.prior))
         except ValueError as exc:
             raise InputError(str(exc), option="prior") from None
+        set_(self, "cameras", camera_specs(self.cameras))
+        if self.pixel_noise is not None:
+            set_(self, "pixel_noise", opt.number(self.pixel_noise, "pixel_noise", minimum=0.0, strict=True))
         if not isinstance(self.row_order, bool):
             raise InputError(f"expected true or false, got {self.row_order!r}", option="row_order")
         model = ModelSettings(self.model, self.harmonics, self.payload)
@@ -287,6 +298,41 @@ class CalibrationConfig:
     def is_swarm(self) -> bool:
         """A swarm alone gives the estimate."""
         return self.spec.swarm_only
+
+
+@dataclass(frozen=True)
+class CameraSpec:
+    """A camera named in the data: its intrinsics file and its link (0: fixed in the cell)."""
+
+    name: str
+    path: str
+    link: int = 0
+
+
+def camera_specs(value) -> tuple[CameraSpec, ...]:
+    """``NAME=FILE`` or ``NAME=FILE,link=K`` items (or :class:`CameraSpec`), each camera once."""
+    items = [value] if isinstance(value, (str, CameraSpec)) else list(value or ())
+    out: list[CameraSpec] = []
+    for item in items:
+        if isinstance(item, str):
+            name, _, rest = item.partition("=")
+            path, *extra = [x.strip() for x in rest.split(",")]
+            link = 0
+            for e in extra:
+                key, _, val = e.partition("=")
+                if key.strip() != "link" or not val.strip():
+                    raise InputError(f"expected NAME=FILE or NAME=FILE,link=K, got {item!r} ({e!r} is not link=K)",
+                                     option="camera")
+                link = opt.integer(val.strip(), "camera", minimum=0)
+            if not name.strip() or not path:
+                raise InputError(f"expected NAME=FILE or NAME=FILE,link=K, got {item!r}", option="camera")
+            item = CameraSpec(name.strip(), path, link)
+        if not isinstance(item, CameraSpec):
+            raise InputError(f"expected NAME=FILE[,link=K], got {item!r}", option="camera")
+        if any(o.name == item.name for o in out):
+            raise InputError(f"camera {item.name!r} is given twice", option="camera")
+        out.append(item)
+    return tuple(out)
 
 
 def point_distances(value) -> tuple[tuple[str, str, float], ...]:

@@ -30,8 +30,12 @@ POLISH_EVALUATIONS = 100
 def pose_groups(meas: Measurements) -> np.ndarray:
     """Group index per row: the rows of one pose_id (its reflectors) form one group; rows that
     touched unknown points or planes, their setup (a held-out setup's points are new unknowns:
-    the honest test), or without setups their point or plane."""
+    the honest test), or without setups their point or plane; rows cameras saw at one pose (the
+    same joints: every marker each camera saw there) without pose_ids, that pose."""
     labels = np.array(meas.pose_ids if meas.pose_ids is not None else [str(r) for r in meas.rows], dtype=object)
+    if meas.views is not None and meas.pose_ids is None:
+        same = np.unique(np.round(meas.q, 9), axis=0, return_inverse=True)[1].ravel()
+        labels = np.where(meas.views.rows, np.array([f"\x1eq{k}" for k in same], dtype=object), labels)
     c = meas.constraints
     if c is not None:
         g = np.maximum(c.group, 0)
@@ -55,6 +59,7 @@ class CrossValidation:
     folds: list[np.ndarray]
     estimates: list[np.ndarray]
     orientation: np.ndarray | None = None
+    unit: str = "mm"  # px where every row is a camera's
 
     @property
     def rms(self) -> float:
@@ -62,7 +67,7 @@ class CrossValidation:
 
     def metrics(self, errors: np.ndarray | None = None) -> Metrics:
         """The held-out figures (``errors``: the position errors after a residual correction)."""
-        return Metrics.from_errors(self.errors if errors is None else errors, self.orientation)
+        return Metrics.from_errors(self.errors if errors is None else errors, self.orientation, self.unit)
 
 
 def _pose_rows(problem, index: np.ndarray) -> np.ndarray:
@@ -129,7 +134,7 @@ def cross_validate(fit: Fit, config: CalibrationConfig, start: np.ndarray | None
         if orientation is not None and dr is not None:
             orientation[test] = dr
         estimates.append(x)
-    return CrossValidation(errors, index_sets, estimates, orientation)
+    return CrossValidation(errors, index_sets, estimates, orientation, meas.unit)
 
 
 def predict(fit: Fit, config: CalibrationConfig) -> tuple[CrossValidation, Metrics]:

@@ -15,7 +15,7 @@ from ..model.kinematics import joint_parameter_names
 from ..model.measurements import Measurements
 from ..model.prior import unknown_names
 from ..model.robot import Robot
-from . import checks
+from . import cameras, checks
 from .config import CalibrationConfig
 from .instrument import Instrument, with_instrument
 from .registration import choose_frames
@@ -63,6 +63,10 @@ def load_inputs(robot, data, validate, config: CalibrationConfig, columns=None) 
         meas = meas.with_distances(config.point_distance, config.distance_sigma)
         if val is not None and val.constraints is not None:
             val = val.with_distances(config.point_distance, config.distance_sigma)
+    nominal, meas, said = cameras.attach(nominal, meas, config)
+    notes += said
+    if val is not None and val.camera is not None:  # the same cameras, seen again
+        val = replace(val, intrinsics=meas.intrinsics)
     meas = _instrument_sigmas(meas, config, notes)
     meas = _excluded(meas, config.exclude, notes)
     if config.payload is not None:  # a stated payload where the files have no column
@@ -70,7 +74,10 @@ def load_inputs(robot, data, validate, config: CalibrationConfig, columns=None) 
         if val is not None and val.payload is None:
             val = replace(val, payload=np.full(val.n_poses, config.payload))
     frames = config.frames
-    if meas.constraints is not None:
+    if meas.views is not None:
+        frames, said = cameras.frames_of(frames, nominal, meas)
+        notes += said
+    elif meas.constraints is not None:
         frames, said = _contact_frames(frames, meas)
         notes += said
     elif frames in ("auto", "none"):
@@ -81,6 +88,7 @@ def load_inputs(robot, data, validate, config: CalibrationConfig, columns=None) 
             notes.append(f"frames none, but {choice.sentence()}: calibrate with frames auto or {choice.mode}")
         frames = choice.mode if frames == "auto" else "none"
     tracker = meas if meas.constraints is None else meas.subset(~meas.constraints.rows)
+    tracker = tracker if meas.views is None else tracker.subset(np.zeros(tracker.n_poses, bool))
     if tracker.n_poses:
         checks.check_targets(nominal, tracker, frames)
         checks.check_validation_targets(nominal, tracker, val)

@@ -10,6 +10,7 @@ import numpy as np
 
 from ..model.parameters import is_term
 from ..model.prior import prior_shares
+from .cameras import scale_note
 from .config import CalibrationConfig
 from .diagnostics import GoodnessOfFit, Physicality, goodness_of_fit, joint_patterns, misfit_message, physicality
 from .identifiability import analyse
@@ -112,6 +113,9 @@ def judge(est: Estimate, config: CalibrationConfig, noise: NoiseEstimate) -> Jud
             corr = cov / np.outer(unc, unc)
     at_estimate = recheck(problem, x)
     notes += at_estimate.notes(problem.has_prior)
+    said = scale_note(problem, x, cov)
+    if said is not None:
+        notes.append(said)
     verdict = physicality(problem.names, x, unc, corr, turns(problem, x))
     if not verdict.physical:
         notes.append(verdict.sentence())

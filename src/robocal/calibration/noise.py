@@ -122,9 +122,11 @@ def leverage_split(problem: Problem, x: np.ndarray) -> tuple[float, float]:
 
 def position_values(problem: Problem) -> float:
     """The position block's values less what the eliminated points and planes use: three per
-    measured point or point row, one per plane row (its offset along the normal)."""
+    measured point or point row, one per plane row (its offset along the normal), two per camera
+    row (its pixel)."""
     planes = 0 if problem.constraints is None else int(problem.constraints.rows_of("plane").sum())
-    return 3 * problem.meas.n_poses - 2 * planes - problem.n_nuisance
+    pixels = 0 if problem.views is None else int(problem.views.rows.sum())
+    return 3 * problem.meas.n_poses - 2 * planes - pixels - problem.n_nuisance
 
 
 def block_sigmas(problem: Problem, x: np.ndarray, model: NoiseModel) -> tuple[float, float]:

@@ -18,6 +18,7 @@ from ..model.prior import HELD, Prior
 from ..model.robot import Robot
 from ..model.terms import TERMS, TermSpec
 from ..optimize.result import Progress
+from . import cameras
 from .config import CalibrationConfig, resolve_params
 from .diagnostics import GoodnessOfFit, Physicality
 from .identifiability import Identifiability
@@ -29,7 +30,13 @@ from .noise import NoiseEstimate
 from .problem import Setup
 from .registration import fit_frames
 from .screening import Screening, screen_outliers
-from .subset import Candidates, analyse_identifiability, choose_candidates, refine_at_estimate, searched_names
+from .subset import (
+    Candidates,
+    analyse_identifiability,
+    choose_candidates,
+    refine_at_estimate,
+    searched_names,
+)
 from .timing import stage
 from .weighting import reweigh, weigh_instrument, weigh_kinds
 
@@ -60,7 +67,10 @@ def register(inputs: Inputs, config: CalibrationConfig, spec: TermSpec = TermSpe
                      settled.instrument).with_prior(prior)
     sigma_p, sigma_r = config.noise_model.initial()
     with stage("optimize"):
-        initial = fit_frames(complete_model(inputs.nominal, config), inputs.meas, inputs.frames, sigma_p, sigma_r)
+        if inputs.meas.views is not None:
+            initial = cameras.register(complete_model(inputs.nominal, config), inputs.meas)
+        else:
+            initial = fit_frames(complete_model(inputs.nominal, config), inputs.meas, inputs.frames, sigma_p, sigma_r)
     space = ParameterSpace.of(initial, targets, spec)
     return Setup(space, inputs.meas, sigma_p, sigma_r, config.use_orientation, config.backend).with_prior(prior)
 

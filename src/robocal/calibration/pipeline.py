@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from ..backend import blas_threads
-from ..exceptions import Note, RobocalWarning, split_notes
+from ..exceptions import InputError, Note, RobocalWarning, split_notes
 from ..model.covariance import ParameterCovariance
 from ..model.measurements import Measurements
 from ..model.metrics import Metrics
@@ -175,6 +175,11 @@ def _validated(table, chosen: str, metrics) -> list:
 def _calibrate(robot, data, validate, cfg: CalibrationConfig, columns, progress, stages) -> CalibrationResult:
     with stage("load"):
         inputs = load_inputs(robot, data, validate, cfg, columns)
+    if inputs.meas.unit == "px":  # the position block holds pixels: its σ is the pixels'
+        if cfg.noise is not None:
+            raise InputError("is a length (mm), and the camera rows are pixels: state their σ with --pixel-noise",
+                             option="noise")
+        cfg = replace(cfg, noise=cfg.pixel_noise)
     with stage("compile"):
         warm_up(cfg.backend, inputs.meas.full_pose and cfg.use_orientation)
     # the largest dense matrices: the residual process's (at most MAX_POINTS a side) and k × k

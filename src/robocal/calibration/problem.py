@@ -141,6 +141,8 @@ class Problem:
         self._Rm = self.meas.rotation if self.uses_orientation else None
         # rows that touched an unknown point or plane, and stated distances (robocal.model.constraints)
         self.constraints = self.meas.constraints
+        # rows a camera saw: pixels in the position slots (robocal.model.views)
+        self.views = self.meas.views
         self._frames_active = bool(np.any(self.active >= self.space.n_joint_params))
         self._backend = resolve(setup.backend)  # read once: ROBOCAL_NO_NUMBA as it is when the problem is set up
         # 1/σ of each estimated parameter's prior (0 where free): one pseudo-observation x_i/σ_i each
@@ -180,7 +182,8 @@ class Problem:
         offset along the plane's normal is all it says), three per orientation, one per stated
         distance; the eliminated points and planes are counted apart (:attr:`n_nuisance`)."""
         planes = 0 if self.constraints is None else int(self.constraints.rows_of("plane").sum())
-        return self.n_residuals - 2 * planes
+        pixels = 0 if self.views is None else int(self.views.rows.sum())  # u, v: two values
+        return self.n_residuals - 2 * planes - pixels
 
     @property
     def n_distances(self) -> int:
@@ -203,16 +206,22 @@ class Problem:
         """Position errors (…, m, 3) mm and orientation errors (…, m, 3) rad (or None)."""
         if self._Rm is None:
             p = self.space.points(self.full(X), self.meas.q, self.target_idx, self.joints)
-            return self._position_errors(p), None
+            return self._position_errors(p, X), None
         R, p = self.space.pose(self.full(X), self.meas.q, self.target_idx, self.joints)
-        return self._position_errors(p), orientation_error(self._Rm, R)
+        return self._position_errors(p, X), orientation_error(self._Rm, R)
 
-    def _position_errors(self, p: np.ndarray) -> np.ndarray:
+    def _position_errors(self, p: np.ndarray, X: np.ndarray) -> np.ndarray:
         """Measured less predicted points (…, m, 3); a contact row's offset from its point's or
-        plane's best fit."""
+        plane's best fit; a camera row's measured less predicted pixel (px)."""
         dp = self.meas.position - p
         c = self.constraints
-        return dp if c is None else np.where(c.rows[:, None], c.errors(p), dp)
+        if c is not None:
+            dp = np.where(c.rows[:, None], c.errors(p), dp)
+        v = self.views
+        if v is not None:
+            frames = self.space.camera_frames(self.full(X), self.meas.q, v.index, self.joints)
+            dp = np.where(v.rows[:, None], v.errors(p, frames), dp)
+        return dp
 
     def scaled_errors(self, X: np.ndarray):
         """:meth:`errors` divided by each point's weight factor (the instrument's, relative):
@@ -234,7 +243,7 @@ class Problem:
         X = np.asarray(X, dtype=float)
         compiled = (self._backend if backend is None else resolve(backend)) == "numba"
         if X.ndim == 2 and compiled and self.joints is None and self._kernels_apply and self._fp is None \
-                and self._fr is None and self.constraints is None:
+                and self._fr is None and self.constraints is None and self.views is None:
             # the kernels move no joints, weigh every point alike and know measured points only
             return self._compiled_objective(X, kind)
         dp, dr = self.scaled_errors(X)
@@ -322,6 +331,10 @@ class Problem:
         c = self.constraints
         Jp = -Jc[:, :, :3] if c is None else np.where(c.rows[None, :, None], c.error_jacobian(Jc[:, :, :3], p),
                                                         -Jc[:, :, :3])
+        v = self.views
+        if v is not None:
+            frames, Jf = self.space.camera_frame_columns(self.full(x), self.meas.q, v.index, self.joints)
+            Jp = np.where(v.rows[None, :, None], v.error_jacobian(Jc[:, :, :3], Jf[self.active], p, frames), Jp)
         out[:, : 3 * m] = self._wp * Jp.reshape(k, 3 * m)
         if self.n_distances:
             out[:, self.n_residuals - self.n_distances:] = c.distance_jacobian(Jc[:, :, :3], p) / c.distance_sigma

@@ -253,12 +253,20 @@ class CalibrationResult:
         fit = self.metrics["after"].position
         what = "position RMS" if not self.contact else "point spread RMS" if any(  # rows that touched points
             "point_spread_rms" in f for f in self.contact.values()) else "distance from the planes RMS"  # or planes
-        text = f"{what} {m.position['rms']:.4f} mm, max {m.position['max']:.4f} mm {label}"
+        unit = self.unit
+        if unit == "px":
+            what = "reprojection RMS"
+        text = f"{what} {m.position['rms']:.4f} {unit}, max {m.position['max']:.4f} {unit} {label}"
         if key != "after":
-            text += f"; the fit itself {fit['rms']:.4f} mm (in-sample)"
+            text += f"; the fit itself {fit['rms']:.4f} {unit} (in-sample)"
         if not self.physical.physical:  # the figure is not the model: a controller loads the model
             text += f"; the model is not physical ({self.physical.listed()}): check it before use"
         return text
+
+    @property
+    def unit(self) -> str:
+        """The unit of the position figures: mm, or px where every row is a camera's (reprojection)."""
+        return "mm" if self.measurements is None else self.measurements.unit
 
     def per_pose(self) -> list[dict]:
         """Every calibration pose (outliers flagged) and validation pose, with the calibrated

@@ -30,9 +30,12 @@ def poses_per_parameter(problem) -> float:
 
 
 def row_kinds(meas) -> tuple[np.ndarray, dict[int, int]]:
-    """Each row's kind for the outlier test (0 tracker, 1 point, 2 plane) and the values a row of
-    each kind carries: a plane row says only its offset along the normal."""
+    """Each row's kind for the outlier test (0 tracker, 1 point, 2 plane, 3 camera) and the values a
+    row of each kind carries: a plane row says only its offset along the normal, a camera row its
+    pixel."""
     c = meas.constraints
+    if meas.views is not None:
+        return np.where(meas.views.rows, 3, 0), {0: 3, 3: 2}
     if c is None:
         return np.zeros(meas.n_poses, dtype=int), {0: 3}
     kinds = np.where(c.rows_of("plane"), 2, np.where(c.rows, 1, 0))

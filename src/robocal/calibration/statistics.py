@@ -148,9 +148,9 @@ def robust_outliers(position_errors: np.ndarray, kinds: np.ndarray | None = None
     return np.sort(order[:gaps[-1] + 1]), sigma
 
 
-#: medians of χ with 1 and 3 degrees of freedom, in units of the per-axis σ: the half-normal's
-#: and the Maxwell law's
-MEDIANS = {1: 0.6744898, 3: MAXWELL_MEDIAN}
+#: medians of χ with 1, 2 and 3 degrees of freedom, in units of the per-axis σ: the half-normal's,
+#: the Rayleigh law's (√(2 ln 2)) and the Maxwell law's
+MEDIANS = {1: 0.6744898, 2: 1.1774100, 3: MAXWELL_MEDIAN}
 
 
 def _as_maxwell(x: np.ndarray, dof: int) -> np.ndarray:

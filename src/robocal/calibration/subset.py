@@ -16,9 +16,19 @@ from ..exceptions import InputError
 from ..model.candidates import frame_candidates, joint_candidates
 from ..model.kinematics import joint_kinds
 from ..model.parameters import is_angle, is_term
-from . import checks
+from . import cameras, checks
 from .config import CalibrationConfig, resolve_params
-from .identifiability import NO_EFFECT, SECOND_ORDER, STILL, UNOBSERVABLE, UNVARIED, Identifiability, Reason, analyse
+from .identifiability import (
+    DEPENDENT,
+    NO_EFFECT,
+    SECOND_ORDER,
+    STILL,
+    UNOBSERVABLE,
+    UNVARIED,
+    Identifiability,
+    Reason,
+    analyse,
+)
 from .methods import Estimate, fit_lm
 from .problem import Setup
 from .statistics import f_test
@@ -53,7 +63,7 @@ def choose_candidates(setup: Setup, config: CalibrationConfig, frames_mode: str)
     if unknown:
         raise InputError(f"unknown parameter '{unknown[0]}' for this {robot.convention} robot "
                          f"(known: {', '.join(setup.space.names[:8])}, …)", option="params")
-    frames = frame_candidates(frames_mode, setup.meas.target_names, setup.full_pose)
+    frames = frame_candidates(frames_mode, setup.meas.target_names, setup.full_pose) + cameras.frame_names(robot)
     terms = setup.space.terms.names(robot.n_joints)
     return Candidates(joints, joints + [n for n in frames + terms if n not in joints], requested is not None)
 
@@ -161,6 +171,25 @@ def _without_gauge(setup: Setup, ident: Identifiability, gauge: list[str], names
     return ident.with_changes(kept=kept, dropped=dropped, reasons=reasons, warnings=ident.warnings + said)
 
 
+def _prior_held(setup: Setup, ident: Identifiability) -> Identifiability:
+    """Camera rows: a parameter dependent on others of which some have a prior is kept, and the
+    priors share out what the pixels cannot tell apart (the cell's scale above all: a pinhole sees
+    directions, so every length trades against the others).  Dropping it would pin it at its
+    nominal value with no uncertainty, and fix the scale by one length's nominal value.  A
+    parameter dependent on free frames alone is dropped as before: the frame absorbs it."""
+    if setup.prior is None:
+        return ident
+    index = {n: i for i, n in enumerate(setup.space.names)}
+    finite = {n for n, i in index.items() if np.isfinite(setup.prior[i])}
+    back = [n for n, r in ident.reasons.items() if r.kind == DEPENDENT and n in finite
+            and any(k in finite for k in r.related)]
+    if not back:
+        return ident
+    reasons = {n: r for n, r in ident.reasons.items() if n not in back}
+    return ident.with_changes(kept=[n for n in setup.space.names if n in set(ident.kept) | set(back)],
+                              dropped=[n for n in ident.dropped if n not in back], reasons=reasons)
+
+
 def analyse_identifiability(setup: Setup, candidates: Candidates) -> tuple[Identifiability, list[str]]:
     """Step 4: the identifiable subset at the initial robot; parameters that need the motion of a
     joint that never moved are dropped (see :func:`_still_reasons`)."""
@@ -170,6 +199,8 @@ def analyse_identifiability(setup: Setup, candidates: Candidates) -> tuple[Ident
     probe = setup.problem(gauge + names)
     J = probe.residual_jacobian(np.zeros(probe.n_params))
     ident = analyse(J, gauge + names, probe.angle_mask, setup.meas.n_poses, setup.space.robot.reach(), prefer=gauge)
+    if setup.meas.views is not None:
+        ident = _prior_held(setup, ident)
     ident = _without_gauge(setup, _still_reasons(setup, ident, gauge + names), gauge, candidates.names)
     if unvaried:
         reasons = {**ident.reasons, **unvaried}

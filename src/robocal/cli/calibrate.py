@@ -33,7 +33,7 @@ COMPILE_SAID_S = 1.5
 CONFIG_FIELDS = ("method", "frames", "params", "seed", "objective", "noise", "angle_noise", "k", "loss", "f_scale",
                  "particles", "iterations", "box", "halton", "backend", "model", "harmonics", "payload", "joint_unit",
                  "length_unit", "instrument", "delimiter", "decimal", "euler", "exclude", "point_distance",
-                 "distance_sigma", "prior", "row_order")
+                 "distance_sigma", "prior", "row_order", "cameras", "markers", "pixel_noise")
 #: the command's own options: its inputs and outputs, how to read them, and what it prints
 CLI_ONLY = ("robot", "data", "validate", "out", "export", "report", "column", "base_link", "tip_link", "quiet",
             "position_only", "poses_out", "exclude_file", "as_json", "require")
@@ -151,6 +151,13 @@ def calibrate_cmd(
     row_order: bool = typer.Option(False, "--row-order", help="the rows are in the order they were measured: drift "
                                    "may take time, and backlash the direction of approach, from it (without time or "
                                    "dir1..dirN columns)"),
+    cameras: list[str] | None = typer.Option(None, "--camera", help="NAME=FILE or NAME=FILE,link=K: the intrinsics "
+                                             "(OpenCV YAML/JSON or ROS camera_info) of a camera the data's camera "
+                                             "rows name, fixed in the cell or on link K; repeatable"),
+    markers: Path | None = typer.Option(None, "--markers", help="CSV marker,x,y,z (mm, flange frame): the markers' "
+                                        "known offsets (else they are identified)"),
+    pixel_noise: float | None = typer.Option(None, "--pixel-noise", help="σ of the camera rows' pixels, px (default: "
+                                             "estimated)"),
     column: list[str] | None = typer.Option(None, "--column", help="map file columns: FILE=ROBOCAL[,FILE=ROBOCAL…]"),
     joint_unit: str | None = typer.Option(None, "--joint-unit", help="deg | rad (default: deg, checked)"),
     length_unit: str | None = typer.Option(None, "--length-unit", help="mm | m (default: mm, checked)"),
@@ -198,6 +205,8 @@ def calibrate_cmd(
         given["exclude"] = ",".join([*(exclude.split(",") if exclude else []), *listed])
     given["point_distance"] = tuple(point_distance or ())
     given["prior"] = tuple(prior) if prior else None
+    given["cameras"] = tuple(cameras or ())
+    given["markers"] = None if markers is None else str(markers)
     cfg = CalibrationConfig(**{**given, "use_orientation": not position_only,
                                "angle_noise": None if angle_noise is None else math.radians(angle_noise)})
     nominal = load_robot(robot, base_link=base_link, tip_link=tip_link)

@@ -65,8 +65,10 @@ def table(title: str, columns, rows, justify: str = "right", text_columns: tuple
     t = Table(title=title)
     for i, c in enumerate(columns):
         t.add_column(c, justify="left" if i in text_columns else justify)
-    for r in rows:
-        t.add_row(*r)
+    from rich.markup import escape
+
+    for r in rows:  # cells are text: tool[NAME] and camera[NAME] are names, not markup
+        t.add_row(*(escape(c) if isinstance(c, str) else c for c in r))
     return t
 
 

@@ -32,6 +32,8 @@ ORIENTATION = ("rx", "ry", "rz")
 OPTIONAL = ("pose_id", "target", "payload", "cycle", "time", "temperature")
 #: rows without a measured position: the tool point touched an unknown point or plane, one of a setup's
 CONSTRAINT = ("point", "plane", "setup")
+#: rows a camera saw: the pixel (px) where the camera named saw the marker named (a target on the tool)
+CAMERA = ("u", "v", "camera", "marker")
 #: the instrument's standard deviation of each measured value: mm, and deg about the measuring frame's axes
 POSITION_SIGMA = ("sx", "sy", "sz")
 ORIENTATION_SIGMA = ("srx", "sry", "srz")
@@ -72,6 +74,8 @@ class PoseTable:
     point: list[str] | None = None
     plane: list[str] | None = None
     setup: list[str] | None = None
+    camera: list[str] | None = None
+    pixels: np.ndarray | None = None
 
 
 def _per_joint_columns(table: CsvTable, n_joints: int, pattern: re.Pattern, what: str) -> list[str] | None:
@@ -219,11 +223,11 @@ def read_pose_table(text: str, *, source: str, options: ReadOptions = ReadOption
     options state.
     """
     known = set(POSITION) | set(ORIENTATION) | set(OPTIONAL) | set(POSITION_SIGMA) | set(ORIENTATION_SIGMA) | \
-        set(CONSTRAINT)
+        set(CONSTRAINT) | set(CAMERA)
     for old, new in (options.columns or {}).items():  # a name robocal does not read would be dropped unseen
         if new not in known and not any(p.match(new) for p in (_JOINT, _TORQUE, _DIRECTION)):
             raise InputError(f"{old}={new}: '{new}' is not a column robocal reads (expected q1..qn, x, y, z, rx, ry, "
-                             f"rz, sx, sy, sz, srx, sry, srz, {', '.join(OPTIONAL + CONSTRAINT)}, tau1..taun, "
+                             f"rz, sx, sy, sz, srx, sry, srz, {', '.join(OPTIONAL + CONSTRAINT + CAMERA)}, tau1..taun, "
                              "dir1..dirn)",
                              option="column")
     table = read_csv(text, source=source, columns=options.columns, delimiter=options.delimiter,
@@ -241,17 +245,29 @@ def read_pose_table(text: str, *, source: str, options: ReadOptions = ReadOption
         if h not in known and not any(p.match(h) for p in (_JOINT, _TORQUE, _DIRECTION)):
             raise InputError(f"unknown column '{h}' (expected q1..qn, x, y, z, optional rx, ry, rz, pose_id, "
                              "target, cycle, tau1..taun, payload, dir1..dirn, time, temperature, sx, sy, sz, srx, sry, "
-                             "srz, point, plane, setup; map other names with a column mapping)", source=source)
+                             "srz, point, plane, setup, u, v, camera, marker; map other names with a column mapping)",
+                             source=source)
     qcols = _joint_columns(table, options.n_joints, require_joints, options.robot_label)
     labels = _constraint_labels(table) if require_position else None
     touched = None if labels is None else np.array([bool(a or b) for a, b in zip(labels[0], labels[1])])
-    has_pos, has_rot = _pose_columns(table, bool(qcols), require_position and labels is None)
+    seen = _camera_labels(table) if require_position else None
+    if seen is not None:
+        for i, (cam, label) in enumerate(zip(seen, labels[0] if labels else [""] * len(seen))):
+            if cam and (label or (labels and labels[1][i])):
+                raise InputError(f"was seen by camera {cam!r} and touched a point or plane: a row is one or the other",
+                                 source=source, where=f"row {int(table.lines[i])}")
+        cams = np.array([bool(c) for c in seen])
+        touched = cams if touched is None else touched | cams
+    has_pos, has_rot = _pose_columns(table, bool(qcols), require_position and labels is None and seen is None)
     if touched is not None:
         if has_rot:
             import warnings
 
             from ..exceptions import RobocalWarning
 
+            if seen is not None:
+                raise InputError("rows a camera saw have no orientation: give rx, ry, rz rows in another file",
+                                 source=source)
             warnings.warn(f"{source}: rows that touched a point or plane have no orientation: rx, ry, rz are left "
                           "out, and the data are read as positions", RobocalWarning, stacklevel=2)
             has_rot = False
@@ -260,7 +276,8 @@ def read_pose_table(text: str, *, source: str, options: ReadOptions = ReadOption
                              "the contacts' σ with --noise, or give the rows in two files", source=source)
         if not has_pos and not touched.all():
             row = int(table.lines[int(np.argmin(touched))])
-            raise InputError("has neither a point or plane label nor x, y, z", source=source, where=f"row {row}")
+            what = "a camera, " if seen is not None else ""
+            raise InputError(f"has neither {what}a point or plane label nor x, y, z", source=source, where=f"row {row}")
     for names, present, what in ((POSITION_SIGMA, has_pos, "x, y, z"), (ORIENTATION_SIGMA, has_rot, "rx, ry, rz")):
         if not present and any(h in table for h in names):
             raise InputError(f"σ columns {', '.join(names)} without the {what} columns they are the σ of",
@@ -296,7 +313,7 @@ def read_pose_table(text: str, *, source: str, options: ReadOptions = ReadOption
         position=position,
         rpy=numbers(table, ORIENTATION, MAX_JOINT_DEG, "deg") if has_rot else None,
         pose_ids=strings(table, "pose_id", required=True) if "pose_id" in table else None,
-        targets=strings(table, "target") if "target" in table else None,
+        targets=_targets(table),
         rows=table.lines,
         torques=numbers(table, taus, MAX_TORQUE_NM, "N·m") if taus else None,
         payload=payload,
@@ -309,7 +326,55 @@ def read_pose_table(text: str, *, source: str, options: ReadOptions = ReadOption
         point=None if labels is None or "point" not in table else labels[0],
         plane=None if labels is None or "plane" not in table else labels[1],
         setup=None if labels is None or "setup" not in table else labels[2],
+        camera=seen,
+        pixels=None if seen is None else _pixels(table, np.array([bool(c) for c in seen])),
     )
+
+
+def _targets(table: CsvTable) -> list[str] | None:
+    """Each row's target: its marker where a camera saw it, else its target column."""
+    target = strings(table, "target") if "target" in table else None
+    if "marker" not in table:
+        return target
+    marker = strings(table, "marker")
+    return [m or (target[i] if target else "") for i, m in enumerate(marker)]
+
+
+def _camera_labels(table: CsvTable) -> list[str] | None:
+    """The camera that saw each row ("" where none), or None: no camera column.  A camera row
+    names its marker (or target) and gives u, v; the marker is the row's target."""
+    if "camera" not in table:
+        for c in ("u", "v", "marker"):
+            if c in table:
+                raise InputError(f"a {c} column belongs to rows a camera saw: it needs a camera column",
+                                 source=table.source)
+        return None
+    table.require(("u", "v"))
+    seen = strings(table, "camera")
+    marker = strings(table, "marker") if "marker" in table else strings(table, "target") if "target" in table \
+        else None
+    for i, cam in enumerate(seen):
+        if cam and (marker is None or not marker[i]):
+            raise InputError(f"was seen by camera {cam!r} but names no marker (a marker column, or target)",
+                             source=table.source, where=f"row {int(table.lines[i])}")
+    return seen
+
+
+def _pixels(table: CsvTable, seen: np.ndarray) -> np.ndarray:
+    """u, v (px) of the rows a camera saw (NaN elsewhere; those must leave them empty)."""
+    from dataclasses import replace as _replace
+
+    idx = table.index
+    for r in np.flatnonzero(~seen):
+        filled = [c for c in ("u", "v") if table.rows[r][idx[c]].strip()]
+        if filled:
+            raise InputError(f"has a pixel {filled[0]} but no camera", source=table.source,
+                             where=f"row {int(table.lines[r])}")
+    out = np.full((len(table.rows), 2), np.nan)
+    keep = np.flatnonzero(seen)
+    sub = _replace(table, rows=tuple(table.rows[i] for i in keep), lines=table.lines[keep])
+    out[keep] = numbers(sub, ("u", "v"), 1e7, "px")
+    return out
 
 
 def _constraint_labels(table: CsvTable) -> tuple[list[str], list[str], list[str]] | None:
@@ -413,11 +478,14 @@ def parse_measurements(text: str, *, source: str = "<data>", average: bool = Tru
         point=None if t.point is None else tuple(t.point),
         plane=None if t.plane is None else tuple(t.plane),
         setup=None if t.setup is None else tuple(t.setup),
+        pixels=t.pixels,
+        camera=None if t.camera is None else tuple(t.camera),
     )
     if t.cycles is not None and t.pose_ids is None:
         raise InputError("a cycle column numbers the measuring cycles of each pose: it needs a pose_id column",
                          source=source)
-    if average and t.pose_ids is not None and meas.constraints is None:  # a contact row is its own
+    if average and t.pose_ids is not None and meas.constraints is None and meas.views is None:  # a contact
+        # or camera row is its own
         meas = average_repeats(meas, repeat_tolerance, t.cycles)
     return meas
 

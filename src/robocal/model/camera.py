@@ -66,3 +66,98 @@ class Camera:
         if self.height is not None:
             inside &= (uv[..., 1] >= 0.0) & (uv[..., 1] <= self.height)
         return inside
+
+    def normalized(self, uv: np.ndarray, iterations: int = 20) -> np.ndarray:
+        """The undistorted normalised coordinates (x', y') (..., 2) of pixels (..., 2): the lens
+        model inverted by fixed-point iteration, as OpenCV's undistortPoints does."""
+        uv = np.asarray(uv, float)
+        xd = np.stack([(uv[..., 0] - self.cx) / self.fx, (uv[..., 1] - self.cy) / self.fy], axis=-1)
+        k1, k2, p1, p2, k3 = np.asarray(self.distortion, float)
+        x = xd.copy()
+        for _ in range(iterations):
+            r2 = np.sum(x * x, axis=-1)
+            radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
+            dx = 2.0 * p1 * x[..., 0] * x[..., 1] + p2 * (r2 + 2.0 * x[..., 0] ** 2)
+            dy = p1 * (r2 + 2.0 * x[..., 1] ** 2) + 2.0 * p2 * x[..., 0] * x[..., 1]
+            x = np.stack([(xd[..., 0] - dx) / radial, (xd[..., 1] - dy) / radial], axis=-1)
+        return x
+
+    def pose_of(self, points: np.ndarray, uv: np.ndarray) -> np.ndarray:
+        """The pose (4 × 4) of the camera's frame in the points' frame from points (m, 3) and the
+        pixels (m, 2) they were seen at (m ≥ 6, not all on one plane): the direct linear
+        transform on the undistorted rays, then least squares on the pixels.  A start for a
+        calibration, which refines it with everything else."""
+        from scipy.optimize import least_squares
+
+        from ..math.se3 import homogeneous
+        from ..math.so3 import exp_so3, project_to_so3
+
+        P = np.asarray(points, float)
+        x = self.normalized(uv)
+        centre, scale = P.mean(0), max(float(np.sqrt(np.mean(np.sum((P - P.mean(0)) ** 2, 1)))), 1e-9)
+        Pn = (P - centre) / scale
+        Ph = np.column_stack([Pn, np.ones(len(P))])
+        A = np.zeros((2 * len(P), 12))
+        A[0::2, 0:4], A[0::2, 8:12] = Ph, -x[:, :1] * Ph
+        A[1::2, 4:8], A[1::2, 8:12] = Ph, -x[:, 1:] * Ph
+        M = np.linalg.svd(A)[2][-1].reshape(3, 4)
+        M = M / np.cbrt(np.linalg.det(M[:, :3]))  # det 1: R up to the scale the SVD left
+        if np.mean(Ph @ M[2]) < 0:  # the points in front of the camera
+            M = -M
+        R = project_to_so3(M[:, :3])
+        t = M[:, 3] / np.linalg.norm(M[:, :3], axis=1).mean()
+        # points (normalised) in the camera: R Pn + t → unnormalised: R P + (scale t − R centre)
+        t = scale * t - R @ centre
+
+        def residuals(v):
+            pc = P @ (exp_so3(v[:3]) @ R).T + t + v[3:]
+            return np.nan_to_num(self.project(pc) - uv, nan=1e6).ravel()
+
+        fit = least_squares(residuals, np.zeros(6), method="lm")
+        R, t = exp_so3(fit.x[:3]) @ R, t + fit.x[3:]
+        return homogeneous(R.T, -R.T @ t)
+
+    def project_jacobian(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Pixels (..., 2) and their derivative (..., 2, 3) with respect to points (..., 3) in the
+        camera's frame: the chain rule through the pinhole division and the distortion above."""
+        p = np.asarray(points, float)
+        X, Y, Z = p[..., 0], p[..., 1], p[..., 2]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            iz = np.where(Z > 0, 1.0 / Z, np.nan)
+        x, y = X * iz, Y * iz
+        k1, k2, p1, p2, k3 = np.asarray(self.distortion, float)
+        r2 = x * x + y * y
+        radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
+        dradial = k1 + r2 * (2.0 * k2 + 3.0 * k3 * r2)  # ∂radial/∂(r²)
+        xd = x * radial + 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x)
+        yd = y * radial + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y
+        # ∂(xd, yd)/∂(x, y): r² changes by 2x dx + 2y dy
+        a = radial + 2.0 * x * x * dradial + 2.0 * p1 * y + 6.0 * p2 * x
+        b = 2.0 * x * y * dradial + 2.0 * p1 * x + 2.0 * p2 * y
+        c = 2.0 * x * y * dradial + 2.0 * p1 * x + 2.0 * p2 * y
+        d = radial + 2.0 * y * y * dradial + 6.0 * p1 * y + 2.0 * p2 * x
+        # ∂(x, y)/∂(X, Y, Z) = [[1/Z, 0, −x/Z], [0, 1/Z, −y/Z]]
+        J = np.empty(p.shape[:-1] + (2, 3))
+        J[..., 0, 0] = self.fx * a * iz
+        J[..., 0, 1] = self.fx * b * iz
+        J[..., 0, 2] = -self.fx * (a * x + b * y) * iz
+        J[..., 1, 0] = self.fy * c * iz
+        J[..., 1, 1] = self.fy * d * iz
+        J[..., 1, 2] = -self.fy * (c * x + d * y) * iz
+        uv = np.stack([self.fx * xd + self.cx, self.fy * yd + self.cy], axis=-1)
+        return uv, J
+
+
+@dataclass(frozen=True, eq=False)
+class CameraMount:
+    """Where a camera is: ``link`` 0 fixed in the measuring frame, k on the robot's link k (the
+    frame its chain reaches after joint k, the frame forward kinematics with k joints gives);
+    ``pose`` (4 × 4, mm) the camera's frame (z its optical axis) in that frame.  ``known``: the
+    pose is given, not estimated."""
+
+    link: int = 0
+    pose: np.ndarray = field(default_factory=lambda: np.eye(4))
+    known: bool = False
+
+    def moved(self, pose: np.ndarray) -> CameraMount:
+        return CameraMount(self.link, np.asarray(pose, float), self.known)

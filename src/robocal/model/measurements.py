@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from collections.abc import Mapping
+from dataclasses import dataclass, field, replace
 
 import numpy as np
+
+from .camera import Camera
 
 
 @dataclass(frozen=True, eq=False)
@@ -22,6 +25,8 @@ class Measurements:
     each pose was measured, s, or None; temperature: (m,) °C, or None.  order: where the
     directions came from (``dir columns``, ``time order``, ``row order``); without them they
     are worked out from the time column's order, else from the rows' order.
+    pixels (m, 2) px, camera (m,): the pixel where the camera named saw the row's target (a
+    marker; NaN and "" at rows no camera saw), intrinsics: each camera's lens by name.
     sigma_position (m, 3) mm and sigma_orientation (m, 3) rad: the instrument's own standard
     deviation of each measured value (orientation: rotation-vector components about the
     measuring frame's axes), or None; sigma_source says where they came from.
@@ -49,6 +54,27 @@ class Measurements:
     setup: tuple[str, ...] | None = None
     distances: tuple[tuple[str, str, float], ...] = ()
     distance_sigma: float = 0.05
+    pixels: np.ndarray | None = None
+    camera: tuple[str, ...] | None = None
+    intrinsics: Mapping[str, Camera] = field(default_factory=dict)
+
+    @property
+    def views(self):
+        """The rows a camera saw (:class:`robocal.model.views.Views`), or None: no camera row."""
+        if self.camera is None or not any(self.camera):
+            return None
+        cached = self.__dict__.get("_views")
+        if cached is None:
+            from .views import Views
+
+            cached = Views.of(self.camera, self.pixels, self.intrinsics)
+            object.__setattr__(self, "_views", cached)
+        return cached
+
+    @property
+    def unit(self) -> str:
+        """The unit of the position errors: px where every row is a camera's, else mm."""
+        return "px" if self.camera is not None and all(self.camera) else "mm"
 
     @property
     def constraints(self):
@@ -181,6 +207,8 @@ class Measurements:
             point=pick(self.point),
             plane=pick(self.plane),
             setup=pick(self.setup),
+            pixels=None if self.pixels is None else self.pixels[index],
+            camera=pick(self.camera),
         )
 
     def position_only(self) -> Measurements:

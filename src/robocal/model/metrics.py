@@ -14,7 +14,8 @@ from .robot import Robot
 def pose_errors(robot: Robot, meas: Measurements) -> tuple[np.ndarray, np.ndarray | None]:
     """Position errors δp = p_measured − p_model (m, 3) in mm, and for full-pose data the
     orientation errors δ = log(R_measured · R_modelᵀ) (m, 3) in rad about the measuring
-    frame's axes (None for position-only data).  Rows that touched an unknown point or plane
+    frame's axes (None for position-only data).  Rows a camera saw have their measured less predicted
+    pixel (px) in the first two slots (:mod:`robocal.model.views`).  Rows that touched an unknown point or plane
     (:mod:`robocal.model.constraints`) have the offset of their predicted point from that
     point's (plane's) best fit."""
     T = robot.fk(meas.q, meas.targets, meas.inputs)
@@ -22,9 +23,21 @@ def pose_errors(robot: Robot, meas: Measurements) -> tuple[np.ndarray, np.ndarra
     c = meas.constraints
     if c is not None:  # rows that touched an unknown point or plane: the offset from its best fit
         dp = np.where(c.rows[:, None], c.errors(T[:, :3, 3]), dp)
+    v = meas.views
+    if v is not None:  # rows a camera saw: measured less predicted pixel
+        dp = np.where(v.rows[:, None], v.errors(T[:, :3, 3], camera_frames(robot, meas)), dp)
     if meas.rotation is None:
         return dp, None
     return dp, orientation_error(meas.rotation, T[:, :3, :3])
+
+
+def camera_frames(robot: Robot, meas: Measurements) -> np.ndarray:
+    """Each row's camera frame (m, 4, 4) in the measuring frame (the identity at rows no camera saw)."""
+    out = np.broadcast_to(np.eye(4), (meas.n_poses, 4, 4)).copy()
+    rows = meas.views.rows
+    sub = meas.subset(rows)
+    out[rows] = robot.camera_frames(sub.camera, sub.q, sub.inputs)
+    return out
 
 
 def _stats(x: np.ndarray) -> dict[str, float]:
@@ -47,9 +60,12 @@ class Metrics:
     position: dict[str, float]
     axis_max: dict[str, float]
     orientation: dict[str, dict[str, float]] | None = None
+    #: the unit of the position figures: mm, or px where every row is a camera's (the
+    #: reprojection error: ``axis_max`` then holds u, v and a zero)
+    unit: str = "mm"
 
     @classmethod
-    def from_errors(cls, dp: np.ndarray, drot: np.ndarray | None = None) -> Metrics:
+    def from_errors(cls, dp: np.ndarray, drot: np.ndarray | None = None, unit: str = "mm") -> Metrics:
         norm = np.linalg.norm(dp, axis=1)
         position = {"rms": float(np.sqrt(np.mean(norm**2))), **_stats(norm)}
         axis_max = {ax: float(np.abs(dp[:, k]).max()) for k, ax in enumerate("xyz")}
@@ -57,14 +73,17 @@ class Metrics:
         if drot is not None:
             deg = np.degrees(np.abs(drot))
             orientation = {ax: _stats(deg[:, k]) for k, ax in enumerate("xyz")}
-        return cls(len(dp), position, axis_max, orientation)
+        return cls(len(dp), position, axis_max, orientation, unit)
 
     @classmethod
     def of(cls, robot: Robot, meas: Measurements) -> Metrics:
-        return cls.from_errors(*pose_errors(robot, meas))
+        return cls.from_errors(*pose_errors(robot, meas), unit=meas.unit)
 
     def rows(self) -> list[tuple[str, float]]:
         """(label, value) pairs in the order tables show them (mm, deg)."""
+        if self.unit == "px":
+            out = [(f"reprojection {k} (px)", self.position[k]) for k in ("rms", "mean", "std", "max")]
+            return out + [(f"max |δ{ax}| (px)", self.axis_max[k]) for k, ax in zip("xy", "uv")]
         out = [(f"position {k} (mm)", self.position[k]) for k in ("rms", "mean", "std", "max")]
         out += [(f"max |δp{ax}| (mm)", self.axis_max[ax]) for ax in "xyz"]
         if self.orientation is not None:
@@ -74,6 +93,8 @@ class Metrics:
 
     def to_dict(self) -> dict:
         out = {"n": self.n, "position": dict(self.position), "axis_max": dict(self.axis_max)}
+        if self.unit != "mm":
+            out["unit"] = self.unit
         if self.orientation is not None:
             out["orientation"] = {k: dict(v) for k, v in self.orientation.items()}
         return out

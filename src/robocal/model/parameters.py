@@ -46,8 +46,13 @@ def tool_prefix(target: str) -> str:
     return "tool" if target == "" else f"tool[{target}]"
 
 
+def camera_prefix(camera: str) -> str:
+    """Parameter-name prefix of a camera's frame: ``camera[NAME]``."""
+    return f"camera[{camera}]"
+
+
 def is_frame(name: str) -> bool:
-    return name.startswith(("base_", "tool"))
+    return name.startswith(("base_", "tool", "camera["))
 
 
 def is_term(name: str) -> bool:
@@ -101,6 +106,8 @@ class ParameterSpace:
     names: tuple[str, ...]
     targets: tuple[str, ...]
     terms: TermSpec = TermSpec()
+    #: the cameras whose frames the space holds (the robot's, :attr:`Robot.cameras`)
+    cameras: tuple[str, ...] = ()
 
     @classmethod
     def of(cls, robot: Robot, targets: Sequence[str] | None = None, terms: TermSpec | None = None) -> ParameterSpace:
@@ -112,8 +119,11 @@ class ParameterSpace:
         names += [f"base_{ax}" for ax in FRAME_AXES]
         for t in targets:
             names += [f"{tool_prefix(t)}_{ax}" for ax in FRAME_AXES]
+        cameras = tuple(robot.cameras)
+        for c in cameras:
+            names += [f"{camera_prefix(c)}_{ax}" for ax in FRAME_AXES]
         names += terms.names(robot.n_joints)
-        return cls(robot, tuple(names), targets, terms)
+        return cls(robot, tuple(names), targets, terms, cameras)
 
     @property
     def n_term_params(self) -> int:
@@ -218,11 +228,94 @@ class ParameterSpace:
         default = tools[self.targets.index("")] if "" in self.targets else self.robot.tool
         extra = {t: v for t, v in self.robot.targets.items() if t not in named}
         changes = {"geometry": geom, "base": base, "tool": default, "targets": {**extra, **named}}
+        if self.cameras:
+            poses = self.camera_poses(deviation)
+            changes["cameras"] = {**self.robot.cameras, **{c: self.robot.cameras[c].moved(poses[i])
+                                                          for i, c in enumerate(self.cameras)}}
         if self.n_term_params:
             n = self.robot.n_joints
             own = self.robot.terms or JointTerms()
             changes["terms"] = own.with_vector(self.terms, n, own.vector(self.terms, n) + self.term_values(deviation))
         return self.robot.replace(**changes)
+
+    # --- cameras -------------------------------------------------------------------
+    def _camera_slice(self) -> slice:
+        start = self.n_joint_params + 6 + 6 * len(self.targets)
+        return slice(start, start + 6 * len(self.cameras))
+
+    def camera_poses(self, deviation: np.ndarray) -> np.ndarray:
+        """Each camera's pose in its parent frame (…, C, 4, 4): the measuring frame for a fixed
+        camera, its link's frame for one on the robot.  Its deviation turns it about its own origin
+        by a rotation vector in the parent's axes, R = Exp(δ) R°, and moves it, t = t° + δt."""
+        d = np.asarray(deviation, float)[..., self._camera_slice()]
+        d = d.reshape(d.shape[:-1] + (len(self.cameras), 6))
+        nominal = np.stack([self.robot.cameras[c].pose for c in self.cameras])
+        return homogeneous(exp_so3(d[..., 3:]) @ nominal[:, :3, :3], nominal[:, :3, 3] + d[..., :3])
+
+    def camera_frames(self, deviation: np.ndarray, q: np.ndarray, index: np.ndarray,
+                      joints: JointData | None = None) -> np.ndarray:
+        """Each row's camera frame (…, m, 4, 4) in the measuring frame, ``index`` (m,) the row's
+        camera (−1: none; the identity there) at commanded joints q (m, n) rad."""
+        deviation = np.asarray(deviation, dtype=float)
+        poses = self.camera_poses(deviation)
+        lead = deviation.shape[:-1]
+        out = np.broadcast_to(np.eye(4), lead + (len(q), 4, 4)).copy()
+        linked = [c for c, name in enumerate(self.cameras) if self.robot.cameras[name].link > 0]
+        if linked:
+            geom, base, _ = self.expand(deviation)
+            qe = np.broadcast_to(self.effective_joints(deviation, q, joints), lead + np.shape(q))
+        for c, name in enumerate(self.cameras):
+            rows = index == c
+            if not rows.any():
+                continue
+            link = self.robot.cameras[name].link
+            if link == 0:
+                out[..., rows, :, :] = poses[..., c:c + 1, :, :]
+                continue
+            R, p = chain_pose(self.robot.convention, geom[..., :link, :], qe[..., rows, :link], base,
+                              poses[..., c:c + 1, :, :])
+            out[..., rows, :, :] = homogeneous(R, p)
+        return out
+
+    def camera_frame_columns(self, deviation: np.ndarray, q: np.ndarray, index: np.ndarray,
+                             joints: JointData | None = None):
+        """The camera frames of :meth:`camera_frames` (m, 4, 4) and their twist Jacobian (k, m, 6)
+        (origin mm, rotation about the measuring frame's axes) for one deviation vector (k,)."""
+        deviation = np.asarray(deviation, dtype=float)
+        frames = self.camera_frames(deviation, q, index, joints)
+        m = len(q)
+        J = np.zeros((self.size, m, 6))
+        poses = self.camera_poses(deviation)
+        d = deviation[self._camera_slice()].reshape(len(self.cameras), 6)
+        geom, base, _ = self.expand(deviation)
+        qe = self.effective_joints(deviation, q, joints)
+        kinds = len(joint_kinds(self.robot.convention))
+        for c, name in enumerate(self.cameras):
+            rows = index == c
+            if not rows.any():
+                continue
+            link = self.robot.cameras[name].link
+            col = self._camera_slice().start + 6 * c
+            Wc = left_jacobian(d[c, 3:])  # Exp(δ+ε) = Exp(J_l ε) Exp(δ): about the parent's axes
+            if link == 0:
+                R_parent = np.eye(3)[None]
+            else:
+                Jj, _, _, R_parent = chain_twist_jacobian(self.robot.convention, geom[:link], qe[rows, :link], base,
+                                                          poses[c][None])
+                J[: link * kinds, rows] = Jj[:, :kinds].reshape(link * kinds, -1, 6)
+                nj = self.n_joint_params
+                Jb = np.zeros((6, int(rows.sum()), 6))
+                self._base_columns(Jb, deviation[nj:nj + 6], frames[rows, :3, 3] - base[:3, 3])
+                J[nj:nj + 6, rows] = Jb
+                if self.n_term_params:
+                    cols = joint_value_columns(self.robot.convention, self.robot.geometry)[:link]
+                    Jq = Jj[np.arange(link), cols]
+                    J[self.size - self.n_term_params:, rows] = np.einsum("imk,mit->tmk", Jq,
+                                                                        joints.basis[rows][:, :link])
+            for k in range(3):
+                J[col + k, rows, :3] = R_parent[:, :, k]
+                J[col + 3 + k, rows, 3:] = (R_parent @ Wc)[:, :, k]
+        return frames, J
 
     def _tools_for(self, tools: np.ndarray, target_idx: np.ndarray | None) -> np.ndarray:
         return tools[..., :1, :, :] if target_idx is None else tools[..., target_idx, :, :]

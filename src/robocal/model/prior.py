@@ -54,13 +54,14 @@ DEFAULTS: dict[str, tuple[float, str]] = {
     "zero": (1.0, "joint zeros set by mastering to within a degree"),
     "base": (math.inf, "the measuring frame is where the instrument stood: registered from the data"),
     "tool": (math.inf, "a reflector is where it was mounted: registered from the data"),
+    "camera": (math.inf, "a camera is where it was put: found from its pixels"),
     "compliance": (0.1, "joints deflect by hundredths to a tenth of a degree under their load"),
     "harmonic": (0.05, "gear and encoder transmission errors of hundredths of a degree"),
     "backlash": (0.05, "a dead band of a few arc minutes"),
     "drift": (0.05, "warm-up moves a joint zero by hundredths of a degree per hour"),
 }
 #: kinds whose width is always free (the frames are registered from the data)
-FREE_KINDS = ("base", "tool")
+FREE_KINDS = ("base", "tool", "camera")
 #: the key that sets every kind but the frames
 ALL = "all"
 #: a parameter name a prior can name: joint geometry (any convention) or a joint term's
@@ -80,6 +81,8 @@ def kind_of(name: str, prismatic: np.ndarray | None = None) -> str:
         return "base"
     if name.startswith("tool"):
         return "tool"
+    if name.startswith("camera["):
+        return "camera"
     for prefix, kind in (("compliance", "compliance"), ("gravity", "compliance"), ("harmonic", "harmonic"),
                          ("backlash", "backlash"), ("drift", "drift")):
         if name.startswith(prefix):

@@ -8,6 +8,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..math.se3 import homogeneous
+from .camera import CameraMount
 from .corrections import Correction
 from .covariance import ParameterCovariance
 from .dh import ALPHA, BETA, THETA, A, D
@@ -59,6 +60,9 @@ class Robot:
     #: what is known of its parameters before measuring (a robot file's ``[prior]``): the widths
     #: a calibration's prior takes over the defaults (:mod:`robocal.model.prior`), or None
     prior: Prior | None = None
+    #: the cell's cameras by name: where each is (fixed in the measuring frame or on a link) and
+    #: its pose there (:class:`robocal.model.camera.CameraMount`); a camera calibration finds them
+    cameras: Mapping[str, CameraMount] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         check_convention(self.convention)
@@ -140,6 +144,25 @@ class Robot:
     def positions(self, q, targets: Sequence[str] | None = None, inputs: JointInputs | None = None) -> np.ndarray:
         """Measured-point positions (m, 3) mm in the measuring frame for commanded joints q (m, n) rad."""
         return self.fk(q, targets, inputs)[:, :3, 3]
+
+    def camera_frames(self, cameras: Sequence[str], q, inputs: JointInputs | None = None) -> np.ndarray:
+        """Each row's camera frame (m, 4, 4) in the measuring frame: a fixed camera's pose, or the
+        base, the chain up to its link (with the joint terms) and its mounting."""
+        q = np.atleast_2d(np.asarray(q, float))
+        out = np.empty((len(q), 4, 4))
+        names = np.asarray(cameras, dtype=object)
+        for name in dict.fromkeys(cameras):
+            if name not in self.cameras:
+                raise ValueError(f"robot has no pose for camera {name!r}")
+            mount, rows = self.cameras[name], names == name
+            if mount.link == 0:
+                out[rows] = mount.pose
+                continue
+            k = mount.link
+            R, p = chain_pose(self.convention, self.geometry[:k], self.effective_joints(q, inputs)[rows, :k],
+                              self.base, mount.pose[None])
+            out[rows] = homogeneous(R, p)
+        return out
 
     @property
     def geometric(self) -> bool:

@@ -93,17 +93,29 @@ def frame_rows(result: CalibrationResult) -> list[tuple[str, ...]]:
     frames["tool"] = (result.initial.tool, result.robot.tool)
     for name, T in result.robot.targets.items():
         frames[f"tool[{name}]"] = (result.initial.targets.get(name, T), T)
+    cameras = {}
+    for name, mount in result.robot.cameras.items():
+        before = result.initial.cameras.get(name, mount).pose
+        frames[f"camera[{name}]"] = (before, mount.pose)
+        where = "in the measuring frame" if mount.link == 0 else f"on link {mount.link}"
+        cameras[f"camera[{name}]"] = "given" if mount.known else where
     estimated = set(n.rsplit("_", 1)[0] for n in result.names if is_frame(n))
     rows = []
     for frame, (before, after) in frames.items():
         xyz, rpy = transform_to_xyz_rpy(after)
         rotation_identified = any(f"{frame}_r{a}" in result.names for a in "xyz")
-        if frame not in estimated:
+        if frame in cameras and frame not in estimated:
+            gauge = cameras[frame] == "in the measuring frame"
+            note = "the measuring frame (not estimated)" if gauge else "as given (not estimated)"
+            change = "—"
+        elif frame not in estimated:
             note = "as given (not estimated)" if result.frames == "none" or frame != "base" else ""
             change = "—"
         else:
             change = _frame_change(before, after, rotation_identified)
             note = "" if rotation_identified or frame == "base" else "rotation not identified (position data)"
+            if frame in cameras:
+                note = f"camera {cameras[frame]}"
         rpy_text = ", ".join(_number(v, True) for v in rpy)
         if frame in estimated and not rotation_identified and frame != "base":
             rpy_text = "not identified"
@@ -116,7 +128,9 @@ def noise_line(result) -> str:
     import math
 
     n, g = result.noise, result.goodness_of_fit
-    text = f"{n.label} {n.position:.3g} mm" + ("" if n.orientation is None else f", {math.degrees(n.orientation):.3g}°")
+    unit = getattr(result, "unit", "mm")
+    text = f"{n.label} {n.position:.3g} {unit}" + ("" if n.orientation is None else
+                                                    f", {math.degrees(n.orientation):.3g}°")
     text += " (stated)" if n.source == "stated" else " (estimated from the fit: the instrument's noise plus what the " \
         "model leaves out)"
     if g is not None and g.dof > 0:

@@ -1,0 +1,259 @@
+"""Camera rows in a calibration (MODEL §10): the cameras' files and markers read and checked
+against the rows, the frames a camera can see, and where each camera starts.
+
+What a camera sees fixes what is identified:
+
+- A fixed camera and the base frame trade off (only their relation reaches the pixels): without
+  tracker rows the first fixed camera's frame is the measuring frame, and the base is found in
+  it; every other camera's pose is found in that frame.
+- A camera on the robot sees the chain from its link to the marker: the base does not reach its
+  pixels, nor do the joints up to its link.
+- A camera sees no scale: markers with known offsets on the flange give it against the robot's
+  lengths; unknown markers leave the lengths' common scale to their prior.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+from dataclasses import replace
+
+import numpy as np
+
+from ..exceptions import InputError, Note
+from ..io.atomic import read_text
+from ..io.camera import load_camera
+from ..math.se3 import homogeneous
+from ..model.camera import CameraMount
+from ..model.kinematics import chain_pose
+from ..model.measurements import Measurements
+from ..model.robot import Robot
+from .config import CalibrationConfig
+
+#: fewest rows a camera must see for its pose to be found from them (six unknowns, two values a row)
+MIN_ROWS = 6
+
+
+def load_markers(path: str) -> dict[str, np.ndarray]:
+    """A markers file: ``marker, x, y, z`` (mm, in the flange frame), one row a marker."""
+    text = read_text(path, "markers file")
+    rows = list(csv.reader(io.StringIO(text)))
+    header = [h.strip() for h in rows[0]] if rows else []
+    if header[:4] != ["marker", "x", "y", "z"]:
+        raise InputError("expected the columns marker, x, y, z (mm, in the flange frame)", source=path)
+    out: dict[str, np.ndarray] = {}
+    for line, row in enumerate(rows[1:], start=2):
+        if not any(c.strip() for c in row):
+            continue
+        name = row[0].strip()
+        try:
+            xyz = np.array([float(c) for c in row[1:4]])
+        except ValueError:
+            raise InputError("x, y, z must be numbers (mm)", source=path, where=f"row {line}") from None
+        if len(xyz) != 3 or not np.all(np.isfinite(xyz)) or not name:
+            raise InputError("needs a marker name and finite x, y, z (mm)", source=path, where=f"row {line}")
+        if name in out:
+            raise InputError(f"marker {name!r} is given twice", source=path, where=f"row {line}")
+        out[name] = homogeneous(np.eye(3), xyz)
+    if not out:
+        raise InputError("names no marker", source=path)
+    return out
+
+
+def attach(nominal: Robot, meas: Measurements, config: CalibrationConfig) -> tuple[Robot, Measurements, list]:
+    """The robot with the markers file's markers as its targets and the measurements with their
+    cameras' intrinsics, each checked against the rows: a camera the rows name and no file gives,
+    a camera file no row sees, a pixel off its image, a marker the markers file does not name."""
+    notes: list = []
+    if meas.camera is None or not any(meas.camera):
+        if config.cameras:
+            raise InputError(f"camera {config.cameras[0].name!r} is given, but {meas.source} has no camera rows "
+                             "(columns u, v, camera, marker)", option="camera")
+        return nominal, meas, notes
+    if not all(meas.camera):
+        raise InputError("has camera rows beside tracker or contact rows: robocal calibrates camera rows on their "
+                         "own (give the other rows in their own file)", source=meas.source)
+    specs = {c.name: c for c in config.cameras}
+    rows = np.asarray(meas.camera, dtype=object)
+    for name in dict.fromkeys(meas.camera):
+        if name not in specs:
+            first = int(meas.rows[int(np.argmax(rows == name))])
+            raise InputError(f"camera {name!r} has no camera file (give it with --camera {name}=FILE)",
+                             source=meas.source, where=f"row {first}")
+    intrinsics = {}
+    for spec in config.cameras:
+        if spec.name not in set(meas.camera):
+            raise InputError(f"camera {spec.name!r} ({spec.path}) is seen in no row of {meas.source}",
+                             option="camera")
+        if spec.link > nominal.n_joints:
+            raise InputError(f"camera {spec.name!r} is on link {spec.link}, but the robot has {nominal.n_joints} "
+                             "joints", option="camera")
+        camera = intrinsics[spec.name] = load_camera(spec.path, spec.name)
+        seen = rows == spec.name
+        if seen.sum() < MIN_ROWS:
+            raise InputError(f"camera {spec.name!r} sees {int(seen.sum())} rows: its pose needs at least {MIN_ROWS}",
+                             source=meas.source)
+        off = ~camera.in_image(meas.pixels) & seen
+        if off.any():
+            i = int(np.argmax(off))
+            raise InputError(f"pixel ({meas.pixels[i, 0]:g}, {meas.pixels[i, 1]:g}) lies outside the "
+                             f"{camera.width} × {camera.height} image of camera {spec.name!r}", source=meas.source,
+                             where=f"row {int(meas.rows[i])}")
+    robot = nominal
+    if config.markers is not None:
+        markers = load_markers(config.markers)
+        unknown = [t for t in meas.target_names if t not in markers and t not in nominal.targets]
+        if unknown:
+            i = int(np.argmax(np.asarray(meas.targets, dtype=object) == unknown[0]))
+            raise InputError(f"marker {unknown[0]!r} is named in no markers file ({config.markers})",
+                             source=meas.source, where=f"row {int(meas.rows[i])}")
+        robot = nominal.replace(targets={**nominal.targets, **markers})
+    given = nominal.cameras  # a robot object may carry mountings, known ones among them
+    for spec in config.cameras:
+        if spec.name in given and given[spec.name].link != spec.link:
+            raise InputError(f"camera {spec.name!r} is on link {spec.link}, but the robot has it on link "
+                             f"{given[spec.name].link}", option="camera")
+    robot = robot.replace(cameras={s.name: given.get(s.name, CameraMount(s.link)) for s in config.cameras})
+    return robot, replace(meas, intrinsics=intrinsics), notes
+
+
+def frames_of(frames: str, robot: Robot, meas: Measurements) -> tuple[str, list]:
+    """The frames mode of camera rows, and what it says: the base where a fixed camera sees it,
+    the markers where their offsets are unknown."""
+    fixed = [c for c, m in robot.cameras.items() if m.link == 0]
+    unknown = [t for t in meas.target_names if t and t not in robot.targets]
+    if not fixed and frames in ("base", "base+tool"):
+        raise InputError("the base frame is not observable from cameras on the robot: they see the chain from their "
+                         "link on (use frames tcp, none or auto)", option="frames")
+    notes = []
+    if frames == "auto":
+        frames = ("base+tool" if unknown else "base") if fixed else ("tcp" if unknown else "none")
+        said = "the markers' offsets are identified" if unknown else "the markers stand where the markers file says"
+        notes.append(Note(f"frames auto: {said} (frames {frames})"))
+    if fixed:
+        notes.append(Note(f"camera {fixed[0]!r} is the measuring frame: a fixed camera and the base frame trade off, "
+                          f"so the base is found in its frame" + (f" and cameras {', '.join(map(repr, fixed[1:]))} "
+                                                                   "against it" if len(fixed) > 1 else "")))
+    linked = [c for c, m in robot.cameras.items() if m.link > 0]
+    if linked and not fixed:
+        notes.append(Note(f"the base frame is not seen: camera{'s' if len(linked) > 1 else ''} "
+                          f"{', '.join(map(repr, linked))} ride{'' if len(linked) > 1 else 's'} on the robot"))
+    return frames, notes
+
+
+def gauge(robot: Robot) -> str | None:
+    """The camera whose frame is the measuring frame (not estimated): the first fixed one."""
+    return next((c for c, m in robot.cameras.items() if m.link == 0), None)
+
+
+def register(robot: Robot, meas: Measurements) -> Robot:
+    """Where each camera starts, with the nominal joints and the markers as the robot has them
+    (the flange point for an unknown one): from its rows' points and pixels
+    (:meth:`robocal.model.camera.Camera.pose_of`).  The first fixed camera's frame becomes the
+    measuring frame: the base is its pose's inverse; the other fixed cameras are placed in it."""
+    unknown = {t: robot.tool.copy() for t in meas.target_names if t and t not in robot.targets}
+    robot = robot.replace(targets={**robot.targets, **unknown})
+    tools = robot.tool_frames(meas.targets)
+    views = meas.views
+    R, p = chain_pose(robot.convention, robot.geometry, robot.effective_joints(meas.q, meas.inputs), None, tools)
+    mounts, poses = dict(robot.cameras), {}
+    for c, name in enumerate(views.names):
+        rows = views.index == c
+        link = mounts[name].link
+        points = p[rows]
+        if link > 0:  # the points in the frame of the camera's link
+            Rk, pk = chain_pose(robot.convention, robot.geometry[:link],
+                                robot.effective_joints(meas.q, meas.inputs)[rows, :link])
+            points = np.einsum("mji,mj->mi", Rk, points - pk)
+        poses[name] = views.cameras[c].pose_of(points, meas.pixels[rows])
+    first = gauge(robot)
+    base = robot.base
+    if first is not None:  # the measuring frame is this camera's, or the world its known pose is in
+        base = (mounts[first].pose if mounts[first].known else np.eye(4)) @ np.linalg.inv(poses[first])
+    for name, mount in mounts.items():
+        if mount.known:
+            continue
+        pose = poses[name] if mount.link > 0 else base @ poses[name]
+        mounts[name] = mount.moved(np.eye(4) if name == first else pose)
+    return robot.replace(base=base, cameras=mounts)
+
+
+def frame_names(robot: Robot) -> list[str]:
+    """The camera frame parameters a calibration estimates: every camera's but the measuring frame's."""
+    from ..model.parameters import FRAME_AXES, camera_prefix
+
+    first = gauge(robot)
+    return [f"{camera_prefix(c)}_{ax}" for c, m in robot.cameras.items() if c != first and not m.known
+            for ax in FRAME_AXES]
+
+
+#: the prior's share of the lengths' common scale above which pixels are said not to fix it (as a
+#: parameter is held by its prior, :data:`robocal.model.prior.HELD`)
+SCALE_HELD = 0.5
+
+
+def length_values(problem, x: np.ndarray) -> np.ndarray:
+    """The value (mm) of each estimated length at x, 0 for the other parameters: a uniform scale of
+    the cell about the measuring frame's origin moves each length by its value, and leaves every
+    pixel where it was (the pinhole sees directions only)."""
+    from ..model.kinematics import joint_kinds
+    from ..model.parameters import is_frame, is_term, unit
+
+    robot = problem.space.apply(problem.full(x))
+    kinds = joint_kinds(robot.convention)
+    out = np.zeros(problem.n_params)
+    for i, name in enumerate(problem.names):
+        if is_term(name):
+            continue
+        if is_frame(name):
+            prefix, axis = name.rsplit("_", 1)
+            if axis not in ("x", "y", "z"):
+                continue
+            if prefix == "base":
+                T = robot.base
+            elif prefix.startswith("camera["):
+                T = robot.cameras[prefix[len("camera["):-1]].pose
+            else:
+                T = robot.tool if prefix == "tool" else robot.targets[prefix[len("tool["):-1]]
+            out[i] = T["xyz".index(axis), 3]
+            continue
+        kind = name.rstrip("0123456789")
+        if kind in kinds and unit(name) == "mm":
+            out[i] = robot.geometry[int(name[len(kind):]) - 1, kinds.index(kind)]
+    return out
+
+
+def scale_note(problem, x: np.ndarray, covariance: np.ndarray | None) -> str | None:
+    """What fixes the cell's scale where cameras saw the data: the data (markers of known offsets,
+    several cameras' baselines) or the lengths' prior.  The scale is the coefficient ε of the
+    estimated lengths' uniform stretch x = ε·v; its variance from the data alone, v̂ᵀ(JᵀJ)⁻¹v̂/|v|², is
+    set against the posterior's, v̂ᵀCv̂/|v|²."""
+    if problem.views is None or covariance is None:
+        return None
+    v = length_values(problem, x)
+    norm = float(np.linalg.norm(v))
+    if norm == 0.0:
+        return None
+    u = v / norm
+    J = problem.residual_jacobian(x)
+    scale = 1.0 / np.maximum(np.linalg.norm(J, axis=0), 1e-300)
+    Js = J * scale
+    s = np.linalg.svd(Js, compute_uv=False)
+    info = Js.T @ Js
+    w = u / scale  # u in the equilibrated columns' coordinates
+    if s[-1] <= 1e-10 * s[0]:
+        data = np.inf
+    else:
+        data = float(np.sqrt(max(w @ np.linalg.solve(info, w), 0.0))) / norm
+    post = float(np.sqrt(max(u @ covariance @ u, 0.0))) / norm
+    reach = float(np.median(np.linalg.norm(problem.space.points(problem.full(x), problem.meas.q,
+                                                                 problem.target_idx, problem.joints), axis=1)))
+    held = not np.isfinite(data) or post ** 2 < (1.0 - SCALE_HELD) * data ** 2
+    if held:
+        seen = "nothing" if not np.isfinite(data) else f"±{100 * data:.2g} %"
+        return (f"the pixels do not fix the scale: the lengths' common scale is held by their prior (from the "
+                f"pixels alone {seen}; with the prior ±{100 * post:.2g} %, {post * reach:.3g} mm at the markers' "
+                f"{reach:.0f} mm from the measuring frame's origin): give markers of known offsets (--markers), or "
+                "tracker rows")
+    return Note(f"scale: fixed by the data to ±{100 * data:.2g} % (±{data * reach:.3g} mm at the markers' "
+                f"{reach:.0f} mm from the measuring frame's origin)")

@@ -1,0 +1,111 @@
+"""Rows a camera saw: a marker's pixel in one camera's image (MODEL §10).
+
+A camera row says that the marker (a point on the tool: the row's target) was seen at the pixel
+(u, v) by the camera named in the row.  Its error is the measured pixel less the pixel the model
+predicts: the marker's point p in the measuring frame (the robot's forward kinematics) taken into
+the camera's frame, p_c = R_cᵀ (p − t_c), and projected by the camera's lens model
+(:class:`robocal.model.camera.Camera`).  (R_c, t_c) is the camera's frame in the measuring frame:
+a fixed camera's pose, or, for a camera on a link, the base, the chain up to that link and its
+mounting (:meth:`robocal.model.robot.Robot.camera_frames`).
+
+The errors sit in the first two of a row's three position slots (px; the third is zero), so that
+every figure and test that works on position errors works on them, in pixels.  Their derivative
+is the chain rule: ∂p_c = R_cᵀ (∂p − ∂t_c + (p − t_c) × ∂ω_c), ∂t_c and ∂ω_c the camera frame's
+twist, then the lens model's derivative.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from .camera import Camera
+
+#: the unit of a camera row's errors
+PIXEL = "px"
+
+
+@dataclass(frozen=True, eq=False)
+class Views:
+    """The camera rows of a set of rows: the cameras' intrinsics (in ``names`` order), each row's
+    camera (index into ``names``; −1: not a camera row) and its measured pixel (m, 2)."""
+
+    names: tuple[str, ...]
+    cameras: tuple[Camera, ...]
+    index: np.ndarray
+    pixels: np.ndarray
+
+    @classmethod
+    def of(cls, labels: Sequence[str], pixels: np.ndarray, cameras: Mapping[str, Camera]) -> Views:
+        names = tuple(dict.fromkeys(c for c in labels if c))
+        lookup = {n: i for i, n in enumerate(names)}
+        return cls(names, tuple(cameras[n] for n in names), np.array([lookup.get(c, -1) for c in labels], int),
+                   np.asarray(pixels, float))
+
+    @property
+    def rows(self) -> np.ndarray:
+        """Mask (m,) of the camera rows."""
+        return self.index >= 0
+
+    @property
+    def only(self) -> bool:
+        return bool(np.all(self.index >= 0))
+
+    def labels(self) -> tuple[str, ...]:
+        return tuple(self.names[i] if i >= 0 else "" for i in self.index)
+
+    def project(self, p: np.ndarray, frames: np.ndarray, jacobian: bool = False):
+        """Predicted pixels (…, m, 2) of points p (…, m, 3) mm in the measuring frame seen from each
+        row's camera frame (…, m, 4, 4); with ``jacobian`` also ∂uv/∂p_c (…, m, 2, 3), the points in
+        the camera's frame (…, m, 3) and the offsets p − t_c (…, m, 3).  NaN at rows no camera saw."""
+        R, t = frames[..., :3, :3], frames[..., :3, 3]
+        d = p - t
+        pc = np.einsum("...ji,...j->...i", R, d)
+        uv = np.full(p.shape[:-1] + (2,), np.nan)
+        J = np.zeros(p.shape[:-1] + (2, 3)) if jacobian else None
+        for c, camera in enumerate(self.cameras):
+            rows = self.index == c
+            if jacobian:
+                uv[..., rows, :], J[..., rows, :, :] = camera.project_jacobian(pc[..., rows, :])
+            else:
+                uv[..., rows, :] = camera.project(pc[..., rows, :])
+        return (uv, J, pc, d) if jacobian else uv
+
+    def errors(self, p: np.ndarray, frames: np.ndarray) -> np.ndarray:
+        """The camera rows' errors (…, m, 3): measured less predicted pixel (px) in the first two
+        slots, zero in the third; zeros at other rows."""
+        uv = self.project(p, frames)
+        e = np.zeros(p.shape)
+        e[..., :2] = np.where(self.rows[:, None], self.pixels - uv, 0.0)
+        return e
+
+    def error_jacobian(self, Jp: np.ndarray, Jf: np.ndarray, p: np.ndarray, frames: np.ndarray) -> np.ndarray:
+        """∂(errors)/∂x (k, m, 3) from the points' Jacobian Jp (k, m, 3) and the camera frames'
+        twist Jacobian Jf (k, m, 6) (origin mm, rotation about the measuring frame's axes) at points
+        p (m, 3) and frames (m, 4, 4); zeros at other rows."""
+        _, Jpi, _, d = self.project(p, frames, jacobian=True)
+        R = frames[:, :3, :3]
+        moved = Jp - Jf[..., :3] + np.cross(d[None], Jf[..., 3:])  # ∂(p − t_c) + (p − t_c) × ∂ω_c
+        dpc = np.einsum("mji,kmj->kmi", R, moved)
+        out = np.zeros(Jp.shape)
+        out[..., :2] = -np.einsum("mab,kmb->kma", Jpi, dpc)
+        return np.where(self.rows[None, :, None], out, 0.0)
+
+    def figures(self, p: np.ndarray, frames: np.ndarray) -> dict[str, float]:
+        """``reprojection_rms_px`` over the camera rows, and per camera ``reprojection_rms_px[NAME]``."""
+        e = np.linalg.norm(self.errors(p, frames)[:, :2], axis=-1)
+        out = {"reprojection_rms_px": float(np.sqrt(np.mean(e[self.rows] ** 2)))}
+        if len(self.names) > 1:
+            for c, name in enumerate(self.names):
+                out[f"reprojection_rms_px[{name}]"] = float(np.sqrt(np.mean(e[self.index == c] ** 2)))
+        return out
+
+    def subset(self, index: np.ndarray) -> Views | None:
+        """The camera rows of rows ``index`` (cameras no kept row saw left out), or None."""
+        labels = tuple(self.labels()[i] for i in index)
+        if not any(labels):
+            return None
+        kept = dict(zip(self.names, self.cameras))
+        return Views.of(labels, self.pixels[index], kept)

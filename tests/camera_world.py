@@ -1,0 +1,148 @@
+"""An independent camera cell for planted-truth tests: it shares no code with robocal.
+
+Forward kinematics is :mod:`tests.independent`'s; the projection with its distortion is OpenCV's
+own ``cv2.projectPoints``, and the camera files are written by ``cv2.FileStorage``.  A camera is
+fixed in the world or rides on a link (its mounting is a 4 × 4 in that link's frame); markers are
+points on the flange, seen where they face the camera, lie in front of it and fall on its image.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from tests import independent
+
+cv2 = __import__("pytest").importorskip("cv2")
+
+
+def look_at(eye, target, up=(0.0, 0.0, 1.0)) -> np.ndarray:
+    """A camera frame at ``eye`` whose optical axis (z) points at ``target``, x to the image's right."""
+    eye, target = np.asarray(eye, float), np.asarray(target, float)
+    z = (target - eye) / np.linalg.norm(target - eye)
+    x = np.cross(z, up)
+    x /= np.linalg.norm(x)
+    T = np.eye(4)
+    T[:3, :3] = np.column_stack([x, np.cross(z, x), z])
+    T[:3, 3] = eye
+    return T
+
+
+@dataclass
+class CellCamera:
+    name: str
+    K: np.ndarray
+    dist: np.ndarray
+    size: tuple[int, int]
+    pose: np.ndarray  # camera frame in its parent: the world (link 0) or link ``link``'s frame
+    link: int = 0
+
+    def write(self, path: Path) -> Path:
+        fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_WRITE)
+        fs.write("image_width", self.size[0])
+        fs.write("image_height", self.size[1])
+        fs.write("camera_matrix", self.K)
+        fs.write("distortion_coefficients", self.dist.reshape(1, -1))
+        fs.release()
+        return path
+
+    def project(self, points_camera: np.ndarray) -> np.ndarray:
+        uv, _ = cv2.projectPoints(points_camera.reshape(-1, 1, 3), np.zeros(3), np.zeros(3), self.K, self.dist)
+        return uv.reshape(-1, 2)
+
+
+def camera(name: str, pose: np.ndarray, link: int = 0, f: float = 1400.0, dist=(-0.12, 0.08, 0.0005, -0.0004, 0.0),
+           size=(1600, 1200)) -> CellCamera:
+    K = np.array([[f, 0, size[0] / 2 + 7.5], [0, f * 1.002, size[1] / 2 - 4.0], [0, 0, 1.0]])
+    return CellCamera(name, K, np.array(dist, float), size, pose, link)
+
+
+def dodecahedron(radius: float, centre=(0.0, 0.0, 60.0)) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """20 markers at a regular dodecahedron's vertices around ``centre`` (mm, flange frame): name →
+    (position, outward normal)."""
+    phi = (1 + 5 ** 0.5) / 2
+    v = [(x, y, z) for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]
+    for a in (-1, 1):
+        for b in (-1, 1):
+            v += [(0, a / phi, b * phi), (a / phi, b * phi, 0), (a * phi, 0, b / phi)]
+    v = np.array(v, float)
+    n = v / np.linalg.norm(v, axis=1, keepdims=True)
+    return {f"m{i + 1}": (np.asarray(centre) + radius * n[i], n[i]) for i in range(20)}
+
+
+@dataclass
+class Cell:
+    robot: str
+    deviations: dict
+    cameras: list[CellCamera]
+    markers: dict  # name → (position mm in the flange frame, outward normal or None: seen from anywhere)
+    base: np.ndarray = field(default_factory=lambda: np.eye(4))  # the robot's base in the world
+
+    def camera_pose(self, cam: CellCamera, q: np.ndarray) -> np.ndarray:
+        """The camera's frame in the world at joints q."""
+        if cam.link == 0:
+            return cam.pose
+        g = independent.geometry(self.robot, self.deviations)
+        return self.base @ independent.link_frames(g, q)[cam.link - 1] @ cam.pose
+
+    def observe(self, q_all: np.ndarray, rng: np.random.Generator, noise: float, facing: float = 0.2):
+        """Camera rows (q deg, u, v, camera, marker) of every marker each camera sees at each pose,
+        with Gaussian pixel noise ``noise`` (px)."""
+        g = independent.geometry(self.robot, self.deviations)
+        rows = []
+        for q in q_all:
+            flange = self.base @ independent.pose(g, q)
+            for cam in self.cameras:
+                Tc = self.camera_pose(cam, q)
+                for name, (p, normal) in self.markers.items():
+                    pw = flange[:3, :3] @ p + flange[:3, 3]
+                    pc = Tc[:3, :3].T @ (pw - Tc[:3, 3])
+                    if pc[2] <= 100.0:
+                        continue
+                    if normal is not None:  # faces the camera
+                        nw = flange[:3, :3] @ normal
+                        if nw @ (Tc[:3, 3] - pw) / np.linalg.norm(Tc[:3, 3] - pw) < facing:
+                            continue
+                    uv = cam.project(pc[None])[0] + rng.normal(0.0, noise, 2)
+                    if not (20 <= uv[0] <= cam.size[0] - 20 and 20 <= uv[1] <= cam.size[1] - 20):
+                        continue
+                    rows.append((np.degrees(q), uv, cam.name, name))
+        return rows
+
+    def marker_in(self, frame_of, q_all: np.ndarray, name: str) -> np.ndarray:
+        """A marker's true position (m, 3) mm in the frame ``frame_of(q)`` (4 × 4 in the world) gives."""
+        g = independent.geometry(self.robot, self.deviations)
+        p = self.markers[name][0]
+        out = []
+        for q in q_all:
+            flange = self.base @ independent.pose(g, q)
+            pw = flange[:3, :3] @ p + flange[:3, 3]
+            T = frame_of(q)
+            out.append(T[:3, :3].T @ (pw - T[:3, 3]))
+        return np.array(out)
+
+
+def write_rows(rows, path: Path) -> Path:
+    n = len(rows[0][0])
+    lines = [",".join([f"q{i + 1}" for i in range(n)] + ["u", "v", "camera", "marker"])]
+    for q, uv, cam, marker in rows:
+        lines.append(",".join([repr(float(x)) for x in q] + [repr(float(uv[0])), repr(float(uv[1])), cam, marker]))
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def write_markers(markers: dict, path: Path) -> Path:
+    lines = ["marker,x,y,z"] + [f"{k},{p[0]!r},{p[1]!r},{p[2]!r}" for k, (p, _) in markers.items()]
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def poses(robot: str, n: int, rng: np.random.Generator, centre_deg=None, spread_deg=None) -> np.ndarray:
+    """n joint sets (rad) around ``centre_deg`` within ±``spread_deg`` (default: the limits)."""
+    lim = np.array(independent.LIMITS_DEG[robot], float)
+    if centre_deg is None:
+        return np.radians(rng.uniform(lim[:, 0], lim[:, 1], (n, len(lim))))
+    c, s = np.asarray(centre_deg, float), np.asarray(spread_deg, float)
+    return np.radians(np.clip(rng.uniform(c - s, c + s, (n, len(lim))), lim[:, 0], lim[:, 1]))

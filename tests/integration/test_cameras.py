@@ -1,0 +1,103 @@
+"""Calibration from camera pixels against an independent cell (tests.camera_world: its own
+kinematics, OpenCV's projection and OpenCV's camera files): what the pixels give in millimetres,
+what they cannot give (the scale) said by name, and bad camera inputs refused on one line."""
+
+import json
+import warnings
+
+import numpy as np
+import pytest
+
+import robocal
+from robocal.math.se3 import homogeneous
+from robocal.model.camera import CameraMount
+from tests import camera_world as cw
+from tests import independent
+
+pytest.importorskip("cv2")
+
+CENTRE, SPREAD = [0, -60, 90, 0, 30, 0], [60, 30, 30, 90, 40, 90]
+MARKER = np.array([20.0, 10, 80])
+
+
+def _wall_cell(seed, tmp_path, n=300, noise=0.5):
+    rng = np.random.default_rng(seed)
+    dev = independent.uniform_deviations("kr5-arc", 1.0, np.radians(0.1), rng)
+    cam = cw.camera("wall", cw.look_at([2036.0, 1209, 1335], [236.0, 9, 435]))
+    cell = cw.Cell("kr5-arc", dev, [cam], {"m1": (MARKER, None)})
+    rows = cell.observe(cw.poses("kr5-arc", n, rng, CENTRE, SPREAD), rng, noise)
+    data = cw.write_rows(rows, tmp_path / f"rows{seed}.csv")
+    cam.write(tmp_path / "wall.yaml")
+    return cell, cam, data, rng
+
+
+def _calibrate(robot, data, *specs, **kw):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return robocal.calibrate(robot, data, cameras=list(specs), **kw)
+
+
+def test_a_wall_camera_seeing_one_marker_predicts_new_poses_in_millimetres(tmp_path):
+    cell, cam, data, rng = _wall_cell(0, tmp_path)
+    result = _calibrate("kr5-arc", data, f"wall={tmp_path / 'wall.yaml'}")
+    # the pixels: fitted to their noise (0.5 px a coordinate: |δ| RMS 0.5·√2), σ found
+    assert result.unit == "px" and result.metrics["after"].unit == "px"
+    assert abs(result.metrics["after"].position["rms"] - 0.5 * 2 ** 0.5) < 0.07
+    assert abs(result.noise.position - 0.5) < 0.05
+    assert result.metrics["predicted"].unit == "px" and result.metrics["predicted"].position["rms"] < 0.8
+    assert result.headline_text().startswith("reprojection RMS")
+    # what the pixels cannot see, said: the wall camera is the measuring frame, the scale is the prior's
+    said = " ".join(result.notes + result.warnings)
+    assert "camera 'wall' is the measuring frame" in said
+    assert any(w.startswith("the pixels do not fix the scale") for w in result.warnings)
+    # in millimetres, on new poses, in the camera's frame: within 1.5× of the same data calibrated
+    # with the true camera pose and the true marker given
+    fresh = cw.poses("kr5-arc", 200, rng, CENTRE, SPREAD)
+    truth = cell.marker_in(lambda q: cam.pose, fresh, "m1")
+    ours = np.sqrt(np.mean(np.sum((result.robot.positions(fresh, ["m1"] * 200) - truth) ** 2, axis=1)))
+    known = robocal.load_robot("kr5-arc").replace(targets={"m1": homogeneous(np.eye(3), MARKER)},
+                                                   cameras={"wall": CameraMount(0, np.eye(4), known=True)})
+    # the camera known at the measuring frame's origin: the same frame the truth is taken in
+    floor_fit = _calibrate(known, data, f"wall={tmp_path / 'wall.yaml'}")
+    floor = np.sqrt(np.mean(np.sum((floor_fit.robot.positions(fresh, ["m1"] * 200) - truth) ** 2, axis=1)))
+    assert ours <= 1.5 * floor + 0.5, (ours, floor)
+    assert "tool[m1]_x" in result.names and "tool[m1]_x" not in floor_fit.names
+
+
+def test_the_camera_files_and_rows_are_checked_on_one_line(tmp_path, run_cli):
+    cell, cam, data, _ = _wall_cell(1, tmp_path, n=40, noise=0.3)
+    good = f"wall={tmp_path / 'wall.yaml'}"
+    out = tmp_path / "out.json"
+
+    def refused(*args, says):
+        code, stdout, err = run_cli("calibrate", "kr5-arc", *args, "--out", out)
+        assert code == 2 and not out.exists(), err
+        assert len(err.strip().splitlines()) == 1 and "Traceback" not in err, err
+        assert says in err, err
+        return err
+
+    # a camera the rows name and no file gives
+    refused(data, says="camera 'wall' has no camera file")
+    # a camera file without intrinsics
+    (tmp_path / "empty.yaml").write_text("%YAML:1.0\n---\nimage_width: 1600\nimage_height: 1200\n")
+    refused(data, "--camera", f"wall={tmp_path / 'empty.yaml'}", says="empty.yaml")
+    # a camera file no row sees
+    refused(data, "--camera", good, "--camera", f"door={tmp_path / 'wall.yaml'}", says="camera 'door'")
+    # a pixel off the image, named by its row
+    text = data.read_text().splitlines()
+    cells = text[3].split(",")
+    cells[-3] = "1650.5"
+    (tmp_path / "off.csv").write_text("\n".join(text[:3] + [",".join(cells)] + text[4:]) + "\n")
+    refused(tmp_path / "off.csv", "--camera", good, says="row 4")
+    # a marker no markers file names
+    (tmp_path / "markers.csv").write_text("marker,x,y,z\nm7,0,0,50\n")
+    refused(data, "--camera", good, "--markers", tmp_path / "markers.csv", says="marker 'm1'")
+    # a misspelled camera option
+    refused(data, "--camera", f"wall={tmp_path / 'wall.yaml'},lnk=2", says="link=K")
+    # a length noise for pixels
+    refused(data, "--camera", good, "--noise", "0.5", says="--pixel-noise")
+    # and the good one runs, its JSON in pixels
+    code, stdout, err = run_cli("calibrate", "kr5-arc", data, "--camera", good, "--out", out)
+    assert code == 0, err
+    saved = json.loads(out.read_text())
+    assert saved["metrics"]["after"]["unit"] == "px"

@@ -1,0 +1,72 @@
+"""Camera rows in the model: the pixel a robot with cameras predicts against an independent cell
+(tests.camera_world: its own kinematics, OpenCV's projection), and the residuals' Jacobian against
+finite differences, cameras fixed and on a link."""
+
+import numpy as np
+import pytest
+
+from robocal.calibration.problem import Setup
+from robocal.io.camera import load_camera
+from robocal.io.robotfile import load_robot
+from robocal.model.camera import CameraMount
+from robocal.model.measurements import Measurements
+from robocal.model.metrics import pose_errors
+from robocal.model.parameters import ParameterSpace
+from tests import camera_world as cw
+from tests import independent
+
+pytest.importorskip("cv2")
+
+
+def _cell(rng, tmp_path):
+    dev = independent.uniform_deviations("kr5-arc", 1.0, np.radians(0.1), rng)
+    wall = cw.camera("wall", cw.look_at([2000.0, 1200, 1300], [240.0, 10, 440]))
+    rider = cw.camera("rider", cw.look_at([300.0, -600, 900], [700.0, 0, 300]), link=1)
+    markers = {"m1": (np.array([20.0, 10, 80]), None), "m2": (np.array([-40.0, 30, 60]), None)}
+    cell = cw.Cell("kr5-arc", dev, [wall, rider], markers)
+    q = cw.poses("kr5-arc", 80, rng, centre_deg=[0, -60, 90, 0, 30, 0], spread_deg=[50, 25, 25, 80, 35, 80])
+    rows = cell.observe(q, rng, 0.0)
+    intrinsics = {c.name: load_camera(c.write(tmp_path / f"{c.name}.yaml"), c.name) for c in cell.cameras}
+    meas = Measurements(np.radians([r[0] for r in rows]), np.full((len(rows), 3), np.nan),
+                        targets=tuple(r[3] for r in rows), camera=tuple(r[2] for r in rows),
+                        pixels=np.array([r[1] for r in rows]), intrinsics=intrinsics)
+    from robocal.math.se3 import homogeneous
+
+    g = independent.geometry("kr5-arc", dev)
+    nominal = load_robot("kr5-arc")
+    geometry = nominal.geometry.copy()
+    geometry[:, :4] = np.column_stack([g["a"], g["alpha"], g["theta"], g["d"]])
+    true = nominal.replace(geometry=geometry, targets={k: homogeneous(np.eye(3), p) for k, (p, _) in markers.items()},
+                           cameras={"wall": CameraMount(0, wall.pose), "rider": CameraMount(1, rider.pose)})
+    return true, meas
+
+
+def test_a_robot_with_cameras_predicts_the_pixels_of_an_independent_cell(rng, tmp_path):
+    true, meas = _cell(rng, tmp_path)
+    assert set(meas.camera) == {"wall", "rider"} and meas.n_poses > 60
+    dp, _ = pose_errors(true, meas)
+    np.testing.assert_allclose(dp, 0.0, atol=1e-6)  # measured pixels (noise-free) are the predicted ones
+
+
+def test_camera_rows_jacobian_is_its_finite_difference(rng, tmp_path):
+    true, meas = _cell(rng, tmp_path)
+    space = ParameterSpace.of(true, ("m1", "m2"))
+    assert {n for n in space.names if n.startswith("camera[")} == {f"camera[{c}]_{a}" for c in ("wall", "rider")
+                                                                   for a in ("x", "y", "z", "rx", "ry", "rz")}
+    problem = Setup(space, meas, use_orientation=False).problem(space.names)
+    x = rng.normal(0, 1e-3, space.size)
+    J = problem.residual_jacobian(x)
+    h = 1e-6
+    for i in range(space.size):
+        e = np.zeros(space.size)
+        e[i] = h
+        fd = (problem.residuals(x + e) - problem.residuals(x - e)) / (2 * h)
+        np.testing.assert_allclose(J[:, i], fd, rtol=1e-4, atol=1e-4 * max(1.0, np.abs(fd).max()),
+                                   err_msg=space.names[i])
+    # a camera on link 1 sees neither the base nor joint 1's parameters
+    rider = np.array([c == "rider" for c in meas.camera])
+    rows = np.repeat(rider, 3)
+    for name in ("base_x", "base_rz", "d1", "theta1"):
+        assert np.abs(J[rows, space.names.index(name)]).max() < 1e-9
+    # pixels: two values a row
+    assert problem.n_values == 2 * meas.n_poses
