@@ -134,7 +134,7 @@ def write_rows(rows, path: Path) -> Path:
 
 
 def write_markers(markers: dict, path: Path) -> Path:
-    lines = ["marker,x,y,z"] + [f"{k},{p[0]!r},{p[1]!r},{p[2]!r}" for k, (p, _) in markers.items()]
+    lines = ["marker,x,y,z"] + [f"{k},{float(p[0])!r},{float(p[1])!r},{float(p[2])!r}" for k, (p, _) in markers.items()]
     path.write_text("\n".join(lines) + "\n")
     return path
 

@@ -187,11 +187,6 @@ def frame_names(robot: Robot) -> list[str]:
             for ax in FRAME_AXES]
 
 
-#: the prior's share of the lengths' common scale above which pixels are said not to fix it (as a
-#: parameter is held by its prior, :data:`robocal.model.prior.HELD`)
-SCALE_HELD = 0.5
-
-
 def length_values(problem, x: np.ndarray) -> np.ndarray:
     """The value (mm) of each estimated length at x, 0 for the other parameters: a uniform scale of
     the cell about the measuring frame's origin moves each length by its value, and leaves every
@@ -223,11 +218,29 @@ def length_values(problem, x: np.ndarray) -> np.ndarray:
     return out
 
 
+def scale_sources(problem) -> list[str]:
+    """What gives camera rows a scale: the known geometry of two markers or more (fixed offsets on
+    the flange, not estimated), or a camera's known pose beside the measuring frame's (a baseline)."""
+    robot, names = problem.space.robot, set(problem.names)
+    from ..model.parameters import tool_prefix
+
+    known = {t for t in problem.meas.target_names if not any(f"{tool_prefix(t)}_{a}" in names for a in "xyz")}
+    points = {tuple(np.round(robot.tool_frames([t])[0][:3, 3], 6)) for t in known}
+    out = []
+    if len(points) >= 2:
+        out.append("the markers' known offsets")
+    first = gauge(robot)
+    if any(m.known for c, m in robot.cameras.items() if c != first):
+        out.append("the cameras' known poses")
+    return out
+
+
 def scale_note(problem, x: np.ndarray, covariance: np.ndarray | None) -> str | None:
-    """What fixes the cell's scale where cameras saw the data: the data (markers of known offsets,
-    several cameras' baselines) or the lengths' prior.  The scale is the coefficient ε of the
-    estimated lengths' uniform stretch x = ε·v; its variance from the data alone, v̂ᵀ(JᵀJ)⁻¹v̂/|v|², is
-    set against the posterior's, v̂ᵀCv̂/|v|²."""
+    """What fixes the cell's scale where cameras saw the data, and how well it is known: the
+    coefficient ε of the estimated lengths' uniform stretch x = ε·v (about the measuring frame's
+    origin, or the cameras' link), whose posterior σ is √(v̂ᵀCv̂)/|v|.  A pinhole sees directions:
+    without a known length among the markers or the cameras (:func:`scale_sources`) only the
+    lengths' prior holds it, and that is a warning."""
     if problem.views is None or covariance is None:
         return None
     v = length_values(problem, x)
@@ -235,25 +248,12 @@ def scale_note(problem, x: np.ndarray, covariance: np.ndarray | None) -> str | N
     if norm == 0.0:
         return None
     u = v / norm
-    J = problem.residual_jacobian(x)
-    scale = 1.0 / np.maximum(np.linalg.norm(J, axis=0), 1e-300)
-    Js = J * scale
-    s = np.linalg.svd(Js, compute_uv=False)
-    info = Js.T @ Js
-    w = u / scale  # u in the equilibrated columns' coordinates
-    if s[-1] <= 1e-10 * s[0]:
-        data = np.inf
-    else:
-        data = float(np.sqrt(max(w @ np.linalg.solve(info, w), 0.0))) / norm
     post = float(np.sqrt(max(u @ covariance @ u, 0.0))) / norm
     reach = float(np.median(np.linalg.norm(problem.space.points(problem.full(x), problem.meas.q,
                                                                  problem.target_idx, problem.joints), axis=1)))
-    held = not np.isfinite(data) or post ** 2 < (1.0 - SCALE_HELD) * data ** 2
-    if held:
-        seen = "nothing" if not np.isfinite(data) else f"±{100 * data:.2g} %"
-        return (f"the pixels do not fix the scale: the lengths' common scale is held by their prior (from the "
-                f"pixels alone {seen}; with the prior ±{100 * post:.2g} %, {post * reach:.3g} mm at the markers' "
-                f"{reach:.0f} mm from the measuring frame's origin): give markers of known offsets (--markers), or "
-                "tracker rows")
-    return Note(f"scale: fixed by the data to ±{100 * data:.2g} % (±{data * reach:.3g} mm at the markers' "
-                f"{reach:.0f} mm from the measuring frame's origin)")
+    sources = scale_sources(problem)
+    where = f"±{100 * post:.2g} %, {post * reach:.3g} mm at the markers' {reach:.0f} mm from the frame's origin"
+    if not sources:
+        return (f"the pixels do not fix the scale: the lengths' common scale is held by their prior ({where}): "
+                "give markers of known offsets (--markers), or tracker rows")
+    return Note(f"scale: from {' and '.join(sources)} ({where})")

@@ -171,22 +171,36 @@ def _without_gauge(setup: Setup, ident: Identifiability, gauge: list[str], names
     return ident.with_changes(kept=kept, dropped=dropped, reasons=reasons, warnings=ident.warnings + said)
 
 
-def _prior_held(setup: Setup, ident: Identifiability) -> Identifiability:
-    """Camera rows: a parameter dependent on others of which some have a prior is kept, and the
-    priors share out what the pixels cannot tell apart (the cell's scale above all: a pinhole sees
-    directions, so every length trades against the others).  Dropping it would pin it at its
-    nominal value with no uncertainty, and fix the scale by one length's nominal value.  A
-    parameter dependent on free frames alone is dropped as before: the frame absorbs it."""
+def _prior_held(setup: Setup, ident: Identifiability, J: np.ndarray, names: list[str]) -> Identifiability:
+    """Camera rows: a parameter dependent on others is kept where it or the direction it shares with
+    them has a prior, and the priors share out what the pixels cannot tell apart (the cell's scale
+    above all: a pinhole sees directions, so every length trades against the others; and cameras on
+    one link turn about a joint's axis together as that joint's offset does).  Dropping it would pin
+    it where it started with no uncertainty: at its nominal value, or a camera at the pose its pixels
+    first gave, whose error the others would then absorb.  A frame parameter whose dependence is on
+    free frames alone is dropped as before: the frames absorb it.  ``J``: the data's Jacobian of
+    ``names`` the analysis ran on."""
     if setup.prior is None:
         return ident
     index = {n: i for i, n in enumerate(setup.space.names)}
-    finite = {n for n, i in index.items() if np.isfinite(setup.prior[i])}
-    back = [n for n, r in ident.reasons.items() if r.kind == DEPENDENT and n in finite
-            and any(k in finite for k in r.related)]
+    finite = np.array([n in index and bool(np.isfinite(setup.prior[index[n]])) for n in names])
+    norms = np.linalg.norm(J, axis=0)
+    Jn = J / np.where(norms > 0, norms, 1.0)
+    column = {n: i for i, n in enumerate(names)}
+    kept = [column[n] for n in ident.kept]
+    back = []
+    for n, r in ident.reasons.items():
+        if r.kind != DEPENDENT or n not in column:
+            continue
+        c = np.linalg.lstsq(Jn[:, kept], Jn[:, column[n]], rcond=None)[0]
+        shared = float(np.linalg.norm(c[finite[kept]]) / max(np.linalg.norm(c), 1e-300))
+        if finite[column[n]] or shared > 1e-2:
+            back.append(n)
+            kept.append(column[n])
     if not back:
         return ident
     reasons = {n: r for n, r in ident.reasons.items() if n not in back}
-    return ident.with_changes(kept=[n for n in setup.space.names if n in set(ident.kept) | set(back)],
+    return ident.with_changes(kept=[n for n in names if n in set(ident.kept) | set(back)],
                               dropped=[n for n in ident.dropped if n not in back], reasons=reasons)
 
 
@@ -200,7 +214,7 @@ def analyse_identifiability(setup: Setup, candidates: Candidates) -> tuple[Ident
     J = probe.residual_jacobian(np.zeros(probe.n_params))
     ident = analyse(J, gauge + names, probe.angle_mask, setup.meas.n_poses, setup.space.robot.reach(), prefer=gauge)
     if setup.meas.views is not None:
-        ident = _prior_held(setup, ident)
+        ident = _prior_held(setup, ident, J, gauge + names)
     ident = _without_gauge(setup, _still_reasons(setup, ident, gauge + names), gauge, candidates.names)
     if unvaried:
         reasons = {**ident.reasons, **unvaried}

@@ -66,7 +66,9 @@ def _print_summary(result, robot_name: str, data: Path) -> None:
     if per_target:
         keys = [k for k in ("before", "after", "validation_after") if k in next(iter(per_target.values()))]
         rows = [(t, str(m["after"].n), *(f"{m[k].position['rms']:.4f}" for k in keys)) for t, m in per_target.items()]
-        out.print(table("per reflector: position RMS (mm)", ("reflector", "points", *keys), rows, text_columns=(0,)))
+        title = "per marker: reprojection RMS (px)" if result.unit == "px" else "per reflector: position RMS (mm)"
+        out.print(table(title, ("marker" if result.unit == "px" else "reflector", "points", *keys), rows,
+                        text_columns=(0,)))
     out.print(table("identified parameters (angles in degrees)", PARAMETER_COLUMNS, parameter_rows(result),
                     text_columns=(0, len(PARAMETER_COLUMNS) - 1)))
     out.print(table("frames", FRAME_COLUMNS, frame_rows(result), "left"))
@@ -81,7 +83,7 @@ def _print_summary(result, robot_name: str, data: Path) -> None:
     if learned_rows(result):
         out.print(table("what the trees take on the calibration poses, and the joints they split on most",
                         LEARNED_COLUMNS, learned_rows(result), text_columns=(0, 2)))
-    out.print(noise_line(result))
+    out.print(noise_line(result), markup=False)
     ident, opt = result.identifiability, result.optimization
     out.print(f"model {result.model}: " + f"{len(result.names)} parameters identified, {len(ident.dropped)} dropped"
               + (f" ({', '.join(ident.dropped)})" if ident.dropped else "")
@@ -89,8 +91,8 @@ def _print_summary(result, robot_name: str, data: Path) -> None:
               + ("" if result.at_estimate is None else f" ({result.at_estimate.condition:.3g} at the estimate)")
               + (f"; held by their prior: {', '.join(result.held)}" if result.held else "")
               + f"; {opt.status} ({opt.method}) after {opt.nit} iterations, "
-              f"{opt.nfev} evaluations")
-    out.print(timing_line(result.timings))
+              f"{opt.nfev} evaluations", markup=False)
+    out.print(timing_line(result.timings), markup=False)
 
 
 def calibrate_cmd(
