@@ -124,6 +124,11 @@ class Cell:
         return np.array(out)
 
 
+    def seen_from(self, cam: CellCamera, q_all: np.ndarray, name: str) -> np.ndarray:
+        """A marker's true position (m, 3) mm in a camera's frame at joints q_all."""
+        return self.marker_in(lambda q: self.camera_pose(cam, q), q_all, name)
+
+
 def write_rows(rows, path: Path) -> Path:
     n = len(rows[0][0])
     lines = [",".join([f"q{i + 1}" for i in range(n)] + ["u", "v", "camera", "marker"])]

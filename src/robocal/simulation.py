@@ -316,3 +316,89 @@ def simulate_contacts(robot: Robot, per_group: int, *, setups: int = 4, contact:
     meas = Measurements(q=q, position=np.full((len(q), 3), np.nan), source="<simulated contacts>", setup=tuple(where),
                         **kind)
     return Simulation(meas, truth, planted)
+
+
+def look_at(eye: np.ndarray, target: np.ndarray, up=(0.0, 0.0, 1.0)) -> np.ndarray:
+    """The camera frame (4 × 4) at ``eye`` whose optical axis (z) points at ``target``, its image's x
+    to the right and y down (``up`` up)."""
+    from .math.se3 import homogeneous
+
+    z = np.asarray(target, float) - np.asarray(eye, float)
+    z /= np.linalg.norm(z)
+    x = np.cross(z, up)
+    x = x / np.linalg.norm(x) if np.linalg.norm(x) > 1e-9 else np.array([1.0, 0.0, 0.0])
+    return homogeneous(np.column_stack([x, np.cross(z, x), z]), np.asarray(eye, float))
+
+
+def facing(camera, points: np.ndarray, fill: float = 0.7) -> np.ndarray:
+    """Where a fixed camera sees ``points`` (m, 3) mm of the measuring frame whole: from above and
+    outside the arm, at the distance where their spread fills ``fill`` of the image's shorter side."""
+    centre = points.mean(0)
+    radius = float(np.percentile(np.linalg.norm(points - centre, axis=1), 95)) + 50.0
+    out = np.array([centre[0], centre[1], 0.0])
+    out = out / np.linalg.norm(out) if np.linalg.norm(out) > 1e-6 else np.array([1.0, 0.0, 0.0])
+    half = min((camera.width or 2 * camera.cx) / camera.fx, (camera.height or 2 * camera.cy) / camera.fy) / 2
+    distance = radius / (fill * half)
+    direction = out + np.array([0.0, 0.0, 0.8])
+    return look_at(centre + distance * direction / np.linalg.norm(direction), centre)
+
+
+def simulate_cameras(robot: Robot, n_poses: int, cameras: Mapping, *, markers: Mapping[str, np.ndarray] | None = None,
+                     deviations: str | dict[str, float] = "none", pixel_noise: float = 0.0, seed: int | None = 0,
+                     joint_range=None) -> Simulation:
+    """A camera campaign: joint sets drawn in the limits, and the pixel where each camera sees each
+    marker at each pose (in front of it and on its image), with Gaussian noise ``pixel_noise`` (px
+    a coordinate).  cameras: {name: (Camera, CameraMount or None)}: a mounting left out places a fixed
+    camera facing the markers' workspace (:func:`facing`); one on a link needs its mounting.
+    markers: {name: 4 × 4 on the flange} (default one, ``m1``, at the robot's tool point).  The true
+    robot carries the cameras where they were and the markers as its targets."""
+    from .model.camera import CameraMount
+
+    opt.number(pixel_noise, "pixel_noise", minimum=0.0)
+    if opt.integer(n_poses, "poses") < 1:
+        raise InputError(f"need at least 1 pose, got {n_poses}", option="poses")
+    rng = np.random.default_rng(seed)
+    markers = {"m1": robot.tool} if not markers else dict(markers)
+    robot = robot.replace(targets={**robot.targets, **markers})
+    space = ParameterSpace.of(robot)
+    planted = planted_deviations(robot, deviations, rng) if isinstance(deviations, str) else dict(deviations)
+    try:
+        truth = space.apply(space.vector(planted))
+    except KeyError as exc:
+        raise InputError(f"unknown parameter {exc.args[0]}", option="errors") from None
+    q = random_joints(robot, n_poses, rng, joint_range)
+    names = list(markers)
+    points = np.stack([truth.positions(q, [m] * len(q)) for m in names], axis=1)  # (n, markers, 3)
+    mounts = {}
+    for name, (camera, mount) in cameras.items():
+        if mount is None:
+            mount = CameraMount(0, facing(camera, points.reshape(-1, 3)))
+        elif mount.link > robot.n_joints:
+            raise InputError(f"camera {name!r} is on link {mount.link}, but the robot has {robot.n_joints} joints",
+                             option="camera")
+        mounts[name] = mount
+    truth = truth.replace(cameras=mounts)
+    rows_q, rows_uv, rows_cam, rows_marker = [], [], [], []
+    for name, (camera, _) in cameras.items():
+        frames = truth.camera_frames([name] * len(q), q)
+        for k, marker in enumerate(names):
+            pc = np.einsum("mji,mj->mi", frames[:, :3, :3], points[:, k] - frames[:, :3, 3])
+            uv = camera.project(pc)
+            uv = uv + (rng.normal(0.0, pixel_noise, uv.shape) if pixel_noise > 0 else 0.0)
+            seen = camera.in_image(uv) & (pc[:, 2] > 0)
+            rows_q.append(np.flatnonzero(seen))
+            rows_uv.append(uv[seen])
+            rows_cam += [name] * int(seen.sum())
+            rows_marker += [marker] * int(seen.sum())
+        if name not in rows_cam:
+            raise InputError(f"camera {name!r} sees no marker at any of the {n_poses} poses: place it elsewhere",
+                             option="camera")
+    pose = np.concatenate(rows_q)
+    order = np.argsort(pose, kind="stable")  # in the order the poses were taken
+    intrinsics = {name: camera for name, (camera, _) in cameras.items()}
+    meas = Measurements(q=q[pose[order]], position=np.full((len(pose), 3), np.nan),
+                        targets=tuple(np.asarray(rows_marker, dtype=object)[order]), source="<simulated>",
+                        pose_ids=tuple(str(int(i) + 1) for i in pose[order]),
+                        pixels=np.concatenate(rows_uv)[order], camera=tuple(np.asarray(rows_cam, dtype=object)[order]),
+                        intrinsics=intrinsics)
+    return Simulation(meas, truth, planted)

@@ -151,7 +151,7 @@ def test_two_cameras_on_a_link_seeing_a_dodecahedron_predict_new_poses_in_millim
     # the base nor joint 1, nor joint 2's zero and offset apart from their own mounting), against the same
     # pixels calibrated with the cameras' true mounting given
     fresh = cw.poses("kr5-arc", 200, rng, CENTRE, SPREAD_TORSO)
-    seen = cell.marker_in(lambda q: cell.camera_pose(cell.cameras[0], q), fresh, "m1")
+    seen = cell.seen_from(cell.cameras[0], fresh, "m1")
     known = robocal.load_robot("kr5-arc").replace(cameras={c.name: CameraMount(1, c.pose, known=True)
                                                            for c in cell.cameras})
     floor = _calibrate(known, data, *specs, markers=str(markers))
@@ -193,7 +193,34 @@ def test_the_sigma_of_a_camera_calibration_is_the_spread_over_50_draws(tmp_path)
             J[:, j] = ((_in_camera(space.apply(step), "left", fresh) - _in_camera(space.apply(-step), "left", fresh))
                        / 2e-6).ravel()
         sigma = np.sqrt(np.einsum("ij,jk,ik->i", J, result.covariance, J))
-        truth = cell.marker_in(lambda q: cell.camera_pose(cell.cameras[0], q), fresh, "m1").ravel()
+        truth = cell.seen_from(cell.cameras[0], fresh, "m1").ravel()
         zs.append((_in_camera(result.robot, "left", fresh).ravel() - truth) / sigma)
     z = np.concatenate(zs)
     assert 0.8 <= np.std(z) <= 1.25, np.std(z)
+
+
+def test_simulate_plants_a_camera_campaign_that_calibrate_reads_back(tmp_path, run_cli):
+    cw.camera("wall", np.eye(4)).write(tmp_path / "wall.yaml")
+    data, truth, out = tmp_path / "sim.csv", tmp_path / "truth.toml", tmp_path / "fit.json"
+    code, _, err = run_cli("simulate", "kr5-arc", "--camera", f"wall={tmp_path / 'wall.yaml'}", "--poses", 150,
+                           "--pixel-noise", 0.3, "--errors", "uniform:0.5,0.001", "--seed", 3, "--out", data,
+                           "--truth", truth)
+    assert code == 0, err
+    line = next(x for x in truth.read_text().splitlines() if x.startswith("# Camera wall in the measuring frame"))
+    values = [float(v) for v in line.split("=")[1].split("(")[0].split(",")]
+    from robocal.math.se3 import frame_from_values
+
+    camera = frame_from_values(values[:3] + [np.radians(v) for v in values[3:]])
+    code, _, err = run_cli("calibrate", "kr5-arc", data, "--camera", f"wall={tmp_path / 'wall.yaml'}", "--out", out)
+    assert code == 0, err
+    saved = json.loads(out.read_text())
+    assert saved["headline"]["unit"] == "px" and abs(saved["metrics"]["after"]["position"]["rms"] - 0.3 * 2 ** 0.5) < 0.05
+    # the wall camera is the measuring frame: the base found in it is where the robot stood, seen from the camera
+    base = np.linalg.inv(camera)
+    found = saved["frames_identified"]["base"]["xyz_mm"]
+    assert np.linalg.norm(np.array(found) - base[:3, 3]) < 5.0
+    assert saved["frames_identified"]["camera[wall]"]["xyz_mm"] == [0.0, 0.0, 0.0]
+    # a tracker's option in a camera campaign is refused
+    code, _, err = run_cli("simulate", "kr5-arc", "--camera", f"wall={tmp_path / 'wall.yaml'}", "--noise", 0.1,
+                           "--out", tmp_path / "x.csv")
+    assert code == 2 and "--noise is for tracker campaigns" in err

@@ -45,8 +45,11 @@ from .noise import NoiseEstimate
 #: ``exports`` (what a TOML, a URDF and a YAML hand their receivers) and ``identifiability.at_estimate``;
 #: ``goodness_of_fit.dof`` counts the parameters' effective number and a plane row as one value;
 #: 8 split ``notes`` (information: choices made, frames registered, sources read) from ``warnings``
-#: (something to act on, or a reason to doubt a figure), and marks screened ladder rows
-SCHEMA_VERSION = 8
+#: (something to act on, or a reason to doubt a figure), and marks screened ladder rows; 9 added
+#: camera rows: ``metrics.*.unit`` (``px`` where every row is a camera's), the headline's ``unit``,
+#: ``rms`` and ``max`` (``position_rms_mm``/``position_max_mm`` only where it is a length) and the
+#: cameras' frames (``camera[NAME]`` with ``link`` and ``known``) in ``frames_*``
+SCHEMA_VERSION = 9
 #: a deviation smaller than this many standard uncertainties is "not significant"
 SIGNIFICANCE_SIGMAS = 2.0
 
@@ -263,6 +266,15 @@ class CalibrationResult:
             text += f"; the model is not physical ({self.physical.listed()}): check it before use"
         return text
 
+    def headline_dict(self) -> dict:
+        """The headline figure for the JSON: its key, unit, RMS and max (``position_rms_mm`` and
+        ``position_max_mm`` too where it is a length)."""
+        key, _, m = self.headline()
+        out = {"figure": key, "unit": self.unit, "rms": m.position["rms"], "max": m.position["max"]}
+        if self.unit == "mm":
+            out.update(position_rms_mm=m.position["rms"], position_max_mm=m.position["max"])
+        return out
+
     @property
     def unit(self) -> str:
         """The unit of the position figures: mm, or px where every row is a camera's (reprojection)."""
@@ -399,8 +411,7 @@ class CalibrationResult:
                         for n in ident.dropped],
             "identifiability": {**ident.to_dict(),
                                 **({} if self.at_estimate is None else {"at_estimate": self.at_estimate.to_dict()})},
-            "headline": {"figure": self.headline()[0], "position_rms_mm": self.headline()[2].position["rms"],
-                         "position_max_mm": self.headline()[2].position["max"]},
+            "headline": self.headline_dict(),
             "metrics": {k: v.to_dict() for k, v in self.metrics.items()},
             **({"contact": dict(self.contact)} if self.contact else {}),
             "metrics_per_target": {t: {k: v.to_dict() for k, v in m.items()}
@@ -533,4 +544,6 @@ def frames_dict(robot: Robot) -> dict:
     out = {"base": one(robot.base), "tool": one(robot.tool)}
     for name, T in robot.targets.items():
         out[f"tool[{name}]"] = one(T)
+    for name, mount in robot.cameras.items():  # in the measuring frame, or its link's frame
+        out[f"camera[{name}]"] = {**one(mount.pose), "link": mount.link, "known": mount.known}
     return out

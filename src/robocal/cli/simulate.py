@@ -48,6 +48,14 @@ def simulate_cmd(
     setups: int = typer.Option(4, "--setups", help="placements of the artefact, with --contact"),
     spacing: float = typer.Option(50.0, "--spacing", help="distance of the two sockets A and B, mm, with --contact "
                                   "points"),
+    cameras: list[str] | None = typer.Option(None, "--camera", help="NAME=FILE or NAME=FILE,link=K: no tracker, this "
+                                             "camera (its intrinsics file) sees the markers; repeatable"),
+    camera_pose: list[str] | None = typer.Option(None, "--camera-pose", help="NAME=x,y,z,rx,ry,rz: where a camera is "
+                                                 "(mm, deg; in the measuring frame, or its link's frame), default: a "
+                                                 "fixed camera facing the markers; repeatable"),
+    markers: Path | None = typer.Option(None, "--markers", help="CSV marker,x,y,z (mm, flange frame), with --camera "
+                                        "(default: one marker, m1, at the tool point)"),
+    pixel_noise: float = typer.Option(0.0, "--pixel-noise", help="pixel noise σ per coordinate, px, with --camera"),
     base_link: str | None = base_link_option(),
     tip_link: str | None = tip_link_option(),
     out: Path = typer.Option(..., "--out", help="measurement CSV to write"),
@@ -68,7 +76,18 @@ def simulate_cmd(
 
     r = load_robot(robot, base_link=base_link, tip_link=tip_link)
     rng = None if joint_range is None else tuple(math.radians(v) for v in opt.floats(joint_range, "range", (2,)))
-    if contact is not None:
+    if cameras:
+        others = {"--contact": contact, "--noise": noise, "--angle-noise": angle_noise, "--joint-noise": joint_noise,
+                  "--joint-noise-uniform": joint_noise_uniform, "--base": base, "--tool": tool,
+                  "--compliance": compliance, "--harmonic": harmonic, "--backlash": backlash, "--drift": drift}
+        given = [k for k, v in others.items() if v]
+        if given:
+            from ..exceptions import InputError
+
+            raise InputError(f"{given[0]} is for tracker campaigns: a camera campaign plants geometry, the cameras' "
+                             "poses and the pixel noise (--pixel-noise)", option="camera")
+        sim = _camera_campaign(r, poses, cameras, camera_pose, markers, errors, pixel_noise, seed, rng)
+    elif contact is not None:
         from ..simulation import simulate_contacts
 
         others = {"--angle-noise": angle_noise, "--joint-noise": joint_noise, "--joint-noise-uniform":
@@ -97,13 +116,56 @@ def simulate_cmd(
             planted += "; joint terms (torque form) as in the joints below"
         texts[truth] = robot_to_toml(sim.truth.replace(name=f"{r.name} (simulated truth)"), comment=(
             f"True robot simulated by robocal from {robot} with errors {errors!r}, seed {seed}.\n"
-            f"Planted deviations (mm, rad): {planted}"))
+            f"Planted deviations (mm, rad): {planted}" + _camera_lines(sim.truth)))
     with together():
         for path, text in texts.items():
             atomic_write(path, text)
     if not quiet:
         console().print(f"wrote {sim.measurements.n_poses} poses to {out}" + (f" and the true robot to {truth}"
                                                                            if truth else ""))
+
+
+def _camera_campaign(robot, poses, cameras, poses_given, markers, errors, pixel_noise, seed, joint_range):
+    """The cameras' files and poses and the markers read, then :func:`robocal.simulation.simulate_cameras`."""
+    from .. import options as opt
+    from ..calibration.cameras import load_markers
+    from ..calibration.config import camera_specs
+    from ..exceptions import InputError
+    from ..io.camera import load_camera
+    from ..math.se3 import frame_from_values
+    from ..model.camera import CameraMount
+    from ..simulation import simulate_cameras
+
+    specs = camera_specs(cameras)
+    _, placed = opt.named_frames(poses_given, "camera_pose")
+    unknown = [n for n in placed if n not in {s.name for s in specs}]
+    if unknown:
+        raise InputError(f"camera {unknown[0]!r} has a pose but no --camera", option="camera_pose")
+    setup = {}
+    for spec in specs:
+        pose = placed.get(spec.name)
+        if pose is None and spec.link > 0:
+            raise InputError(f"camera {spec.name!r} rides on link {spec.link}: give its pose there (--camera-pose "
+                             f"{spec.name}=x,y,z,rx,ry,rz)", option="camera_pose")
+        mount = None if pose is None else CameraMount(spec.link, frame_from_values(pose))
+        setup[spec.name] = (load_camera(spec.path, spec.name), mount)
+    return simulate_cameras(robot, poses, setup, markers=None if markers is None else load_markers(str(markers)),
+                            deviations=errors, pixel_noise=pixel_noise, seed=seed, joint_range=joint_range)
+
+
+def _camera_lines(truth) -> str:
+    """The true cameras' poses, for the truth file's comment (a robot file does not hold cameras)."""
+    import math
+
+    from ..math.se3 import transform_to_xyz_rpy
+
+    lines = []
+    for name, mount in truth.cameras.items():
+        xyz, rpy = transform_to_xyz_rpy(mount.pose)
+        where = "the measuring frame" if mount.link == 0 else f"link {mount.link}"
+        lines.append(f"\nCamera {name} in {where}: x,y,z,rx,ry,rz = "
+                     + ",".join(f"{v:.6g}" for v in (*xyz, *(math.degrees(a) for a in rpy))) + " (mm, deg)")
+    return "".join(lines)
 
 
 def register(app: typer.Typer) -> None:

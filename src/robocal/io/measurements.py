@@ -484,7 +484,7 @@ def parse_measurements(text: str, *, source: str = "<data>", average: bool = Tru
     if t.cycles is not None and t.pose_ids is None:
         raise InputError("a cycle column numbers the measuring cycles of each pose: it needs a pose_id column",
                          source=source)
-    if average and t.pose_ids is not None and meas.constraints is None and meas.views is None:  # a contact
+    if average and t.pose_ids is not None and meas.constraints is None and t.camera is None:  # a contact
         # or camera row is its own
         meas = average_repeats(meas, repeat_tolerance, t.cycles)
     return meas
@@ -635,7 +635,14 @@ def measurements_to_csv(meas: Measurements, *, extra: Mapping[str, Sequence] | N
     groups = [(names, np.asarray(v, float)) for names, v in groups if v is not None]
     extra = {**{k: v for k, v in (("point", meas.point), ("plane", meas.plane), ("setup", meas.setup))
                 if v is not None}, **dict(extra or {})}
-    header = (["pose_id"] if meas.pose_ids is not None else []) + (["target"] if meas.targets is not None else [])
+    marker = meas.camera is not None and meas.targets is not None  # a camera row's target is its marker
+    if meas.camera is not None:
+        pixels = [("" if np.isnan(u) else repr(float(u)), "" if np.isnan(v) else repr(float(v)))
+                  for u, v in meas.pixels]
+        extra = {"u": [p[0] for p in pixels], "v": [p[1] for p in pixels], "camera": list(meas.camera),
+                 **({"marker": list(meas.targets)} if marker else {}), **extra}
+    header = (["pose_id"] if meas.pose_ids is not None else []) + (["target"] if meas.targets is not None
+                                                                    and not marker else [])
     header += [f"q{i + 1}" for i in range(n)] + [h for names, _ in groups for h in names]
     header += list(extra)
     qdeg = joints_to_file(meas.q, prismatic)
@@ -644,7 +651,7 @@ def measurements_to_csv(meas: Measurements, *, extra: Mapping[str, Sequence] | N
     w.writerow(header)
     for j in range(meas.n_poses):
         row = [] if meas.pose_ids is None else [meas.pose_ids[j]]
-        if meas.targets is not None:
+        if meas.targets is not None and not marker:
             row.append(meas.targets[j])
         row += [repr(float(v)) for v in qdeg[j]]
         row += ["" if np.isnan(v) else repr(float(v)) for _, values in groups for v in values[j]]
