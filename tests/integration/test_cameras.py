@@ -214,7 +214,8 @@ def test_simulate_plants_a_camera_campaign_that_calibrate_reads_back(tmp_path, r
     code, _, err = run_cli("calibrate", "kr5-arc", data, "--camera", f"wall={tmp_path / 'wall.yaml'}", "--out", out)
     assert code == 0, err
     saved = json.loads(out.read_text())
-    assert saved["headline"]["unit"] == "px" and abs(saved["metrics"]["after"]["position"]["rms"] - 0.3 * 2 ** 0.5) < 0.05
+    assert saved["headline"]["unit"] == "px"
+    assert abs(saved["metrics"]["after"]["position"]["rms"] - 0.3 * 2 ** 0.5) < 0.05
     # the wall camera is the measuring frame: the base found in it is where the robot stood, seen from the camera
     base = np.linalg.inv(camera)
     found = saved["frames_identified"]["base"]["xyz_mm"]
