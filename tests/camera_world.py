@@ -151,3 +151,91 @@ def poses(robot: str, n: int, rng: np.random.Generator, centre_deg=None, spread_
         return np.radians(rng.uniform(lim[:, 0], lim[:, 1], (n, len(lim))))
     c, s = np.asarray(centre_deg, float), np.asarray(spread_deg, float)
     return np.radians(np.clip(rng.uniform(c - s, c + s, (n, len(lim))), lim[:, 0], lim[:, 1]))
+
+
+#: an ArUco marker's corners in its own frame (x right, y up as printed, z out of its face), in
+#: OpenCV's order as multiples of its side: written here from OpenCV's ArUco documentation
+ARUCO_CORNERS = np.array([[-0.5, 0.5, 0.0], [0.5, 0.5, 0.0], [0.5, -0.5, 0.0], [-0.5, -0.5, 0.0]])
+
+
+def cube_markers(side: float = 60.0, offset: float = 100.0, half: float = 45.0) -> dict[int, tuple[np.ndarray, float]]:
+    """Five ArUco markers (ids 1–5) of ``side`` mm on the faces of a cube of half-width ``half`` whose
+    centre stands ``offset`` mm out along the flange's z: id → (marker frame on the flange, side)."""
+    from scipy.spatial.transform import Rotation
+
+    centre = np.array([0.0, 0.0, offset])
+    faces = {1: (0, 0, 0), 2: (0, 90, 0), 3: (0, -90, 0), 4: (90, 0, 0), 5: (-90, 0, 0)}  # xyz Euler, deg
+    out = {}
+    for marker_id, angles in faces.items():
+        T = np.eye(4)
+        T[:3, :3] = Rotation.from_euler("xyz", angles, degrees=True).as_matrix()
+        T[:3, 3] = centre + T[:3, :3] @ np.array([0.0, 0.0, half])
+        out[marker_id] = (T, side)
+    return out
+
+
+def square_points(squares: dict) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Each square marker's corners as points ``ID:k`` (flange frame) with the marker's normal."""
+    out = {}
+    for marker_id, (T, side) in squares.items():
+        for k, c in enumerate(ARUCO_CORNERS * side):
+            out[f"{marker_id}:{k}"] = (T[:3, :3] @ c + T[:3, 3], T[:3, 2])
+    return out
+
+
+def write_square_markers(squares: dict, path: Path) -> Path:
+    """A markers file of square markers: marker, x, y, z, rx, ry, rz (deg, xyz as robocal reads them), size."""
+    from scipy.spatial.transform import Rotation
+
+    lines = ["marker,x,y,z,rx,ry,rz,size"]
+    for marker_id, (T, side) in squares.items():
+        with __import__("warnings").catch_warnings():  # a face turned 90° about y: any split of x and z will do
+            __import__("warnings").simplefilter("ignore")
+            rx, ry, rz = Rotation.from_matrix(T[:3, :3]).as_euler("xyz", degrees=True)
+        lines.append(",".join([str(marker_id)] + [repr(float(v)) for v in (*T[:3, 3], rx, ry, rz, side)]))
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def render(cell: Cell, cam: CellCamera, q: np.ndarray, squares: dict, dictionary: int, pixels: int = 240,
+           facing: float = 0.3) -> tuple[np.ndarray, list]:
+    """An image (grey background) of the square markers at joints q, each drawn by OpenCV
+    (``cv2.aruco.generateImageMarker``) and warped onto where its corners project (a pinhole: the
+    camera has no distortion), with its white quiet zone; and the rows of the corners drawn
+    (marker ``ID:k``, exact pixel)."""
+    assert not np.any(cam.dist), "rendering warps planes: a camera without distortion"
+    g = independent.geometry(cell.robot, cell.deviations)
+    flange = cell.base @ independent.pose(g, q)
+    Tc = cell.camera_pose(cam, q)
+    image = np.full((cam.size[1], cam.size[0]), 128, np.uint8)
+    rows = []
+    aruco = cv2.aruco.getPredefinedDictionary(dictionary)
+    pad = pixels // 8
+    for marker_id, (T, side) in squares.items():
+        Tw = flange @ T
+        normal, centre = Tw[:3, 2], Tw[:3, 3]
+        if normal @ (Tc[:3, 3] - centre) / np.linalg.norm(Tc[:3, 3] - centre) < facing:
+            continue
+        corners = ARUCO_CORNERS * side
+        quiet = corners * (1 + 2 * pad / pixels)  # the white border around the printed marker
+        world = (Tw[:3, :3] @ np.vstack([corners, quiet]).T).T + Tw[:3, 3]
+        pc = (world - Tc[:3, 3]) @ Tc[:3, :3]
+        if np.any(pc[:, 2] <= 100):
+            continue
+        uv = cam.project(pc)
+        if np.any(uv < 5) or np.any(uv[:, 0] > cam.size[0] - 5) or np.any(uv[:, 1] > cam.size[1] - 5):
+            continue
+        printed = np.full((pixels + 2 * pad, pixels + 2 * pad), 255, np.uint8)
+        printed[pad:pad + pixels, pad:pad + pixels] = cv2.aruco.generateImageMarker(aruco, marker_id, pixels)
+        edge = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], float)
+        source = pad - 0.5 + edge * pixels  # the marker's outer edges, pixel-centre coordinates
+        source_quiet = -0.5 + edge * (pixels + 2 * pad)
+        H = cv2.getPerspectiveTransform(np.vstack([source, source_quiet])[:4].astype(np.float32),
+                                        uv[:4].astype(np.float32))
+        warped = cv2.warpPerspective(printed, H, cam.size, flags=cv2.INTER_LINEAR, borderValue=0)
+        mask = cv2.warpPerspective(np.full(printed.shape, 255, np.uint8), H, cam.size, flags=cv2.INTER_LINEAR)
+        alpha = mask.astype(float) / 255.0
+        image = (alpha * warped + (1 - alpha) * image).round().astype(np.uint8)
+        del source_quiet
+        rows += [(np.degrees(q), uv[k], cam.name, f"{marker_id}:{k}") for k in range(4)]
+    return image, rows

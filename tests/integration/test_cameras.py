@@ -225,3 +225,61 @@ def test_simulate_plants_a_camera_campaign_that_calibrate_reads_back(tmp_path, r
     code, _, err = run_cli("simulate", "kr5-arc", "--camera", f"wall={tmp_path / 'wall.yaml'}", "--noise", 0.1,
                            "--out", tmp_path / "x.csv")
     assert code == 2 and "--noise is for tracker campaigns" in err
+
+
+def test_images_rendered_from_a_planted_robot_detect_and_calibrate_to_the_same_model(tmp_path, run_cli):
+    """A wall camera (no distortion: the renderer warps planes) films a cube of five ArUco markers on the
+    flange, each drawn by OpenCV; robocal detect finds their corners, and the calibration from them is
+    the one from the exact pixels the images were rendered from, within the detection's noise."""
+    import cv2
+
+    rng = np.random.default_rng(4)
+    cam = cw.camera("wall", cw.look_at([1300.0, 700, 1000], [400.0, 0, 500]), f=1300, dist=(0, 0, 0, 0, 0),
+                    size=(1280, 960))
+    squares = cw.cube_markers()
+    cell = cw.Cell("kr5-arc", independent.uniform_deviations("kr5-arc", 1.0, np.radians(0.1), rng), [cam],
+                   cw.square_points(squares))
+    folder = tmp_path / "images"
+    folder.mkdir()
+    log, exact = ["image," + ",".join(f"q{i + 1}" for i in range(6))], []
+    for i, q in enumerate(cw.poses("kr5-arc", 60, rng, [0, -60, 90, 0, 30, 0], [50, 25, 25, 120, 40, 150])):
+        image, rows = cw.render(cell, cam, q, squares, cv2.aruco.DICT_4X4_50)
+        cv2.imwrite(str(folder / f"pose{i:03d}.png"), image)
+        log.append(f"pose{i:03d}.png," + ",".join(repr(float(v)) for v in np.degrees(q)))
+        exact += rows
+    (tmp_path / "joints.csv").write_text("\n".join(log) + "\n")
+    detected = tmp_path / "detected.csv"
+    code, out, err = run_cli("detect", folder, "--joints", tmp_path / "joints.csv", "--camera", "wall", "--aruco",
+                             "4x4_50", "--out", detected)
+    assert code == 0, err
+    # every corner drawn is found, where it was drawn, to a fraction of a pixel
+    from robocal.io.measurements import load_measurements
+
+    found = load_measurements(detected, n_joints=6)
+    truth = {(tuple(np.round(q, 9)), m): (q, uv, c, m) for q, uv, c, m in exact}
+    drawn = [truth[(tuple(np.round(np.degrees(found.q[i]), 9)), found.targets[i])] for i in range(found.n_poses)]
+    assert found.n_poses >= 0.95 * len(exact)  # a marker seen edge-on may be missed, as in a real cell
+    miss = found.pixels - np.array([uv for _, uv, _, _ in drawn])
+    noise = float(np.sqrt(np.mean(np.sum(miss ** 2, axis=1))))
+    assert noise < 0.8 and np.abs(miss.mean(0)).max() < 0.1
+    # the same model as the exact pixels give, within what the detection's noise leaves uncertain
+    markers = cw.write_square_markers(squares, tmp_path / "markers.csv")
+    spec = f"wall={cam.write(tmp_path / 'wall.yaml')}"
+    from_images = _calibrate("kr5-arc", str(detected), spec, markers=str(markers))
+    from_pixels = _calibrate("kr5-arc", str(cw.write_rows(drawn, tmp_path / "exact.csv")), spec, markers=str(markers))
+    assert abs(from_images.noise.position - noise / 2 ** 0.5) < 0.1
+    fresh = cw.poses("kr5-arc", 100, rng, [0, -60, 90, 0, 30, 0], [50, 25, 25, 120, 40, 150])
+    a, b = (r.robot.positions(fresh, ["1"] * 100) for r in (from_images, from_pixels))
+    from robocal.model.uncertainty import predicted_sigma
+
+    sigma = predicted_sigma(from_images.robot, fresh, ["1"] * 100)
+    assert np.sqrt(np.mean(np.sum((a - b) ** 2, axis=1))) <= 3.0 * np.sqrt(np.mean(sigma ** 2))
+    assert np.sqrt(np.mean(sigma ** 2)) < 1.0
+    # an image the log names and the folder has not, and a dictionary OpenCV has not: one line each
+    (folder / "pose000.png").unlink()
+    code, _, err = run_cli("detect", folder, "--joints", tmp_path / "joints.csv", "--camera", "wall", "--aruco",
+                           "4x4_50", "--out", tmp_path / "again.csv")
+    assert code == 2 and "row 2" in err and "pose000.png" in err and not (tmp_path / "again.csv").exists()
+    code, _, err = run_cli("detect", folder, "--joints", tmp_path / "joints.csv", "--camera", "wall", "--aruco",
+                           "4x4_55", "--out", tmp_path / "again.csv")
+    assert code == 2 and "unknown ArUco dictionary '4x4_55'" in err

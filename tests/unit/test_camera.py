@@ -131,3 +131,18 @@ def test_a_cameras_pose_from_points_and_pixels_is_opencvs_solvepnp(rng):
     np.testing.assert_allclose(ours[:3, :3], Rc.T, atol=1e-5)
     np.testing.assert_allclose(ours[:3, 3], (-Rc.T @ tvec).ravel(), atol=1e-2)
     assert np.linalg.norm(ours[:3, 3] - eye) < 5.0
+
+
+def test_detected_corners_are_in_opencvs_pixel_convention(tmp_path):
+    """A marker drawn at whole pixels has its outer edge half a pixel before its first pixel's centre:
+    robocal's detector reports it there, as OpenCV's camera model (projectPoints) places pixels."""
+    from robocal.io.detect import detector, find_markers
+
+    aruco = cv2.aruco.getPredefinedDictionary(cv2.aruco.DICT_4X4_50)
+    for side, (row, col) in ((120, (100, 200)), (48, (310, 57))):
+        image = np.full((480, 640), 255, np.uint8)
+        image[row:row + side, col:col + side] = cv2.aruco.generateImageMarker(aruco, 7, side)
+        cv2.imwrite(str(tmp_path / "m.png"), image)
+        found = find_markers(tmp_path / "m.png", detector("DICT_4x4_50"))
+        edges = np.array([[col, row], [col + side, row], [col + side, row + side], [col, row + side]]) - 0.5
+        np.testing.assert_allclose(found[7], edges, atol=0.02)

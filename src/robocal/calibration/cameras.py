@@ -34,27 +34,49 @@ from .config import CalibrationConfig
 MIN_ROWS = 6
 
 
+#: an ArUco marker's corners in its own frame (x right, y up as printed, z out of its face), in
+#: OpenCV's order, as multiples of its side: top-left, top-right, bottom-right, bottom-left
+SQUARE_CORNERS = np.array([[-0.5, 0.5, 0.0], [0.5, 0.5, 0.0], [0.5, -0.5, 0.0], [-0.5, -0.5, 0.0]])
+
+
 def load_markers(path: str) -> dict[str, np.ndarray]:
-    """A markers file: ``marker, x, y, z`` (mm, in the flange frame), one row a marker."""
+    """A markers file: ``marker, x, y, z`` (mm, in the flange frame), one row a marker; with ``rx, ry,
+    rz`` (deg, the marker's frame: z out of its face) and ``size`` (its side, mm) a square marker, whose
+    corners ``NAME:0`` … ``NAME:3`` (OpenCV's order, as :mod:`robocal.io.detect` names them) are markers
+    too."""
+    from ..math.se3 import frame_from_values
+
     text = read_text(path, "markers file")
     rows = list(csv.reader(io.StringIO(text)))
     header = [h.strip() for h in rows[0]] if rows else []
-    if header[:4] != ["marker", "x", "y", "z"]:
-        raise InputError("expected the columns marker, x, y, z (mm, in the flange frame)", source=path)
+    square = header[4:] == ["rx", "ry", "rz", "size"]
+    if header[:4] != ["marker", "x", "y", "z"] or not (len(header) == 4 or square):
+        raise InputError("expected the columns marker, x, y, z (mm, in the flange frame), and rx, ry, rz (deg), size "
+                         "(mm) for square markers", source=path)
     out: dict[str, np.ndarray] = {}
     for line, row in enumerate(rows[1:], start=2):
         if not any(c.strip() for c in row):
             continue
         name = row[0].strip()
+        if len(row) != len(header):
+            raise InputError(f"has {len(row)} cells, the header {len(header)}", source=path, where=f"row {line}")
         try:
-            xyz = np.array([float(c) for c in row[1:4]])
+            values = np.array([float(c) for c in row[1:]])
         except ValueError:
-            raise InputError("x, y, z must be numbers (mm)", source=path, where=f"row {line}") from None
-        if len(xyz) != 3 or not np.all(np.isfinite(xyz)) or not name:
-            raise InputError("needs a marker name and finite x, y, z (mm)", source=path, where=f"row {line}")
+            raise InputError("x, y, z (and rx, ry, rz, size) must be numbers", source=path, where=f"row {line}") \
+                from None
+        if not np.all(np.isfinite(values)) or not name:
+            raise InputError("needs a marker name and finite numbers", source=path, where=f"row {line}")
         if name in out:
             raise InputError(f"marker {name!r} is given twice", source=path, where=f"row {line}")
-        out[name] = homogeneous(np.eye(3), xyz)
+        T = frame_from_values([*values[:3], *np.radians(values[3:6])])
+        out[name] = homogeneous(np.eye(3), T[:3, 3])
+        if square:
+            if not values[6] > 0:
+                raise InputError(f"a marker's size must be > 0 mm, got {values[6]:g}", source=path,
+                                 where=f"row {line}, column 'size'")
+            for k, corner in enumerate(SQUARE_CORNERS * values[6]):
+                out[f"{name}:{k}"] = homogeneous(np.eye(3), T[:3, :3] @ corner + T[:3, 3])
     if not out:
         raise InputError("names no marker", source=path)
     return out

@@ -8,7 +8,21 @@ from pathlib import Path
 import typer
 
 from ..exceptions import InputError, Interrupted
-from . import bench, calibrate, compensate, evaluate, filter, iso9283, pkm, plan, reproduce, robots, simulate, study
+from . import (
+    bench,
+    calibrate,
+    compensate,
+    detect,
+    evaluate,
+    filter,
+    iso9283,
+    pkm,
+    plan,
+    reproduce,
+    robots,
+    simulate,
+    study,
+)
 from .common import one_line
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False,
@@ -29,7 +43,7 @@ def _root(version: bool = typer.Option(False, "--version", callback=_version, is
     """Geometric calibration and error compensation of robots."""
 
 
-for module in (robots, simulate, evaluate, calibrate, compensate, filter, plan, reproduce, study, bench):
+for module in (robots, simulate, detect, evaluate, calibrate, compensate, filter, plan, reproduce, study, bench):
     module.register(app)
 app.add_typer(pkm.app, name="pkm")
 iso9283.register(app)
