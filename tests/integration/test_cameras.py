@@ -96,6 +96,9 @@ def test_the_camera_files_and_rows_are_checked_on_one_line(tmp_path, run_cli):
     refused(data, "--camera", f"wall={tmp_path / 'wall.yaml'},lnk=2", says="link=K")
     # a length noise for pixels
     refused(data, "--camera", good, "--noise", "0.5", says="--pixel-noise")
+    # a known pose for a camera not given, or not six numbers
+    refused(data, "--camera", good, "--camera-pose", "door=0,0,0,0,0,0", says="camera 'door' has a pose")
+    refused(data, "--camera", good, "--camera-pose", "wall=0,0,0", says="NAME=x,y,z,rx,ry,rz")
     # and the good one runs, its JSON in pixels
     code, stdout, err = run_cli("calibrate", "kr5-arc", data, "--camera", good, "--out", out)
     assert code == 0, err

@@ -135,7 +135,12 @@ def attach(nominal: Robot, meas: Measurements, config: CalibrationConfig) -> tup
         if spec.name in given and given[spec.name].link != spec.link:
             raise InputError(f"camera {spec.name!r} is on link {spec.link}, but the robot has it on link "
                              f"{given[spec.name].link}", option="camera")
-    robot = robot.replace(cameras={s.name: given.get(s.name, CameraMount(s.link)) for s in config.cameras})
+    from ..math.se3 import frame_from_values
+
+    mounts = {s.name: given.get(s.name, CameraMount(s.link)) for s in config.cameras}
+    for name, values in config.camera_poses.items():
+        mounts[name] = CameraMount(mounts[name].link, frame_from_values(values), known=True)
+    robot = robot.replace(cameras=mounts)
     return robot, replace(meas, intrinsics=intrinsics), notes
 
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass, field, fields, replace
 
@@ -144,7 +145,9 @@ class CalibrationConfig:
     (backlash) may take it where the data have no time or dir1..dirN columns.
     cameras: the cameras that saw the data's camera rows (``NAME=FILE`` or ``NAME=FILE,link=K``
     items, or :class:`CameraSpec`): each one's intrinsics file and where it is, fixed (link 0) or on
-    the robot's link K; markers: a CSV of the markers' known offsets on the flange (``marker, x,
+    the robot's link K; camera_poses: cameras whose pose is known (``NAME=x,y,z,rx,ry,rz`` items, mm
+    and deg, in the measuring frame or the camera's link's frame; or a mapping to (mm…, rad…)), which
+    are then not estimated; markers: a CSV of the markers' known offsets on the flange (``marker, x,
     y, z``, mm), else they are identified; pixel_noise: the pixel σ (px) of the camera rows, else
     estimated.
     """
@@ -182,6 +185,7 @@ class CalibrationConfig:
     prior: Prior | None = None
     row_order: bool = False
     cameras: tuple[CameraSpec, ...] = ()
+    camera_poses: Mapping[str, tuple[float, ...]] = field(default_factory=dict)
     markers: str | None = None
     pixel_noise: float | None = None
 
@@ -220,6 +224,7 @@ class CalibrationConfig:
         except ValueError as exc:
             raise InputError(str(exc), option="prior") from None
         set_(self, "cameras", camera_specs(self.cameras))
+        set_(self, "camera_poses", camera_poses(self.camera_poses, self.cameras))
         if self.pixel_noise is not None:
             set_(self, "pixel_noise", opt.number(self.pixel_noise, "pixel_noise", minimum=0.0, strict=True))
         if not isinstance(self.row_order, bool):
@@ -333,6 +338,26 @@ def camera_specs(value) -> tuple[CameraSpec, ...]:
             raise InputError(f"camera {item.name!r} is given twice", option="camera")
         out.append(item)
     return tuple(out)
+
+
+def camera_poses(value, specs: Sequence[CameraSpec]) -> dict[str, tuple[float, ...]]:
+    """Known camera poses: ``NAME=x,y,z,rx,ry,rz`` items (mm, deg) or {name: (mm…, rad…)}; each names
+    a camera of ``specs``."""
+    if isinstance(value, Mapping):
+        named = {str(k): tuple(float(x) for x in v) for k, v in value.items()}
+        for name, v in named.items():
+            if len(v) != 6 or not all(math.isfinite(x) for x in v):
+                raise InputError(f"{name}: expected x, y, z, rx, ry, rz (six finite numbers)", option="camera_pose")
+    else:
+        unnamed, named = opt.named_frames(value, "camera_pose")
+        if unnamed is not None or any(len(v) != 6 for v in named.values()):
+            raise InputError("expected NAME=x,y,z,rx,ry,rz (mm, deg) for each camera whose pose is known",
+                             option="camera_pose")
+    known = {s.name for s in specs}
+    for name in named:
+        if name not in known:
+            raise InputError(f"camera {name!r} has a pose but no --camera {name}=FILE", option="camera_pose")
+    return named
 
 
 def point_distances(value) -> tuple[tuple[str, str, float], ...]:

@@ -160,7 +160,7 @@ def export_figures(calibrated: Robot, receiver: Robot, metrics: dict, meas: Meas
     return ExportFigures(key, whole.position["rms"], whole.position["max"], part.position["rms"],
                          part.position["max"], geometric, "poses" if meas.constraints is None else "setups",
                          "the model's own" if receiver.geometry is calibrated.geometry or geometric
-                         else "the geometric calibration's")
+                         else "the geometric calibration's", meas.unit)
 
 
 def _validated(table, chosen: str, metrics) -> list:

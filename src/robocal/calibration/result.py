@@ -114,6 +114,8 @@ class ExportFigures:
     #: whose geometry a URDF or YAML carries: "the model's own", or "the geometric calibration's"
     #: where the model holds joint terms (its own geometry was fitted beside them)
     geometry_of: str = "the model's own"
+    #: the unit of the figures: mm, or px where every row is a camera's (the fields keep their names)
+    unit: str = "mm"
 
     @property
     def where(self) -> str:
@@ -124,7 +126,7 @@ class ExportFigures:
     def sentence(self, path, sidecar=None) -> str:
         """What the file at ``path`` holds, and how accurate that is: "PATH: …", one line."""
         suffix = Path(path).suffix.lower()
-        whole = f"{self.whole_rms_mm:.4f} mm RMS {self.where}"
+        whole = f"{self.whole_rms_mm:.4f} {self.unit} RMS {self.where}"
         if suffix not in (".urdf", ".yaml", ".yml"):
             return f"{path}: the whole model, {whole}"
         whose = "" if self.geometry_of == "the model's own" else "the geometric calibration's "
@@ -133,16 +135,17 @@ class ExportFigures:
         if self.geometric:
             return f"{path}: the whole model (geometry and frames), {whole}"
         held = f"{frames} {sidecar or 'the robot TOML beside it'})"
-        return (f"{path}: {held}; a controller or ROS reading it gets {self.geometry_rms_mm:.4f} mm RMS {self.where}, "
-                f"where the whole model gets {self.whole_rms_mm:.4f} mm: its joint terms and learned correction reach "
-                "the robot only through robocal filter and compensate")
+        return (f"{path}: {held}; a controller or ROS reading it gets {self.geometry_rms_mm:.4f} {self.unit} RMS "
+                f"{self.where}, where the whole model gets {self.whole_rms_mm:.4f} {self.unit}: its joint terms and "
+                "learned correction reach the robot only through robocal filter and compensate")
 
     def to_dict(self) -> dict:
-        return {"figure": self.figure, "whole_model": {"position_rms_mm": self.whole_rms_mm,
-                                                       "position_max_mm": self.whole_max_mm,
+        rms, top = ("position_rms_mm", "position_max_mm") if self.unit == "mm" else \
+            ("reprojection_rms_px", "reprojection_max_px")
+        return {"figure": self.figure, "whole_model": {rms: self.whole_rms_mm, top: self.whole_max_mm,
                                                        "held_by": ["robot TOML"]},
-                "geometry_and_frames": {"position_rms_mm": self.geometry_rms_mm,
-                                        "position_max_mm": self.geometry_max_mm, "geometry_of": self.geometry_of,
+                "geometry_and_frames": {rms: self.geometry_rms_mm, top: self.geometry_max_mm,
+                                        "geometry_of": self.geometry_of,
                                         "held_by": ["URDF", "kinematics YAML (geometry only)"]},
                 "reaches_the_robot": "the whole model through robocal filter and compensate; a URDF or YAML "
                                      "alone carries geometry and frames"}
@@ -477,9 +480,9 @@ class CalibrationResult:
         e = self.exports
         if e is None or e.geometric:
             return ""
-        return (f"\nThis file holds {e.geometry_of} geometry: {e.geometry_rms_mm:.4f} mm RMS {e.where} (the whole "
-                f"model: {e.whole_rms_mm:.4f} mm; its joint terms and learned correction reach the robot through "
-                "robocal filter and compensate).")
+        return (f"\nThis file holds {e.geometry_of} geometry: {e.geometry_rms_mm:.4f} {e.unit} RMS {e.where} (the "
+                f"whole model: {e.whole_rms_mm:.4f} {e.unit}; its joint terms and learned correction reach the robot "
+                "through robocal filter and compensate).")
 
     def _export_ur(self, path: Path, comment: str) -> list[Path]:
         """A UR kinematics YAML for a ROS driver (:mod:`robocal.io.ur`), and the whole model

@@ -33,7 +33,7 @@ COMPILE_SAID_S = 1.5
 CONFIG_FIELDS = ("method", "frames", "params", "seed", "objective", "noise", "angle_noise", "k", "loss", "f_scale",
                  "particles", "iterations", "box", "halton", "backend", "model", "harmonics", "payload", "joint_unit",
                  "length_unit", "instrument", "delimiter", "decimal", "euler", "exclude", "point_distance",
-                 "distance_sigma", "prior", "row_order", "cameras", "markers", "pixel_noise")
+                 "distance_sigma", "prior", "row_order", "cameras", "camera_poses", "markers", "pixel_noise")
 #: the command's own options: its inputs and outputs, how to read them, and what it prints
 CLI_ONLY = ("robot", "data", "validate", "out", "export", "report", "column", "base_link", "tip_link", "quiet",
             "position_only", "poses_out", "exclude_file", "as_json", "require")
@@ -156,6 +156,9 @@ def calibrate_cmd(
     cameras: list[str] | None = typer.Option(None, "--camera", help="NAME=FILE or NAME=FILE,link=K: the intrinsics "
                                              "(OpenCV YAML/JSON or ROS camera_info) of a camera the data's camera "
                                              "rows name, fixed in the cell or on link K; repeatable"),
+    camera_poses: list[str] | None = typer.Option(None, "--camera-pose", help="NAME=x,y,z,rx,ry,rz: a camera whose "
+                                                  "pose is known (mm, deg; in the measuring frame, or its link's "
+                                                  "frame): not estimated; repeatable"),
     markers: Path | None = typer.Option(None, "--markers", help="CSV marker,x,y,z (mm, flange frame): the markers' "
                                         "known offsets (else they are identified)"),
     pixel_noise: float | None = typer.Option(None, "--pixel-noise", help="σ of the camera rows' pixels, px (default: "
@@ -208,6 +211,7 @@ def calibrate_cmd(
     given["point_distance"] = tuple(point_distance or ())
     given["prior"] = tuple(prior) if prior else None
     given["cameras"] = tuple(cameras or ())
+    given["camera_poses"] = tuple(camera_poses or ())
     given["markers"] = None if markers is None else str(markers)
     cfg = CalibrationConfig(**{**given, "use_orientation": not position_only,
                                "angle_noise": None if angle_noise is None else math.radians(angle_noise)})

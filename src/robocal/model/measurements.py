@@ -150,7 +150,13 @@ class Measurements:
         return ("",) if self.targets is None else tuple(dict.fromkeys(self.targets))
 
     def describe(self) -> str:
-        """How many poses and reflectors: "500 poses × 3 reflectors (1500 measured points)"."""
+        """How many poses and reflectors: "500 poses × 3 reflectors (1500 measured points)"; of camera
+        rows, "2246 camera rows: 18 markers seen by 2 cameras at 150 poses"."""
+        if self.camera is not None and all(self.camera):
+            configs = len(np.unique(np.round(self.q, 9), axis=0))
+            cams = len(set(self.camera))
+            return (f"{self.n_poses} camera rows: {len(self.target_names)} marker{'s' * (len(self.target_names) > 1)} "
+                    f"seen by {cams} camera{'s' * (cams > 1)} at {configs} poses")
         if self.targets is None or len(self.target_names) == 1:
             return f"{self.n_poses} poses"
         configs = len(np.unique(np.round(self.q, 9), axis=0))

@@ -86,17 +86,18 @@ def iteration_label(methods) -> str:
     return "residual evaluation" if lm else "generation"
 
 
-def error_distribution(errors: dict[str, np.ndarray], title: str):
-    """Empirical distribution (ECDF) of position errors |δp| in mm, one curve per set, log x axis:
-    before and after calibration differ by orders of magnitude, and 500 poses stay readable."""
+def error_distribution(errors: dict[str, np.ndarray], title: str, unit: str = "mm"):
+    """Empirical distribution (ECDF) of position errors |δp| in mm (or reprojection errors in px,
+    ``unit``), one curve per set, log x axis: before and after calibration differ by orders of
+    magnitude, and 500 poses stay readable."""
     fig, ax = new_figure(7, 4)
     for (label, e), color in zip(errors.items(), ("tab:red", "tab:blue", "tab:green", "tab:purple", "tab:gray")):
         e = np.sort(np.maximum(np.asarray(e, float), 1e-9))
         ax.step(e, np.arange(1, e.size + 1) / e.size, where="post", color=color,
-                label=f"{label}: median {np.median(e):.3g}, 95 % {np.percentile(e, 95):.3g} mm")
+                label=f"{label}: median {np.median(e):.3g}, 95 % {np.percentile(e, 95):.3g} {unit}")
     ax.set_xscale("log")
     _log_axis(ax.xaxis, np.concatenate([np.ravel(e) for e in errors.values()]))
-    ax.set_xlabel("position error |δp| (mm)")
+    ax.set_xlabel("reprojection error |δuv| (px)" if unit == "px" else "position error |δp| (mm)")
     ax.set_ylabel("fraction of poses with smaller error")
     ax.set_ylim(0, 1.02)
     ax.set_title(title)
@@ -162,7 +163,7 @@ def workspace_errors(points: np.ndarray, errors: np.ndarray, title: str, label: 
 
 
 def residual_vs_joints(q: np.ndarray, errors: np.ndarray, title: str, bins: int = 12,
-                       others: dict[str, np.ndarray] | None = None):
+                       others: dict[str, np.ndarray] | None = None, ylabel: str = "|δp| (mm)"):
     """|δp| (mm) against each joint angle (deg), with the median per angle bin: a pattern here
     is what geometry leaves to compliance or gear errors.  others: further models' |δp| on the
     same poses, drawn as their medians only."""
@@ -188,12 +189,50 @@ def residual_vs_joints(q: np.ndarray, errors: np.ndarray, title: str, bins: int 
         ax.set_xlabel(f"q{i + 1} (deg)")
         ax.grid(True, alpha=0.3)
         if i % cols == 0:
-            ax.set_ylabel("|δp| (mm)")
+            ax.set_ylabel(ylabel)
     for ax in axes[n:]:
         ax.set_visible(False)
     axes[0].legend(fontsize=8)
     fig.suptitle(title)
     fig.tight_layout()
+    return fig
+
+
+def image_planes(views: list[dict], title: str):
+    """What each camera saw, on its image (px; y down as the image has it): each row's measured pixel
+    coloured by the calibrated model's reprojection error, and that error drawn as an arrow from it,
+    magnified to be seen (the factor in each title).  views: per camera ``name``, ``width``,
+    ``height`` (None: not stated), ``uv`` (m, 2), ``before`` and ``after`` (m, 2) measured less
+    predicted pixels."""
+    from matplotlib.figure import Figure
+
+    n = len(views)
+    fig = Figure(figsize=(6.2 * min(n, 2), 4.6 * -(-n // 2)), layout="constrained")
+    axes = np.atleast_1d(fig.subplots(-(-n // 2), min(n, 2))).ravel()
+    for ax, v in zip(axes, views):
+        uv, after, before = (np.asarray(v[k], float) for k in ("uv", "after", "before"))
+        norm = np.linalg.norm(after, axis=1)
+        width = v["width"] or float(np.nanmax(uv[:, 0])) * 1.05
+        height = v["height"] or float(np.nanmax(uv[:, 1])) * 1.05
+        typical = float(np.median(norm)) if norm.size else 0.0
+        gain = 10 ** np.floor(np.log10(0.03 * width / typical)) if typical > 0 else 1.0
+        vmax = robust_limit(norm)
+        sc = ax.scatter(uv[:, 0], uv[:, 1], c=np.minimum(norm, vmax), s=8, cmap="viridis", vmin=0.0, vmax=vmax)
+        ax.quiver(uv[:, 0], uv[:, 1], gain * after[:, 0], gain * after[:, 1], angles="xy", scale_units="xy", scale=1,
+                  width=0.002, color="tab:red", alpha=0.7)
+        ax.plot([0, width, width, 0, 0], [0, 0, height, height, 0], color="black", lw=0.8)
+        ax.set_xlim(-0.02 * width, 1.02 * width)
+        ax.set_ylim(1.02 * height, -0.02 * height)
+        ax.set_aspect("equal")
+        rms = lambda e: float(np.sqrt(np.mean(np.sum(e * e, axis=1))))  # noqa: E731
+        ax.set_title(f"camera {v['name']}: {len(uv)} rows, RMS {rms(before):.3g} → {rms(after):.3g} px "
+                     f"(arrows ×{gain:g})", fontsize=9)
+        ax.set_xlabel("u (px)")
+        ax.set_ylabel("v (px)")
+        fig.colorbar(sc, ax=ax, label="reprojection error after (px)", shrink=0.8)
+    for ax in axes[n:]:
+        ax.set_visible(False)
+    fig.suptitle(title)
     return fig
 
 

@@ -131,17 +131,22 @@ def _error_figures(result: CalibrationResult) -> list[str]:
     meas, val = result.measurements, result.validation
     if meas is None:
         return []
-    parts = ["<h2>Error distribution</h2><p>Position error |δp| of every pose; the curves show the "
-             "fraction of poses with a smaller error (log scale).</p>"]
+    pixels = result.unit == "px"
+    parts = ["<h2>Error distribution</h2><p>" + ("Reprojection error |δuv| (px) of every camera row" if pixels else
+                                                 "Position error |δp| of every pose")
+             + "; the curves show the fraction of poses with a smaller error (log scale).</p>"]
     series = {"before (calibration poses)": _norms(result.initial, meas),
               "after (calibration poses)": _norms(result.robot, meas)}
     if val is not None:
         series["before (validation poses)"] = _norms(result.initial, val)
         series["after (validation poses)"] = _norms(result.robot, val)
-    parts.append(_img(figures.error_distribution(series, f"{result.nominal.name}: model {result.model}")))
+    parts.append(_img(figures.error_distribution(series, f"{result.nominal.name}: model {result.model}",
+                                                 result.unit)))
     where = val if val is not None else meas
     label = "validation" if val is not None else "calibration"
     after = _norms(result.robot, where)
+    if pixels:
+        return parts + _camera_figures(result, where, label, after)
     points = where.position
     if where.constraints is not None:  # a contact row measured no point: the calibrated model's is drawn
         points = np.where(where.constraints.rows[:, None],
@@ -188,13 +193,14 @@ def _exports(result: CalibrationResult) -> list[str]:
         return []
     if e.geometric:
         return [f"<h2>What the exports hold</h2><p>The model is geometry and frames alone: a robot TOML, a URDF and "
-                f"a kinematics YAML carry all of it ({e.whole_rms_mm:.4f} mm RMS {html.escape(e.where)}).</p>"]
+                f"a kinematics YAML carry all of it ({e.whole_rms_mm:.4f} {e.unit} RMS {html.escape(e.where)}).</p>"]
     own = e.geometry_of == "the model's own"
     return ["<h2>What the exports hold</h2><p>A robot TOML holds the whole model; a URDF or a kinematics YAML only "
             "geometry and frames" + ("" if own else ": the geometric calibration's, since the model's own geometry was "
                                      "fitted beside its joint terms, which took their share") +
             f". What the receiver then gets, {html.escape(e.where)}:</p>",
-            _table(("export", "holds", "position RMS (mm)", "max (mm)"),
+            _table(("export", "holds", f"{'reprojection' if e.unit == 'px' else 'position'} RMS ({e.unit})",
+                    f"max ({e.unit})"),
                    [("robot TOML (robocal filter, compensate, evaluate)", "the whole model", f"{e.whole_rms_mm:.4f}",
                      f"{e.whole_max_mm:.4f}"),
                     ("URDF, kinematics YAML (a controller, ROS)",
@@ -235,8 +241,10 @@ def _per_target(result: CalibrationResult) -> list[str]:
     first = next(iter(per_target.values()))
     keys = [k for k in ("before", "after", "validation_before", "validation_after") if k in first]
     rows = [(t, str(m["after"].n), *(f"{m[k].position['rms']:.4f}" for k in keys)) for t, m in per_target.items()]
-    return ["<h2>Per reflector</h2>",
-            _table(("reflector", "points", *(f"{k.replace('_', ' ')} RMS (mm)" for k in keys)), rows)]
+    what = "marker" if result.unit == "px" else "reflector"
+    return [f"<h2>Per {what}</h2>",
+            _table((what, "points" if result.unit == "mm" else "rows",
+                    *(f"{k.replace('_', ' ')} RMS ({result.unit})" for k in keys)), rows)]
 
 
 def _table(columns, rows, left: int = 1) -> str:
@@ -339,6 +347,26 @@ def _floor(result: CalibrationResult) -> float | None:
     return float(np.sqrt(instrument_noise(sigma)))
 
 
+def _tied_to_cameras(result: CalibrationResult) -> list[str]:
+    """The parameters held by their prior that no pose can tell from a camera's mounting: for a
+    camera on link k, joint k+1's zero and offset along its axis (a turn or a shift along an axis
+    commutes with the joint's own turn, so the camera may take it: MODEL §10), and for Craig's
+    convention the twist and length before that axis; and what the estimate's dependences tie to
+    those or to a camera's frame."""
+    robot = result.robot
+    tied = set()
+    for mount in robot.cameras.values():
+        if mount.link and mount.link < robot.n_joints and robot.convention in ("dh", "hayati", "craig"):
+            j = mount.link + 1
+            tied |= {f"theta{j}", f"d{j}"} | ({f"a{j}", f"alpha{j}"} if robot.convention == "craig" else set())
+    at = result.at_estimate
+    groups = [] if at is None else [{name, *related} for name, related in at.dependent.items()]
+    for group in groups * 2:  # twice: a dependence may tie to another that ties to a camera
+        if any(n.startswith("camera[") or n in tied for n in group):
+            tied |= {n for n in group if not n.startswith("camera[")}
+    return [n for n in result.held if n in tied]
+
+
 def next_steps(result: CalibrationResult) -> list[str]:
     """At most :data:`MOST` concrete suggestions from the figures the report shows, the most
     pressing first: physicality, the gap between the model's figure and the instrument's floor,
@@ -371,9 +399,15 @@ def next_steps(result: CalibrationResult) -> list[str]:
                        f"mm (median; 95 % below {summary['p95_mm']:.3g} mm), {summary['median_mm'] / at:.1f}× that "
                        "at the measured poses: the model is sure of itself only near them. Measure poses where the "
                        "uncertainty map is bright before relying on it across the workspace.")
-    if result.held:
-        many = len(result.held) > 1
-        out.append(f"The poses do not pin {html.escape(', '.join(result.held))}: {'they are' if many else 'it is'} "
+    tied = _tied_to_cameras(result)
+    if tied:
+        out.append(f"{html.escape(', '.join(tied))} cannot be told from where the cameras are: the pixels see the "
+                   "same whichever takes the difference, so the prior holds it (MODEL §10). No pose separates them; "
+                   "a camera's pose known by other means (--camera-pose), or tracker rows, would.")
+    held = [n for n in result.held if n not in tied]
+    if held:
+        many = len(held) > 1
+        out.append(f"The poses do not pin {html.escape(', '.join(held))}: {'they are' if many else 'it is'} "
                    f"held by {'their' if many else 'its'} prior (the nominal value within its width, MODEL §3.1), not "
                    f"measured. Poses that move {'their' if many else 'its'} joints more widely would measure "
                    f"{'them' if many else 'it'}.")
@@ -414,6 +448,25 @@ def next_steps(result: CalibrationResult) -> list[str]:
     return [f"Nothing calls for more: the model predicts {headline[1]:.3g} mm RMS {headline[0]}, within "
             f"{FLOOR_GAP:g}× the instrument's own {floor:.3g} mm, and its predicted TCP uncertainty over the "
             f"calibrated joint ranges is near that at the measured poses."]
+
+
+def _camera_figures(result: CalibrationResult, where, label: str, after: np.ndarray) -> list[str]:
+    """Camera rows: what each camera saw on its image, and the reprojection error against the joints."""
+    views = where.views
+    before, _ = pose_errors(result.initial, where)
+    now, _ = pose_errors(result.robot, where)
+    drawn = [{"name": name, "width": camera.width, "height": camera.height, "uv": where.pixels[views.index == c],
+              "before": before[views.index == c, :2], "after": now[views.index == c, :2]}
+             for c, (name, camera) in enumerate(zip(views.names, views.cameras))]
+    parts = [f"<h2>What each camera saw</h2><p>Every {label} row on its camera's image: the measured pixel, coloured "
+             "by the calibrated model's reprojection error, and that error as an arrow (magnified, by the factor in "
+             "each title). Arrows that line up over a region are what the model leaves there (a lens the intrinsics do "
+             "not describe, a marker off its place); scattered arrows are the detection's noise.</p>",
+             _img(figures.image_planes(drawn, f"{label} rows after calibration"))]
+    parts.append("<h2>Error against each joint angle</h2><p>The calibrated model's reprojection error against each "
+                 "joint: a trend or a wave here is a joint effect geometry cannot take.</p>")
+    parts.append(_img(figures.residual_vs_joints(where.q, after, f"{label} rows", ylabel="|δuv| (px)")))
+    return parts
 
 
 def calibration_html(result: CalibrationResult, command: str | None = None) -> str:
