@@ -286,3 +286,27 @@ def test_images_rendered_from_a_planted_robot_detect_and_calibrate_to_the_same_m
     code, _, err = run_cli("detect", folder, "--joints", tmp_path / "joints.csv", "--camera", "wall", "--aruco",
                            "4x4_55", "--out", tmp_path / "again.csv")
     assert code == 2 and "unknown ArUco dictionary '4x4_55'" in err
+
+
+def test_plan_chooses_poses_that_keep_the_marker_in_a_cameras_view(tmp_path, run_cli):
+    from scipy.spatial.transform import Rotation
+
+    cam = cw.camera("wall", cw.look_at([1500.0, 900, 1200], [500.0, 200, 400]))
+    cam.write(tmp_path / "wall.yaml")
+    xyz = cam.pose[:3, 3]
+    rpy = Rotation.from_matrix(cam.pose[:3, :3]).as_euler("xyz", degrees=True)
+    out, summary = tmp_path / "plan.csv", tmp_path / "plan.json"
+    code, _, err = run_cli("plan", "kr5-arc", "--camera", f"wall={tmp_path / 'wall.yaml'}", "--camera-pose",
+                           "wall=" + ",".join(f"{v:.9g}" for v in (*xyz, *rpy)), "--poses", 25, "--candidates", 1500,
+                           "--out", out, "--summary", summary)
+    assert code == 0, err
+    planned = json.loads(summary.read_text())
+    assert planned["candidates_in_view"]["seeing_a_marker"] < 0.8 * planned["candidates_in_view"]["drawn"]
+    assert planned["value"] > planned["random_median"]
+    # each planned pose puts the tool point on the camera's image (the independent cell says so)
+    lines = out.read_text().splitlines()
+    assert lines[0] == "pose_id,image,q1,q2,q3,q4,q5,q6" and len(lines) == 26
+    q = np.radians([[float(v) for v in line.split(",")[2:]] for line in lines[1:]])
+    cell = cw.Cell("kr5-arc", {}, [cam], {"m1": (np.zeros(3), None)})
+    seen = cell.observe(q, np.random.default_rng(0), 0.0)
+    assert len(seen) == 25

@@ -63,10 +63,19 @@ def plan_cmd(
     socket: list[str] | None = typer.Option(None, "--socket", help="x,y,z (mm, the robot's base frame) of a socket "
                                             "the tool point (a ball) will touch: --poses configurations for each, "
                                             "for calibration without a tracker (repeatable)"),
+    cameras: list[str] | None = typer.Option(None, "--camera", help="NAME=FILE or NAME=FILE,link=K: plan images for "
+                                             "this camera (its intrinsics) instead of a tracker; repeatable"),
+    camera_pose: list[str] | None = typer.Option(None, "--camera-pose", help="NAME=x,y,z,rx,ry,rz: where a camera is "
+                                                 "(mm, deg; the measuring frame = the robot's base here, or its "
+                                                 "link's frame); default: a fixed camera facing the markers"),
+    markers: Path | None = typer.Option(None, "--markers", help="CSV marker,x,y,z (mm, flange frame): known markers "
+                                        "(default: one unknown marker at the tool point)"),
+    pixel_noise: float = typer.Option(0.5, "--pixel-noise", help="pixel noise σ, px, with --camera"),
     base_link: str | None = base_link_option(),
     tip_link: str | None = tip_link_option(),
     out: Path = typer.Option(..., "--out", help="measurement-file skeleton to write (pose_id, q1..qn; with --socket "
-                                                "q1..qn, point, setup)"),
+                                                "q1..qn, point, setup; with --camera the joint log robocal detect "
+                                                "reads: pose_id, image, q1..qn)"),
     as_json: bool = json_flag("the plan report"),
     report: Path | None = summary_option("the plan report"),
     quiet: bool = quiet_flag(),
@@ -99,6 +108,10 @@ def plan_cmd(
     opt.number(model_error, "model_error", minimum=0.0)
     if socket:
         _plan_sockets(r, socket, poses, candidates, seed, jr, out, report, as_json, quiet)
+        return
+    if cameras:
+        _plan_cameras(r, cameras, camera_pose, markers, pixel_noise, poses, candidates, seed, jr, out, report,
+                      as_json, quiet)
         return
     p = plan_poses(r, poses, candidates=candidates, criterion=criterion, measure=measure, frames=frames,
                    joint_range=jr, noise=noise, angle_noise=math.radians(angle_noise), seed=seed, workspace=box,
@@ -144,6 +157,55 @@ def _plan_sockets(r, sockets, poses, candidates, seed, jr, out, report, as_json,
                         f"distinct reaching configurations drawn): log det of the information per parameter "
                         f"{p.value:.3f} against {document['random_median']:.3f} for the median of "
                         f"{len(p.random_values)} random choices; wrote {out}")
+
+
+def _plan_cameras(r, cameras, camera_pose, markers, pixel_noise, poses, candidates, seed, jr, out, report, as_json,
+                  quiet) -> None:
+    """Images to take (see :mod:`robocal.plan.cameras`): the joint log of the chosen poses."""
+    import json
+
+    from .. import options as opt
+    from ..calibration.cameras import load_markers
+    from ..calibration.config import camera_poses, camera_specs
+    from ..io.atomic import atomic_write, together
+    from ..io.camera import load_camera
+    from ..io.measurements import joints_to_file
+    from ..math.se3 import frame_from_values
+    from ..model.camera import CameraMount
+    from ..plan.cameras import plan_camera_poses
+    from .common import console, print_json
+
+    specs = camera_specs(cameras)
+    placed = camera_poses(tuple(camera_pose or ()), specs)
+    setup = {}
+    for spec in specs:
+        if spec.link > 0 and spec.name not in placed:
+            from ..exceptions import InputError
+
+            raise InputError(f"camera {spec.name!r} rides on link {spec.link}: give its pose there (--camera-pose "
+                             f"{spec.name}=x,y,z,rx,ry,rz)", option="camera_pose")
+        mount = CameraMount(spec.link, frame_from_values(placed[spec.name])) if spec.name in placed else None
+        setup[spec.name] = (load_camera(spec.path, spec.name), mount)
+    known = None if markers is None else load_markers(str(markers))
+    opt.number(pixel_noise, "pixel_noise", minimum=0.0, strict=True)
+    p = plan_camera_poses(r, poses, setup, markers=known, markers_known=known is not None, candidates=candidates,
+                          pixel_noise=pixel_noise, seed=seed, joint_range=jr)
+    lines = ["pose_id,image," + ",".join(f"q{i + 1}" for i in range(r.n_joints))]
+    lines += [f"P{j + 1:03d},P{j + 1:03d}.png," + ",".join(f"{v:.6f}" for v in joints_to_file(q, r.prismatic))
+              for j, q in enumerate(p.q)]
+    document = p.summary()
+    with together():
+        atomic_write(out, "\n".join(lines) + "\n")
+        if report is not None:
+            atomic_write(report, json.dumps(document, indent=1) + "\n")
+    if as_json:
+        print_json(document)
+    elif not quiet:
+        console().print(f"{len(p.q)} poses, {int(p.rows.sum())} camera rows expected ({p.in_view[0]} of "
+                        f"{p.in_view[1]} candidates see a marker): log det of the information per parameter "
+                        f"{p.value:.3f} against {document['random_median']:.3f} for the median of "
+                        f"{len(p.random_values)} random sets; wrote {out} (the joint log robocal detect reads: name "
+                        "each image as its row says)", markup=False)
 
 
 def register(app: typer.Typer) -> None:
