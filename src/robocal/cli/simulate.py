@@ -121,8 +121,9 @@ def simulate_cmd(
         for path, text in texts.items():
             atomic_write(path, text)
     if not quiet:
-        console().print(f"wrote {sim.measurements.n_poses} poses to {out}" + (f" and the true robot to {truth}"
-                                                                           if truth else ""))
+        what = sim.measurements.describe() if sim.measurements.camera is not None else \
+            f"{sim.measurements.n_poses} poses"
+        console().print(f"wrote {what} to {out}" + (f" and the true robot to {truth}" if truth else ""), markup=False)
 
 
 def _camera_campaign(robot, poses, cameras, poses_given, markers, errors, pixel_noise, seed, joint_range):
