@@ -310,3 +310,74 @@ def test_plan_chooses_poses_that_keep_the_marker_in_a_cameras_view(tmp_path, run
     cell = cw.Cell("kr5-arc", {}, [cam], {"m1": (np.zeros(3), None)})
     seen = cell.observe(q, np.random.default_rng(0), 0.0)
     assert len(seen) == 25
+
+
+TORSO_URDF = """<?xml version="1.0"?>
+<robot name="torso_arm">
+  <link name="world"/><link name="torso_link"/><link name="head"/><link name="eye"/>
+  <link name="l1"/><link name="l2"/><link name="l3"/><link name="l4"/><link name="l5"/><link name="tool"/>
+  <joint name="torso" type="revolute"><parent link="world"/><child link="torso_link"/>
+    <origin xyz="0 0 0.8"/><axis xyz="0 0 1"/><limit lower="-2" upper="2" effort="1" velocity="1"/></joint>
+  <joint name="neck" type="fixed"><parent link="torso_link"/><child link="head"/>
+    <origin xyz="0.05 0 0.55" rpy="0 0.3 0"/></joint>
+  <joint name="optical" type="fixed"><parent link="head"/><child link="eye"/>
+    <origin xyz="0.08 0 0" rpy="-1.5707963 0 -1.5707963"/></joint>
+  <joint name="s1" type="revolute"><parent link="torso_link"/><child link="l1"/>
+    <origin xyz="0.1 -0.25 0.4" rpy="1.5707963 0 0"/><axis xyz="0 0 1"/><limit lower="-2" upper="2" effort="1" velocity="1"/></joint>
+  <joint name="s2" type="revolute"><parent link="l1"/><child link="l2"/>
+    <origin xyz="0 0 0.12" rpy="-1.5707963 0 0"/><axis xyz="0 0 1"/><limit lower="-2" upper="2" effort="1" velocity="1"/></joint>
+  <joint name="e1" type="revolute"><parent link="l2"/><child link="l3"/>
+    <origin xyz="0.3 0 0" rpy="1.5707963 0 0"/><axis xyz="0 0 1"/><limit lower="-2" upper="2" effort="1" velocity="1"/></joint>
+  <joint name="e2" type="revolute"><parent link="l3"/><child link="l4"/>
+    <origin xyz="0 0.02 0.28" rpy="-1.5707963 0 0"/><axis xyz="0 0 1"/><limit lower="-2" upper="2" effort="1" velocity="1"/></joint>
+  <joint name="w1" type="revolute"><parent link="l4"/><child link="l5"/>
+    <origin xyz="0.12 0 0" rpy="1.5707963 0 0"/><axis xyz="0 0 1"/><limit lower="-2" upper="2" effort="1" velocity="1"/></joint>
+  <joint name="flange" type="fixed"><parent link="l5"/><child link="tool"/><origin xyz="0 0 0.09"/></joint>
+</robot>
+"""
+
+
+def test_a_camera_on_a_urdf_torso_link_is_placed_by_the_links_own_fixed_joints(tmp_path, run_cli):
+    """A camera whose link hangs from the torso by fixed joints, named by that link: robocal's chain
+    reaches its frame as the URDF's own transforms do (an independent reader, OpenCV's projection)."""
+    import cv2
+
+    from tests.independent_urdf import Urdf
+
+    (tmp_path / "torso.urdf").write_text(TORSO_URDF)
+    urdf = Urdf(TORSO_URDF)
+    cam = cw.camera("head", np.eye(4), f=700.0, size=(1280, 960), dist=(-0.05, 0.01, 0.0, 0.0, 0.0))
+    cam.write(tmp_path / "head.yaml")
+    rng = np.random.default_rng(2)
+    lines = ["q1,q2,q3,q4,q5,q6,u,v,camera,marker"]
+    names = ["torso", "s1", "s2", "e1", "e2", "w1"]
+    for _ in range(2000):
+        q = rng.uniform(-1.2, 1.2, 6)
+        values = dict(zip(names, q))
+        eye = urdf.transform("world", "eye", values)
+        tip = urdf.transform("world", "tool", values)[:3, 3]
+        pc = eye[:3, :3].T @ (tip - eye[:3, 3]) * 1000.0  # mm in the camera's frame
+        if pc[2] < 100:
+            continue
+        uv, _ = cv2.projectPoints(pc.reshape(1, 1, 3), np.zeros(3), np.zeros(3), cam.K, cam.dist)
+        u, v = uv.ravel() + rng.normal(0, 0.3, 2)
+        if 10 < u < 1270 and 10 < v < 950:
+            lines.append(",".join(repr(float(np.degrees(x))) for x in q) + f",{float(u)!r},{float(v)!r},head,tip")
+    assert len(lines) > 100
+    (tmp_path / "rows.csv").write_text("\n".join(lines) + "\n")
+    (tmp_path / "tip.csv").write_text("marker,x,y,z\ntip,0,0,90\n")  # the flange is l5; the tool 90 mm out
+    base = ["calibrate", tmp_path / "torso.urdf", tmp_path / "rows.csv", "--tip-link", "tool", "--camera",
+            f"head={tmp_path / 'head.yaml'},link=eye", "--markers", tmp_path / "tip.csv"]
+    out = tmp_path / "fit.json"
+    # its pose known at the link (0 from it): the nominal chain sees every pixel where it was drawn
+    code, _, err = run_cli(*base, "--camera-pose", "head=0,0,0,0,0,0", "--out", out)
+    assert code == 0, err
+    fit = json.loads(out.read_text())
+    assert fit["metrics"]["before"]["position"]["rms"] < 0.6
+    assert fit["frames_identified"]["camera[head]"]["link"] == 1
+    # unknown, it is found from the pixels: the same fit
+    code, _, err = run_cli(*base, "--out", out)
+    assert code == 0, err
+    assert json.loads(out.read_text())["metrics"]["after"]["position"]["rms"] < 0.6
+    code, _, err = run_cli(*base[:-4], "--camera", f"head={tmp_path / 'head.yaml'},link=nowhere", "--out", out)
+    assert code == 2 and "nowhere" in err

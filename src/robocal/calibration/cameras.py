@@ -82,6 +82,38 @@ def load_markers(path: str) -> dict[str, np.ndarray]:
     return out
 
 
+def resolve_link(robot: Robot, link: int | str, camera: str) -> tuple[int, np.ndarray]:
+    """(k, T) of a camera's link: a number k (T the identity), a URDF link's name
+    (:func:`robocal.io.urdf.link_frame`), or a joint's name (the link after it)."""
+    if isinstance(link, int) or str(link).isdigit():
+        k = int(link)
+        if k > robot.n_joints:
+            raise InputError(f"camera {camera!r} is on link {k}, but the robot has {robot.n_joints} joints",
+                             option="camera")
+        return k, np.eye(4)
+    names = tuple(robot.joint_names or ())
+    if robot.urdf is not None:
+        from ..io.urdf import link_frame
+
+        try:
+            return link_frame(robot, str(link))
+        except InputError:
+            if link not in names:
+                raise
+    if link in names:
+        return names.index(link) + 1, np.eye(4)
+    raise InputError(f"camera {camera!r} is on link {link!r}, which the robot has not (joints: "
+                     f"{', '.join(names) or 'unnamed'}; or give the link's number)", option="camera")
+
+
+def mount_of(robot: Robot, camera: str, link: int | str, pose: np.ndarray | None = None,
+             known: bool = False) -> CameraMount:
+    """A camera's mounting on ``link`` (see :func:`resolve_link`), ``pose`` (4 × 4) in that link's
+    frame when given (else the link's own frame, a start the pixels replace)."""
+    k, T = resolve_link(robot, link, camera)
+    return CameraMount(k, T if pose is None else T @ pose, known)
+
+
 def attach(nominal: Robot, meas: Measurements, config: CalibrationConfig) -> tuple[Robot, Measurements, list]:
     """The robot with the markers file's markers as its targets and the measurements with their
     cameras' intrinsics, each checked against the rows: a camera the rows name and no file gives,
@@ -107,9 +139,6 @@ def attach(nominal: Robot, meas: Measurements, config: CalibrationConfig) -> tup
         if spec.name not in set(meas.camera):
             raise InputError(f"camera {spec.name!r} ({spec.path}) is seen in no row of {meas.source}",
                              option="camera")
-        if spec.link > nominal.n_joints:
-            raise InputError(f"camera {spec.name!r} is on link {spec.link}, but the robot has {nominal.n_joints} "
-                             "joints", option="camera")
         camera = intrinsics[spec.name] = load_camera(spec.path, spec.name)
         seen = rows == spec.name
         if seen.sum() < MIN_ROWS:
@@ -130,16 +159,19 @@ def attach(nominal: Robot, meas: Measurements, config: CalibrationConfig) -> tup
             raise InputError(f"marker {unknown[0]!r} is named in no markers file ({config.markers})",
                              source=meas.source, where=f"row {int(meas.rows[i])}")
         robot = nominal.replace(targets={**nominal.targets, **markers})
-    given = nominal.cameras  # a robot object may carry mountings, known ones among them
-    for spec in config.cameras:
-        if spec.name in given and given[spec.name].link != spec.link:
-            raise InputError(f"camera {spec.name!r} is on link {spec.link}, but the robot has it on link "
-                             f"{given[spec.name].link}", option="camera")
     from ..math.se3 import frame_from_values
 
-    mounts = {s.name: given.get(s.name, CameraMount(s.link)) for s in config.cameras}
-    for name, values in config.camera_poses.items():
-        mounts[name] = CameraMount(mounts[name].link, frame_from_values(values), known=True)
+    given = nominal.cameras  # a robot object may carry mountings, known ones among them
+    mounts = {}
+    for spec in config.cameras:
+        values = config.camera_poses.get(spec.name)
+        mounts[spec.name] = mount_of(nominal, spec.name, spec.link, None if values is None else
+                                     frame_from_values(values), known=values is not None)
+        if spec.name in given and values is None:
+            if given[spec.name].link != mounts[spec.name].link:
+                raise InputError(f"camera {spec.name!r} is on link {mounts[spec.name].link}, but the robot has it on "
+                                 f"link {given[spec.name].link}", option="camera")
+            mounts[spec.name] = given[spec.name]
     robot = robot.replace(cameras=mounts)
     return robot, replace(meas, intrinsics=intrinsics), notes
 

@@ -311,11 +311,14 @@ class CameraSpec:
 
     name: str
     path: str
-    link: int = 0
+    #: 0: fixed in the cell; k: on the link after joint k; a name: a URDF link (or a joint's name,
+    #: the link after it), resolved against the robot
+    link: int | str = 0
 
 
 def camera_specs(value) -> tuple[CameraSpec, ...]:
-    """``NAME=FILE`` or ``NAME=FILE,link=K`` items (or :class:`CameraSpec`), each camera once."""
+    """``NAME=FILE`` or ``NAME=FILE,link=K`` items (K a number, or a URDF link's or a joint's name;
+    or :class:`CameraSpec`), each camera once."""
     items = [value] if isinstance(value, (str, CameraSpec)) else list(value or ())
     out: list[CameraSpec] = []
     for item in items:
@@ -328,7 +331,8 @@ def camera_specs(value) -> tuple[CameraSpec, ...]:
                 if key.strip() != "link" or not val.strip():
                     raise InputError(f"expected NAME=FILE or NAME=FILE,link=K, got {item!r} ({e!r} is not link=K)",
                                      option="camera")
-                link = opt.integer(val.strip(), "camera", minimum=0)
+                val = val.strip()
+                link = opt.integer(val, "camera", minimum=0) if val.lstrip("-").isdigit() else val
             if not name.strip() or not path:
                 raise InputError(f"expected NAME=FILE or NAME=FILE,link=K, got {item!r}", option="camera")
             item = CameraSpec(name.strip(), path, link)

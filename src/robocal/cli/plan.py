@@ -170,22 +170,15 @@ def _plan_cameras(r, cameras, camera_pose, markers, pixel_noise, poses, candidat
     from ..io.atomic import atomic_write, together
     from ..io.camera import load_camera
     from ..io.measurements import joints_to_file
-    from ..math.se3 import frame_from_values
-    from ..model.camera import CameraMount
     from ..plan.cameras import plan_camera_poses
     from .common import console, print_json
+    from .simulate import placed as _placed
 
     specs = camera_specs(cameras)
     placed = camera_poses(tuple(camera_pose or ()), specs)
     setup = {}
     for spec in specs:
-        if spec.link > 0 and spec.name not in placed:
-            from ..exceptions import InputError
-
-            raise InputError(f"camera {spec.name!r} rides on link {spec.link}: give its pose there (--camera-pose "
-                             f"{spec.name}=x,y,z,rx,ry,rz)", option="camera_pose")
-        mount = CameraMount(spec.link, frame_from_values(placed[spec.name])) if spec.name in placed else None
-        setup[spec.name] = (load_camera(spec.path, spec.name), mount)
+        setup[spec.name] = (load_camera(spec.path, spec.name), _placed(r, spec, placed.get(spec.name)))
     known = None if markers is None else load_markers(str(markers))
     opt.number(pixel_noise, "pixel_noise", minimum=0.0, strict=True)
     p = plan_camera_poses(r, poses, setup, markers=known, markers_known=known is not None, candidates=candidates,

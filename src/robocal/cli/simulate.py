@@ -128,30 +128,33 @@ def simulate_cmd(
 
 def _camera_campaign(robot, poses, cameras, poses_given, markers, errors, pixel_noise, seed, joint_range):
     """The cameras' files and poses and the markers read, then :func:`robocal.simulation.simulate_cameras`."""
-    from .. import options as opt
     from ..calibration.cameras import load_markers
-    from ..calibration.config import camera_specs
-    from ..exceptions import InputError
+    from ..calibration.config import camera_poses, camera_specs
     from ..io.camera import load_camera
-    from ..math.se3 import frame_from_values
-    from ..model.camera import CameraMount
     from ..simulation import simulate_cameras
 
     specs = camera_specs(cameras)
-    _, placed = opt.named_frames(poses_given, "camera_pose")
-    unknown = [n for n in placed if n not in {s.name for s in specs}]
-    if unknown:
-        raise InputError(f"camera {unknown[0]!r} has a pose but no --camera", option="camera_pose")
-    setup = {}
-    for spec in specs:
-        pose = placed.get(spec.name)
-        if pose is None and spec.link > 0:
-            raise InputError(f"camera {spec.name!r} rides on link {spec.link}: give its pose there (--camera-pose "
-                             f"{spec.name}=x,y,z,rx,ry,rz)", option="camera_pose")
-        mount = None if pose is None else CameraMount(spec.link, frame_from_values(pose))
-        setup[spec.name] = (load_camera(spec.path, spec.name), mount)
+    poses_given_of = camera_poses(tuple(poses_given or ()), specs).get
+    setup = {spec.name: (load_camera(spec.path, spec.name), placed(robot, spec, poses_given_of(spec.name)))
+             for spec in specs}
     return simulate_cameras(robot, poses, setup, markers=None if markers is None else load_markers(str(markers)),
                             deviations=errors, pixel_noise=pixel_noise, seed=seed, joint_range=joint_range)
+
+
+def placed(robot, spec, values):
+    """A camera's mounting where the command line places it (``values``: x, y, z mm, rx, ry, rz rad in its
+    link's frame), or None: a fixed camera left to face the markers.  One on a link needs its place."""
+    from ..calibration.cameras import mount_of
+    from ..exceptions import InputError
+    from ..math.se3 import frame_from_values
+
+    if values is None:
+        mount = mount_of(robot, spec.name, spec.link)
+        if mount.link > 0:
+            raise InputError(f"camera {spec.name!r} rides on link {spec.link}: give its pose there (--camera-pose "
+                             f"{spec.name}=x,y,z,rx,ry,rz)", option="camera_pose")
+        return None
+    return mount_of(robot, spec.name, spec.link, frame_from_values(values))
 
 
 def _camera_lines(truth) -> str:

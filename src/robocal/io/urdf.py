@@ -545,3 +545,40 @@ def dh_urdf_equivalent(robot: Robot) -> Robot:
         warnings.simplefilter("ignore")
         return parse_urdf(urdf_text(robot), source=f"{robot.name} (urdf)")
 
+
+
+def link_frame(robot: Robot, name: str) -> tuple[int, np.ndarray]:
+    """Where a link of a URDF robot rides: (k, T), k the movable joints of the chain above it (0:
+    fixed in the cell) and T (4 × 4, mm) the link's frame in the frame robocal's chain reaches after
+    joint k (the fixed joints between them; for k = 0, in the base link's frame).  The link is on the
+    chain, or hangs from it by fixed joints (a camera's link on a torso); by a joint that moves, it is
+    not on this chain."""
+    chain = robot.urdf
+    source = robot.source or "<urdf>"
+    if not isinstance(chain, UrdfChain):
+        raise InputError(f"names link {name!r}, but {source} is no URDF: give the link's number", option="camera")
+    root = _parse_xml(chain.text, source)
+    links, by_child, _, _ = _tree(root, source)
+    if name not in links:
+        raise InputError(f"names link {name!r}, which {source} has not", option="camera")
+    path = _path(by_child, chain.base_link, chain.tip_link) or []
+    on_chain = [chain.base_link] + [j.child for j in path]
+    below = np.eye(4)
+    link = name
+    while link not in on_chain:
+        joint = by_child.get(link)
+        if joint is None:
+            raise InputError(f"link {name!r} is not on the chain from {chain.base_link} to {chain.tip_link}",
+                             option="camera")
+        if joint.kind in MOVABLE:
+            raise InputError(f"link {name!r} moves by joint {joint.name!r}, which is not in the calibrated chain",
+                             option="camera")
+        below = joint.origin @ below
+        link = joint.parent
+    k, T = 0, np.eye(4)
+    for joint in path[:on_chain.index(link)]:
+        if joint.kind in MOVABLE:
+            k, T = k + 1, np.eye(4)
+        else:
+            T = T @ joint.origin
+    return k, T @ below
