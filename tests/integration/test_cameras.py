@@ -323,15 +323,20 @@ TORSO_URDF = """<?xml version="1.0"?>
   <joint name="optical" type="fixed"><parent link="head"/><child link="eye"/>
     <origin xyz="0.08 0 0" rpy="-1.5707963 0 -1.5707963"/></joint>
   <joint name="s1" type="revolute"><parent link="torso_link"/><child link="l1"/>
-    <origin xyz="0.1 -0.25 0.4" rpy="1.5707963 0 0"/><axis xyz="0 0 1"/><limit lower="-2" upper="2" effort="1" velocity="1"/></joint>
+    <origin xyz="0.1 -0.25 0.4" rpy="1.5707963 0 0"/><axis xyz="0 0 1"/>
+    <limit lower="-2" upper="2" effort="1" velocity="1"/></joint>
   <joint name="s2" type="revolute"><parent link="l1"/><child link="l2"/>
-    <origin xyz="0 0 0.12" rpy="-1.5707963 0 0"/><axis xyz="0 0 1"/><limit lower="-2" upper="2" effort="1" velocity="1"/></joint>
+    <origin xyz="0 0 0.12" rpy="-1.5707963 0 0"/><axis xyz="0 0 1"/>
+    <limit lower="-2" upper="2" effort="1" velocity="1"/></joint>
   <joint name="e1" type="revolute"><parent link="l2"/><child link="l3"/>
-    <origin xyz="0.3 0 0" rpy="1.5707963 0 0"/><axis xyz="0 0 1"/><limit lower="-2" upper="2" effort="1" velocity="1"/></joint>
+    <origin xyz="0.3 0 0" rpy="1.5707963 0 0"/><axis xyz="0 0 1"/>
+    <limit lower="-2" upper="2" effort="1" velocity="1"/></joint>
   <joint name="e2" type="revolute"><parent link="l3"/><child link="l4"/>
-    <origin xyz="0 0.02 0.28" rpy="-1.5707963 0 0"/><axis xyz="0 0 1"/><limit lower="-2" upper="2" effort="1" velocity="1"/></joint>
+    <origin xyz="0 0.02 0.28" rpy="-1.5707963 0 0"/><axis xyz="0 0 1"/>
+    <limit lower="-2" upper="2" effort="1" velocity="1"/></joint>
   <joint name="w1" type="revolute"><parent link="l4"/><child link="l5"/>
-    <origin xyz="0.12 0 0" rpy="1.5707963 0 0"/><axis xyz="0 0 1"/><limit lower="-2" upper="2" effort="1" velocity="1"/></joint>
+    <origin xyz="0.12 0 0" rpy="1.5707963 0 0"/><axis xyz="0 0 1"/>
+    <limit lower="-2" upper="2" effort="1" velocity="1"/></joint>
   <joint name="flange" type="fixed"><parent link="l5"/><child link="tool"/><origin xyz="0 0 0.09"/></joint>
 </robot>
 """
