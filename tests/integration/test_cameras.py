@@ -386,3 +386,35 @@ def test_a_camera_on_a_urdf_torso_link_is_placed_by_the_links_own_fixed_joints(t
     assert json.loads(out.read_text())["metrics"]["after"]["position"]["rms"] < 0.6
     code, _, err = run_cli(*base[:-4], "--camera", f"head={tmp_path / 'head.yaml'},link=nowhere", "--out", out)
     assert code == 2 and "nowhere" in err
+
+
+def test_camera_rows_beside_tracker_rows_are_each_weighed_and_reported_in_their_unit(tmp_path, run_cli):
+    """Tracker rows (an SMR, 0.02 mm) and a wall camera's rows (0.5 px) of one campaign in one file:
+    the tracker's frame is the measuring frame, the camera is found in it, each kind's σ is its own,
+    the headline is in mm on the tracker rows and the pixels' figures stand apart."""
+    rng = np.random.default_rng(5)
+    dev = independent.uniform_deviations("kr5-arc", 1.0, np.radians(0.1), rng)
+    cam = cw.camera("wall", cw.look_at([2036.0, 1209, 1335], [236.0, 9, 435]))
+    cell = cw.Cell("kr5-arc", dev, [cam], {"m1": (MARKER, None)})
+    q = cw.poses("kr5-arc", 200, rng, CENTRE, SPREAD)
+    g = independent.geometry("kr5-arc", dev)
+    lines = ["q1,q2,q3,q4,q5,q6,x,y,z,u,v,camera,marker,target"]
+    for qi in q[:120]:
+        T = independent.pose(g, qi)
+        p = T[:3, :3] @ np.array([0.0, 40, 60]) + T[:3, 3] + rng.normal(0, 0.02, 3)
+        lines.append(",".join(repr(float(v)) for v in (*np.degrees(qi), *p)) + ",,,,,smr")
+    for qd, uv, c, m in cell.observe(q, rng, 0.5):
+        lines.append(",".join(repr(float(v)) for v in qd) + f",,,,{float(uv[0])!r},{float(uv[1])!r},{c},{m},")
+    (tmp_path / "rows.csv").write_text("\n".join(lines) + "\n")
+    out = tmp_path / "fit.json"
+    code, stdout, err = run_cli("calibrate", "kr5-arc", tmp_path / "rows.csv", "--camera",
+                                f"wall={cam.write(tmp_path / 'wall.yaml')}", "--out", out)
+    assert code == 0, err
+    fit = json.loads(out.read_text())
+    assert fit["headline"]["unit"] == "mm" and fit["metrics"]["after"]["n"] == 120
+    assert fit["metrics"]["after"]["position"]["rms"] < 0.05
+    assert abs(fit["sigma_by_kind"]["tracker"] - 0.02) < 0.004 and abs(fit["sigma_by_kind"]["camera"] - 0.5) < 0.08
+    assert fit["cameras"]["after"]["reprojection_rms_px"] < 0.8 < fit["cameras"]["before"]["reprojection_rms_px"]
+    found = np.array(fit["frames_identified"]["camera[wall]"]["xyz_mm"])
+    assert np.linalg.norm(found - cam.pose[:3, 3]) < 3.0  # the tracker's frame is the world's here
+    assert "camera rows, after: reprojection rms px" in stdout and "σ by kind" in stdout

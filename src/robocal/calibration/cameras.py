@@ -124,12 +124,12 @@ def attach(nominal: Robot, meas: Measurements, config: CalibrationConfig) -> tup
             raise InputError(f"camera {config.cameras[0].name!r} is given, but {meas.source} has no camera rows "
                              "(columns u, v, camera, marker)", option="camera")
         return nominal, meas, notes
-    if not all(meas.camera):
-        raise InputError("has camera rows beside tracker or contact rows: robocal calibrates camera rows on their "
-                         "own (give the other rows in their own file)", source=meas.source)
+    if meas.constraints is not None:
+        raise InputError("has camera rows beside rows that touched points or planes: calibrate camera rows alone or "
+                         "beside tracker rows", source=meas.source)
     specs = {c.name: c for c in config.cameras}
     rows = np.asarray(meas.camera, dtype=object)
-    for name in dict.fromkeys(meas.camera):
+    for name in dict.fromkeys(c for c in meas.camera if c):
         if name not in specs:
             first = int(meas.rows[int(np.argmax(rows == name))])
             raise InputError(f"camera {name!r} has no camera file (give it with --camera {name}=FILE)",
@@ -176,11 +176,25 @@ def attach(nominal: Robot, meas: Measurements, config: CalibrationConfig) -> tup
     return robot, replace(meas, intrinsics=intrinsics), notes
 
 
+def tracked(meas: Measurements) -> bool:
+    """Whether tracker rows stand beside the camera rows: their frame is then the measuring frame."""
+    return meas.camera is not None and not all(meas.camera)
+
+
 def frames_of(frames: str, robot: Robot, meas: Measurements) -> tuple[str, list]:
     """The frames mode of camera rows, and what it says: the base where a fixed camera sees it,
-    the markers where their offsets are unknown."""
+    the markers where their offsets are unknown.  Beside tracker rows, theirs (the caller's
+    choice, ``frames``), with the markers' offsets where they are unknown."""
     fixed = [c for c, m in robot.cameras.items() if m.link == 0]
     unknown = [t for t in meas.target_names if t and t not in robot.targets]
+    if tracked(meas):
+        notes = [Note("tracker rows beside camera rows: the tracker's frame is the measuring frame, every camera's "
+                      "pose is found in it, and each kind of rows is weighed by its own σ (mm, px)")]
+        seen = {t for t, c in zip(meas.targets or (), meas.camera) if c}
+        if any(t not in robot.targets for t in seen if t) and frames in ("none", "base"):
+            frames = {"none": "tcp", "base": "base+tool"}[frames]
+            notes.append(Note(f"the markers' offsets are unknown, so they are identified (frames {frames})"))
+        return frames, notes
     if not fixed and frames in ("base", "base+tool"):
         raise InputError("the base frame is not observable from cameras on the robot: they see the chain from their "
                          "link on (use frames tcp, none or auto)", option="frames")
@@ -200,8 +214,11 @@ def frames_of(frames: str, robot: Robot, meas: Measurements) -> tuple[str, list]
     return frames, notes
 
 
-def gauge(robot: Robot) -> str | None:
-    """The camera whose frame is the measuring frame (not estimated): the first fixed one."""
+def gauge(robot: Robot, meas: Measurements | None = None) -> str | None:
+    """The camera whose frame is the measuring frame (not estimated): the first fixed one, unless
+    tracker rows stand beside the camera rows (the tracker's frame is then the measuring frame)."""
+    if meas is not None and tracked(meas):
+        return None
     return next((c for c, m in robot.cameras.items() if m.link == 0), None)
 
 
@@ -225,7 +242,7 @@ def register(robot: Robot, meas: Measurements) -> Robot:
                                 robot.effective_joints(meas.q, meas.inputs)[rows, :link])
             points = np.einsum("mji,mj->mi", Rk, points - pk)
         poses[name] = views.cameras[c].pose_of(points, meas.pixels[rows])
-    first = gauge(robot)
+    first = gauge(robot, meas)
     base = robot.base
     if first is not None:  # the measuring frame is this camera's, or the world its known pose is in
         base = (mounts[first].pose if mounts[first].known else np.eye(4)) @ np.linalg.inv(poses[first])
@@ -237,11 +254,11 @@ def register(robot: Robot, meas: Measurements) -> Robot:
     return robot.replace(base=base, cameras=mounts)
 
 
-def frame_names(robot: Robot) -> list[str]:
+def frame_names(robot: Robot, meas: Measurements | None = None) -> list[str]:
     """The camera frame parameters a calibration estimates: every camera's but the measuring frame's."""
     from ..model.parameters import FRAME_AXES, camera_prefix
 
-    first = gauge(robot)
+    first = gauge(robot, meas)
     return [f"{camera_prefix(c)}_{ax}" for c, m in robot.cameras.items() if c != first and not m.known
             for ax in FRAME_AXES]
 
@@ -288,9 +305,11 @@ def scale_sources(problem) -> list[str]:
     out = []
     if len(points) >= 2:
         out.append("the markers' known offsets")
-    first = gauge(robot)
+    first = gauge(robot, problem.meas)
     if any(m.known for c, m in robot.cameras.items() if c != first):
         out.append("the cameras' known poses")
+    if tracked(problem.meas):
+        out.append("the tracker rows")
     return out
 
 

@@ -60,14 +60,20 @@ class CrossValidation:
     estimates: list[np.ndarray]
     orientation: np.ndarray | None = None
     unit: str = "mm"  # px where every row is a camera's
+    #: the rows the figures are of: every row, or those in mm where camera rows stand beside them
+    keep: np.ndarray | None = None
 
     @property
     def rms(self) -> float:
-        return rms(self.errors)
+        return rms(self.errors if self.keep is None else self.errors[self.keep])
 
     def metrics(self, errors: np.ndarray | None = None) -> Metrics:
         """The held-out figures (``errors``: the position errors after a residual correction)."""
-        return Metrics.from_errors(self.errors if errors is None else errors, self.orientation, self.unit)
+        errors = self.errors if errors is None else errors
+        orientation = self.orientation
+        if self.keep is not None:
+            errors, orientation = errors[self.keep], None if orientation is None else orientation[self.keep]
+        return Metrics.from_errors(errors, orientation, self.unit)
 
 
 def _pose_rows(problem, index: np.ndarray) -> np.ndarray:
@@ -134,7 +140,8 @@ def cross_validate(fit: Fit, config: CalibrationConfig, start: np.ndarray | None
         if orientation is not None and dr is not None:
             orientation[test] = dr
         estimates.append(x)
-    return CrossValidation(errors, index_sets, estimates, orientation, meas.unit)
+    mixed = meas.unit == "mm" and meas.camera is not None
+    return CrossValidation(errors, index_sets, estimates, orientation, meas.unit, meas.length_rows if mixed else None)
 
 
 def predict(fit: Fit, config: CalibrationConfig) -> tuple[CrossValidation, Metrics]:

@@ -74,21 +74,25 @@ def load_inputs(robot, data, validate, config: CalibrationConfig, columns=None) 
         if val is not None and val.payload is None:
             val = replace(val, payload=np.full(val.n_poses, config.payload))
     frames = config.frames
-    if meas.views is not None:
+    # the rows a tracker measured (neither contact nor camera rows)
+    tracker = meas if meas.constraints is None else meas.subset(~meas.constraints.rows)
+    tracker = tracker.subset(tracker.length_rows)
+    if meas.views is not None and not tracker.n_poses:
         frames, said = cameras.frames_of(frames, nominal, meas)
         notes += said
     elif meas.constraints is not None:
         frames, said = _contact_frames(frames, meas)
         notes += said
     elif frames in ("auto", "none"):
-        choice = choose_frames(nominal, meas)
+        choice = choose_frames(nominal, tracker)
         if frames == "auto" and choice.mode != "none":  # it changed what is calibrated: say so
             notes.append(Note(f"frames auto: {choice.sentence()}"))
         elif frames == "none" and choice.mode != "none":
             notes.append(f"frames none, but {choice.sentence()}: calibrate with frames auto or {choice.mode}")
         frames = choice.mode if frames == "auto" else "none"
-    tracker = meas if meas.constraints is None else meas.subset(~meas.constraints.rows)
-    tracker = tracker if meas.views is None else tracker.subset(np.zeros(tracker.n_poses, bool))
+    if meas.views is not None and tracker.n_poses:  # beside the tracker's rows: its frame, the markers
+        frames, said = cameras.frames_of(frames, nominal, meas)
+        notes += said
     if tracker.n_poses:
         checks.check_targets(nominal, tracker, frames)
         checks.check_validation_targets(nominal, tracker, val)

@@ -224,50 +224,83 @@ def instrument_fit(problem, x: np.ndarray, source: str, used: tuple[float, float
 
 @dataclass(frozen=True)
 class KindWeights:
-    """Tracker rows and rows that touched points or planes, each weighed by its own σ (mm): the
-    tracker's noise and the probe's seat in a socket are not one scatter.  The interface of
-    :class:`InstrumentWeights` (relative factors per residual), so the problem weighs by it."""
+    """Tracker rows, rows that touched points or planes and rows a camera saw, each weighed by its
+    own σ (mm; px for camera rows): the tracker's noise, the probe's seat in a socket and a camera's
+    pixels are not one scatter.  The interface of :class:`InstrumentWeights` (relative factors per
+    residual), so the problem weighs by it; a kind the data have not is None."""
 
-    tracker: float
-    contact: float
+    tracker: float | None
+    contact: float | None
+    camera: float | None = None
+
+    @property
+    def present(self) -> dict[str, float]:
+        return {k: v for k, v in (("tracker", self.tracker), ("contact", self.contact), ("camera", self.camera))
+                if v is not None}
 
     @property
     def ref(self) -> float:
-        return float(np.sqrt(0.5 * (self.tracker**2 + self.contact**2)))
+        return float(np.sqrt(np.mean([v ** 2 for v in self.present.values()])))
 
     def factors(self, meas: Measurements) -> tuple[np.ndarray | None, np.ndarray | None]:
-        c = meas.constraints
-        rows = np.zeros(meas.n_poses, bool) if c is None else c.rows  # a subset may hold one kind only
-        f = np.where(rows, self.contact, self.tracker) / self.ref
-        return np.repeat(f[:, None], 3, axis=1), None
+        kind = row_kinds(meas)  # a subset may hold one kind only
+        sigma = np.array([self.tracker or 0.0, self.contact or 0.0, self.camera or 0.0])[kind]
+        return np.repeat((sigma / self.ref)[:, None], 3, axis=1), None
 
     def settled(self, other, meas: Measurements) -> bool:
-        if not isinstance(other, KindWeights):
+        if not isinstance(other, KindWeights) or set(self.present) != set(other.present):
             return False
-        return abs(self.tracker / other.tracker - 1.0) <= WEIGHTS_SETTLED and \
-            abs(self.contact / other.contact - 1.0) <= WEIGHTS_SETTLED
+        return all(abs(v / other.present[k] - 1.0) <= WEIGHTS_SETTLED for k, v in self.present.items())
 
     def sentence(self) -> str:
-        return (f"tracker rows σ {self.tracker:.3g} mm, rows that touched points or planes σ {self.contact:.3g} mm "
-                "(each estimated from its own residuals)")
+        said = {"tracker": "tracker rows σ {:.3g} mm", "contact": "rows that touched points or planes σ {:.3g} mm",
+                "camera": "camera rows σ {:.3g} px"}
+        listed = ", ".join(said[k].format(v) for k, v in self.present.items())
+        return f"{listed} (each estimated from its own residuals)"
+
+
+#: the kinds of rows, as :func:`row_kinds` numbers them
+KINDS = ("tracker", "contact", "camera")
+
+
+def row_kinds(meas: Measurements) -> np.ndarray:
+    """Each row's kind: 0 a tracker's, 1 one that touched a point or plane, 2 one a camera saw."""
+    kind = np.zeros(meas.n_poses, dtype=int)
+    c = meas.constraints
+    if c is not None:
+        kind[c.rows] = 1
+    if meas.camera is not None:
+        kind[np.array([bool(x) for x in meas.camera])] = 2
+    return kind
+
+
+def several_kinds(meas: Measurements) -> bool:
+    """Whether the rows are of more than one kind (each then weighed by its own σ)."""
+    return len(np.unique(row_kinds(meas))) > 1
 
 
 def kind_weights(problem, x: np.ndarray) -> KindWeights:
-    """Each kind of rows' σ (mm) from its residuals at x, with the degrees of freedom the fit used
+    """Each kind of rows' σ (mm, px) from its residuals at x, with the degrees of freedom the fit used
     in its rows (the hat matrix's trace over them) and, for contact rows, the eliminated points
     and planes."""
     c = problem.constraints
+    kind = row_kinds(problem.meas)
     dp, _ = problem.errors(x)
     J = problem.residual_jacobian(x)
-    rows = np.repeat(c.rows, 3)
-    n_pos = problem.n_position_rows()
-    Jp = J[:n_pos]
+    Jp = J[:problem.n_position_rows()]
     inv = np.linalg.pinv(J.T @ J + problem.prior_information())
-    used = {kind: float(np.sum((Jp[mask].T @ Jp[mask]) * inv.T)) for kind, mask in (("contact", rows),
-                                                                                     ("tracker", ~rows))}
-    rss_c, rss_t = float(np.sum(dp[c.rows] ** 2)), float(np.sum(dp[~c.rows] ** 2))
-    # a plane row says one value (its offset along the normal), a point row three
-    values = 3 * int(c.rows.sum()) - 2 * int(c.rows_of("plane").sum())
-    dof_c = values - used["contact"] - c.n_unknowns
-    dof_t = 3 * int((~c.rows).sum()) - used["tracker"]
-    return KindWeights(float(np.sqrt(rss_t / max(dof_t, 1.0))), float(np.sqrt(rss_c / max(dof_c, 1.0))))
+    planes = np.zeros(len(kind), bool) if c is None else c.rows_of("plane")
+    sigma = []
+    for k in range(len(KINDS)):
+        rows = kind == k
+        if not rows.any():
+            sigma.append(None)
+            continue
+        mask = np.repeat(rows, 3)
+        used = float(np.sum((Jp[mask].T @ Jp[mask]) * inv.T))
+        # a plane row says one value (its offset along the normal), a point row three, a pixel two
+        values = {0: 3 * int(rows.sum()), 1: 3 * int(rows.sum()) - 2 * int(planes.sum()) - (0 if c is None else
+                                                                                          c.n_unknowns),
+                  2: 2 * int(rows.sum())}[k]
+        sigma.append(float(np.sqrt(np.sum(dp[rows] ** 2) / max(values - used, 1.0))))
+    return KindWeights(*sigma)

@@ -68,7 +68,11 @@ def register(inputs: Inputs, config: CalibrationConfig, spec: TermSpec = TermSpe
     sigma_p, sigma_r = config.noise_model.initial()
     with stage("optimize"):
         if inputs.meas.views is not None:
-            initial = cameras.register(complete_model(inputs.nominal, config), inputs.meas)
+            initial = complete_model(inputs.nominal, config)
+            if cameras.tracked(inputs.meas):  # the tracker's rows register the base, then the cameras start
+                seen = np.array([bool(c) for c in inputs.meas.camera])
+                initial = fit_frames(initial, inputs.meas.subset(~seen), inputs.frames, sigma_p, sigma_r)
+            initial = cameras.register(initial, inputs.meas)
         else:
             initial = fit_frames(complete_model(inputs.nominal, config), inputs.meas, inputs.frames, sigma_p, sigma_r)
     space = ParameterSpace.of(initial, targets, spec)

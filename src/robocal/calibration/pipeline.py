@@ -34,7 +34,7 @@ from ..backend import blas_threads
 from ..exceptions import InputError, Note, RobocalWarning, split_notes
 from ..model.covariance import ParameterCovariance
 from ..model.measurements import Measurements
-from ..model.metrics import Metrics
+from ..model.metrics import Metrics, camera_figures
 from ..model.region import Region
 from ..model.robot import Robot
 from ..model.uncertainty import known_targets, predicted_sigma
@@ -208,12 +208,14 @@ def _calibrate(robot, data, validate, cfg: CalibrationConfig, columns, progress,
     receiver = geometry_for_receivers(calibrated, geometric)
     exports = export_figures(calibrated, receiver, metrics, est.problem.meas, inputs.validation,
                              chosen.geometric_prediction)
-    contact = {}
+    contact, seen = {}, {}
     for key, robot, data in (("before", initial, est.problem.meas), ("after", calibrated, est.problem.meas),
                              ("validation_before", initial, inputs.validation),
                              ("validation_after", calibrated, inputs.validation)):
         if data is not None and data.constraints is not None:
             contact[key] = data.constraints.figures(robot.positions(data.q, data.targets, data.inputs))
+        if data is not None and data.camera is not None and any(data.camera):
+            seen[key] = camera_figures(robot, data)
     return CalibrationResult(
         config=cfg, robot=calibrated, initial=initial, nominal=inputs.nominal, names=est.problem.names, x=est.x,
         uncertainty=fit.uncertainty, identifiability=fit.identifiability, optimization=est.optimization,
@@ -225,5 +227,6 @@ def _calibrate(robot, data, validate, cfg: CalibrationConfig, columns, progress,
         geometric=geometric, receiver=receiver,
         instrument=fit.instrument, all_rows=inputs.meas, excluded=cfg.exclude, contact=contact,
         prior_sigma=est.problem.prior_sigma if est.problem.has_prior else None, prior_share=fit.prior_share,
-        physical=fit.physical, at_estimate=fit.at_estimate, exports=exports,
+        physical=fit.physical, at_estimate=fit.at_estimate, exports=exports, cameras=seen,
+        kind_sigma=getattr(est.problem.setup.instrument, "present", {}),  # KindWeights: σ by kind
     )

@@ -211,6 +211,12 @@ class CalibrationResult:
     #: what each kind of export hands its receiver (:class:`ExportFigures`), and what a URDF or a
     #: kinematics YAML carries (:func:`robocal.calibration.pipeline.geometry_for_receivers`)
     exports: ExportFigures | None = None
+    #: data with camera rows: their reprojection RMS (px), over all and per camera, before/after and
+    #: on validation data (:func:`robocal.model.metrics.camera_figures`)
+    cameras: dict = field(default_factory=dict)
+    #: rows of several kinds, each weighed by its own σ: that σ by kind (tracker, contact: mm;
+    #: camera: px), else empty
+    kind_sigma: dict = field(default_factory=dict)
     receiver: Robot | None = field(default=None, repr=False)
 
     @property
@@ -417,6 +423,8 @@ class CalibrationResult:
             "headline": self.headline_dict(),
             "metrics": {k: v.to_dict() for k, v in self.metrics.items()},
             **({"contact": dict(self.contact)} if self.contact else {}),
+            **({"cameras": dict(self.cameras)} if self.cameras else {}),
+            **({"sigma_by_kind": dict(self.kind_sigma)} if self.kind_sigma else {}),
             "metrics_per_target": {t: {k: v.to_dict() for k, v in m.items()}
                                    for t, m in self.per_target_metrics().items()},
             "frames_registered": frames_dict(self.initial),

@@ -34,12 +34,12 @@ def row_kinds(meas) -> tuple[np.ndarray, dict[int, int]]:
     row of each kind carries: a plane row says only its offset along the normal, a camera row its
     pixel."""
     c = meas.constraints
-    if meas.views is not None:
-        return np.where(meas.views.rows, 3, 0), {0: 3, 3: 2}
-    if c is None:
-        return np.zeros(meas.n_poses, dtype=int), {0: 3}
-    kinds = np.where(c.rows_of("plane"), 2, np.where(c.rows, 1, 0))
-    return kinds, {0: 3, 1: 3, 2: 1}
+    kinds = np.zeros(meas.n_poses, dtype=int)
+    if c is not None:
+        kinds = np.where(c.rows_of("plane"), 2, np.where(c.rows, 1, 0))
+    if meas.camera is not None:
+        kinds = np.where([bool(x) for x in meas.camera], 3, kinds)
+    return kinds, {0: 3, 1: 3, 2: 1, 3: 2}
 
 
 def screen_outliers(est: Estimate, config: CalibrationConfig) -> tuple[Estimate, Screening, list[str]]:

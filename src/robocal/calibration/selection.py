@@ -152,17 +152,20 @@ def fit_model(inputs: Inputs, config: CalibrationConfig, progress=None, stages=N
     ``stages`` (a callable, or None) hears what the ladder is at: (step, steps, what)."""
     meas = inputs.meas
     say = stages or (lambda step, steps, text: None)
-    if config.model != "auto":
-        terms = config.model_terms
+    mixed = meas.camera is not None and not all(meas.camera)
+    if config.model != "auto" or mixed:
+        # camera rows beside tracker rows: models are compared on held-out errors of one unit, and
+        # these have two (px, mm); the geometric model is fitted and said
+        terms = config.model_terms if config.model != "auto" else frozenset()
         lacking = unsupported_terms(terms, meas, config)
         if lacking:
             name, needs = next(iter(lacking.items()))
             raise InputError(f"the {name} term needs {needs}; {meas.source} gives none", option="model")
         learned = "+".join(t for t in LEARNED if t in terms)
-        if learned and meas.constraints is not None:
-            raise InputError(f"a learned correction ({learned}) learns corrections of measured positions: rows that "
-                             "touched points or planes measure none; calibrate the parametric model alone",
-                             option="model")
+        if learned and (meas.constraints is not None or meas.camera is not None):
+            what = "rows that touched points or planes" if meas.constraints is not None else "camera rows (pixels)"
+            raise InputError(f"a learned correction ({learned}) learns corrections of measured positions: {what} "
+                             "measure none; calibrate the parametric model alone", option="model")
         if learned and len(set(pose_groups(meas))) < MIN_RESIDUAL_POSES:
             raise InputError(f"a learned correction ({learned}) learns from the poses what the parametric model "
                              f"leaves: {len(set(pose_groups(meas)))} poses are too few (at least "
@@ -190,11 +193,14 @@ def fit_model(inputs: Inputs, config: CalibrationConfig, progress=None, stages=N
         if terms - set(LEARNED):  # the guard's comparison, and the error budget
             geometric = fit_parametric(inputs, config, term_spec((), meas, config))
         geometric_prediction = parametric_prediction if geometric is fit else predict(geometric, config)[1]
-        return Chosen(model_name(terms), fit, residual, notes=spent_dof(fit, residual), geometric=geometric,
+        said = [Note("model auto: camera rows beside tracker rows are compared in no one unit, so the geometric "
+                     "model is fitted alone")] if config.model == "auto" else []
+        return Chosen(model_name(terms), fit, residual, notes=said + spent_dof(fit, residual), geometric=geometric,
                       prediction=prediction, geometric_prediction=geometric_prediction)
     groups = pose_groups(meas)
-    # a learned correction corrects measured positions: rows that touched points or planes have none
-    residuals = groups.max() + 1 >= MIN_RESIDUAL_POSES and meas.constraints is None
+    # a learned correction corrects measured positions: rows that touched points or planes, and
+    # camera rows (pixels), have none
+    residuals = groups.max() + 1 >= MIN_RESIDUAL_POSES and meas.constraints is None and meas.camera is None
     ladder: list[tuple[Candidate, CrossValidation]] = []
     # at most: geometry, each term alone, then each further term on the one kept so far
     lacking = unsupported_terms(TRIAL_ORDER, meas, config)
@@ -312,9 +318,15 @@ def fit_model(inputs: Inputs, config: CalibrationConfig, progress=None, stages=N
     rows = [LadderRow(c.name, c.cv_rms, c.fit.n_params,
                       int(min(len(c.errors), MAX_POINTS)) if "residual" in c.learned else None,
                       on_validation(c)) for c in candidates]
-    notes = [Note(f"model auto: {chosen.name} (cross-validated position RMS {chosen.cv_rms:.4g} mm; geometric "
-             f"{candidates[0].cv_rms:.4g} mm; a richer model is kept only if it predicts held-out poses "
+    unit = meas.unit
+    what = "reprojection" if unit == "px" else "position"
+    notes = [Note(f"model auto: {chosen.name} (cross-validated {what} RMS {chosen.cv_rms:.4g} {unit}; geometric "
+             f"{candidates[0].cv_rms:.4g} {unit}; a richer model is kept only if it predicts held-out poses "
                   f"better, paired test p < {SIGNIFICANCE:g})")]
+    if not residuals and (meas.constraints is not None or meas.camera is not None):
+        notes.append(Note("model auto: learned corrections not tried: they learn corrections of measured positions, "
+                          "which " + ("rows that touched points or planes" if meas.constraints is not None else
+                                      "camera rows") + " have none"))
     if screened:
         rows += screened
         notes.append(Note(f"model auto: residual processes not tuned in full: screened with a kernel tuned on "

@@ -63,7 +63,8 @@ def choose_candidates(setup: Setup, config: CalibrationConfig, frames_mode: str)
     if unknown:
         raise InputError(f"unknown parameter '{unknown[0]}' for this {robot.convention} robot "
                          f"(known: {', '.join(setup.space.names[:8])}, …)", option="params")
-    frames = frame_candidates(frames_mode, setup.meas.target_names, setup.full_pose) + cameras.frame_names(robot)
+    frames = frame_candidates(frames_mode, setup.meas.target_names, setup.full_pose) + \
+        cameras.frame_names(robot, setup.meas)
     terms = setup.space.terms.names(robot.n_joints)
     return Candidates(joints, joints + [n for n in frames + terms if n not in joints], requested is not None)
 

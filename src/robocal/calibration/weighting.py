@@ -11,7 +11,15 @@ import numpy as np
 from ..exceptions import Note
 from ..optimize.result import OptimizeResult
 from .config import CalibrationConfig
-from .instrument import MAX_ROUNDS, InstrumentFit, KindWeights, beyond_instrument, instrument_fit, kind_weights
+from .instrument import (
+    MAX_ROUNDS,
+    InstrumentFit,
+    KindWeights,
+    beyond_instrument,
+    instrument_fit,
+    kind_weights,
+    several_kinds,
+)
 from .methods import Estimate, fit_lm
 from .noise import LINEAR_CHI2, MAX_REWEIGHTS, NoiseEstimate, block_sigmas, confirmed, leverage_split, settle, settled
 
@@ -44,11 +52,11 @@ def weigh_instrument(est: Estimate, config: CalibrationConfig,
 
 def weigh_kinds(est: Estimate, config: CalibrationConfig, noise: NoiseEstimate) -> tuple[Estimate, NoiseEstimate,
                                                                                          list[str]]:
-    """Step 8c, tracker rows beside rows that touched points or planes: each kind weighed by its
-    own σ, estimated from its residuals, and the fit repeated until they settle."""
+    """Step 8c, rows of several kinds (tracker rows, rows that touched points or planes, rows a
+    camera saw): each kind weighed by its own σ, estimated from its residuals, and the fit repeated
+    until they settle."""
     meas = est.problem.meas
-    c = meas.constraints
-    if c is None or c.only or meas.sigma_position is not None or noise.source == "stated" or \
+    if not several_kinds(meas) or meas.sigma_position is not None or noise.source == "stated" or \
             not (config.least_squares and est.optimization.status == "converged"):
         return est, noise, []
     for _ in range(MAX_ROUNDS):

@@ -62,6 +62,10 @@ def _print_summary(result, robot_name: str, data: Path) -> None:
     for key, figures in result.contact.items():
         out.print(f"points and planes touched, {key.replace('_', ' ')}: "
                   + ", ".join(f"{k.replace('_', ' ')} {v:.4f} mm" for k, v in figures.items()))
+    for key, figures in result.cameras.items():  # the pixels apart where they are not the headline's
+        if result.unit == "mm" or len(figures) > 2:
+            out.print(f"camera rows, {key.replace('_', ' ')}: "
+                      + ", ".join(f"{k.replace('_', ' ')} {v:.4f}" for k, v in figures.items()), markup=False)
     per_target = result.per_target_metrics()
     if per_target:
         keys = [k for k in ("before", "after", "validation_after") if k in next(iter(per_target.values()))]
@@ -236,11 +240,10 @@ def calibrate_cmd(
         if poses_out is not None:
             from ..io.atomic import atomic_write
             from ..io.table import rows_to_csv
-            from ..model.metrics import POSE_COLUMNS
+            from ..model.metrics import pose_columns
 
             rows = result.per_pose()
-            atomic_write(poses_out, rows_to_csv(rows, POSE_COLUMNS + (("sigma_mm",) if rows and "sigma_mm" in rows[0]
-                                                                      else ())))
+            atomic_write(poses_out, rows_to_csv(rows, pose_columns(rows, any("sigma_mm" in r for r in rows))))
     print_warnings(result.warnings)
     print_notes(result.notes, quiet)
     compiled = result.timings.get("compile_s", 0.0)

@@ -63,9 +63,9 @@ def evaluate_cmd(
     if poses_out is not None:
         from ..io.atomic import atomic_write
         from ..io.table import rows_to_csv
-        from ..model.metrics import POSE_COLUMNS
+        from ..model.metrics import pose_columns
 
-        columns = POSE_COLUMNS + (("sigma_mm",) if ev.sigma is not None else ())
+        columns = pose_columns(ev.pose_rows, ev.sigma is not None)
         atomic_write(poses_out, rows_to_csv(ev.pose_rows, columns))
     if as_json:
         print(json.dumps(ev.to_dict(), indent=2))

@@ -72,6 +72,13 @@ class Measurements:
         return cached
 
     @property
+    def length_rows(self) -> np.ndarray:
+        """Mask (m,) of the rows whose errors are lengths (mm): every row but a camera's."""
+        if self.camera is None:
+            return np.ones(self.n_poses, bool)
+        return np.array([not c for c in self.camera])
+
+    @property
     def unit(self) -> str:
         """The unit of the position errors: px where every row is a camera's, else mm."""
         return "px" if self.camera is not None and all(self.camera) else "mm"

@@ -40,6 +40,19 @@ def camera_frames(robot: Robot, meas: Measurements) -> np.ndarray:
     return out
 
 
+def camera_figures(robot: Robot, meas: Measurements) -> dict[str, float]:
+    """The camera rows' reprojection RMS (px), over all of them and per camera (``…[NAME]``)."""
+    dp, _ = pose_errors(robot, meas)
+    seen = ~meas.length_rows
+    e = np.linalg.norm(dp[:, :2], axis=1)
+    names = np.asarray(meas.camera, dtype=object)
+    out = {"reprojection_rms_px": float(np.sqrt(np.mean(e[seen] ** 2)))}
+    for name in dict.fromkeys(meas.camera):
+        if name:
+            out[f"reprojection_rms_px[{name}]"] = float(np.sqrt(np.mean(e[names == name] ** 2)))
+    return out
+
+
 def _stats(x: np.ndarray) -> dict[str, float]:
     return {
         "mean": float(np.mean(x)),
@@ -77,7 +90,13 @@ class Metrics:
 
     @classmethod
     def of(cls, robot: Robot, meas: Measurements) -> Metrics:
-        return cls.from_errors(*pose_errors(robot, meas), unit=meas.unit)
+        """The figures of ``robot`` on ``meas``: of every row, or, where camera rows stand beside rows
+        measured in mm, of those (the pixels' figures are apart: :func:`camera_figures`)."""
+        dp, dr = pose_errors(robot, meas)
+        if meas.unit == "mm" and meas.camera is not None:
+            keep = meas.length_rows
+            dp, dr = dp[keep], None if dr is None else dr[keep]
+        return cls.from_errors(dp, dr, unit=meas.unit)
 
     def rows(self) -> list[tuple[str, float]]:
         """(label, value) pairs in the order tables show them (mm, deg)."""
@@ -113,6 +132,19 @@ POSE_COLUMNS = ("set", "pose_id", "row", "reflector", "contact", "setup", "dx_mm
                 "rx_deg", "ry_deg", "rz_deg", "angle_deg", "outlier", "outside_region_deg")
 
 
+#: the columns of a camera row's error in a per-pose table (px), after ``setup``
+CAMERA_COLUMNS = ("camera", "du_px", "dv_px", "error_px")
+
+
+def pose_columns(rows: list[dict], sigma: bool = False) -> tuple[str, ...]:
+    """The columns of a per-pose table of ``rows``: camera columns where a camera saw any, σ where given."""
+    columns = POSE_COLUMNS
+    if any(r.get("camera") for r in rows):
+        at = columns.index("setup") + 1
+        columns = columns[:at] + CAMERA_COLUMNS + columns[at:]
+    return columns + (("sigma_mm",) if sigma else ())
+
+
 def per_pose(robot: Robot, meas: Measurements, label: str = "", outlier_rows=frozenset()) -> list[dict]:
     """One row per pose: its id (the file's ``pose_id``, else ``row N`` as messages name it) and
     file row, reflector, for a row that touched a point or plane that contact and its setup,
@@ -127,8 +159,18 @@ def per_pose(robot: Robot, meas: Measurements, label: str = "", outlier_rows=fro
         far = np.max(np.where(robot.prismatic, d, np.degrees(d)), axis=1)
     rows = []
     c = meas.constraints
+    seen = np.zeros(meas.n_poses, bool) if meas.camera is None else np.array([bool(x) for x in meas.camera])
     for i in range(meas.n_poses):
         touched = c is not None and c.group[i] >= 0
+        if seen[i]:  # a pixel, not a length
+            rows.append({
+                "set": label, "pose_id": f"row {int(meas.rows[i])}" if meas.pose_ids is None else meas.pose_ids[i],
+                "row": int(meas.rows[i]), "reflector": meas.targets[i], "contact": "", "setup": "",
+                "camera": meas.camera[i], "du_px": float(dp[i, 0]), "dv_px": float(dp[i, 1]),
+                "error_px": float(np.linalg.norm(dp[i, :2])), "dx_mm": "", "dy_mm": "", "dz_mm": "", "error_mm": "",
+                "rx_deg": "", "ry_deg": "", "rz_deg": "", "angle_deg": "", "outlier": int(meas.rows[i]) in outlier_rows,
+                "outside_region_deg": float(far[i])})
+            continue
         rows.append({
             "set": label, "pose_id": f"row {int(meas.rows[i])}" if meas.pose_ids is None else meas.pose_ids[i],
             "row": int(meas.rows[i]), "reflector": "" if meas.targets is None else meas.targets[i],
@@ -139,5 +181,6 @@ def per_pose(robot: Robot, meas: Measurements, label: str = "", outlier_rows=fro
             **({"rx_deg": "", "ry_deg": "", "rz_deg": "", "angle_deg": ""} if dr is None else {
                 "rx_deg": float(np.degrees(dr[i, 0])), "ry_deg": float(np.degrees(dr[i, 1])),
                 "rz_deg": float(np.degrees(dr[i, 2])), "angle_deg": float(np.degrees(np.linalg.norm(dr[i])))}),
-            "outlier": int(meas.rows[i]) in outlier_rows, "outside_region_deg": float(far[i])})
+            "outlier": int(meas.rows[i]) in outlier_rows, "outside_region_deg": float(far[i]),
+            **({"camera": "", "du_px": "", "dv_px": "", "error_px": ""} if seen.any() else {})})
     return rows

@@ -115,7 +115,8 @@ def plan_camera_poses(robot: Robot, n_poses: int, cameras: Mapping, *, markers: 
                         intrinsics=intrinsics)
     fixed = any(m.link == 0 for m in mounts.values())
     frames = ("base" if fixed else "none") if markers_known else ("base+tool" if fixed else "tcp")
-    params = joint_candidates(robot) + frame_candidates(frames, list(markers), False) + camera_rows.frame_names(robot)
+    params = joint_candidates(robot) + frame_candidates(frames, list(markers), False) + \
+        camera_rows.frame_names(robot, meas)
     space = ParameterSpace.of(robot, list(markers))
     problem = Setup(space, meas, sigma_position=pixel_noise, use_orientation=False).problem(params)
     J = problem.residual_jacobian(np.zeros(problem.n_params))

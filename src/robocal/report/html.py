@@ -51,6 +51,16 @@ def _metrics_table(columns: dict[str, Metrics]) -> str:
     return f"<table><tr><th>error</th>{head}</tr>{body}</table>"
 
 
+def _camera_table(result: CalibrationResult) -> list[str]:
+    """The camera rows' reprojection RMS (px), over all and per camera, before and after."""
+    if not result.cameras:
+        return []
+    keys = list(dict.fromkeys(k for figures in result.cameras.values() for k in figures))
+    rows = [(k.replace("reprojection_rms_px", "reprojection RMS (px)").replace("[", " camera ").rstrip("]"),
+             *(f"{figures[k]:.4f}" if k in figures else "—" for figures in result.cameras.values())) for k in keys]
+    return ["<p>Camera rows:</p>", _table(("", *(k.replace("_", " ") for k in result.cameras)), rows)]
+
+
 def _contact(result: CalibrationResult) -> list[str]:
     """Data whose rows touched points or planes: what they are judged by, before and after."""
     if not result.contact:
@@ -303,16 +313,20 @@ def _worst(result: CalibrationResult, count: int = 10) -> list[str]:
     if not rows:
         return []
     which = "validation" if any(r["set"] == "validation" for r in rows) else "calibration"
-    rows = sorted((r for r in rows if r["set"] == which), key=lambda r: -r["error_mm"])[:count]
-    head = ("pose", "row", "error (mm)", "δx", "δy", "δz", "flags")
+    pixels = result.unit == "px"
+    error, parts = ("error_px", ("du_px", "dv_px")) if pixels else ("error_mm", ("dx_mm", "dy_mm", "dz_mm"))
+    rows = sorted((r for r in rows if r["set"] == which and r[error] != ""), key=lambda r: -r[error])[:count]
+    head = ("pose", "row", *(("camera", "marker", "error (px)", "δu", "δv") if pixels else
+                             ("error (mm)", "δx", "δy", "δz")), "flags")
     body = []
     for r in rows:
         flags = ", ".join(f for f, on in (("outlier", r["outlier"]),
                                           (f"{r['outside_region_deg']:.1f}° outside the region",
                                            r["outside_region_deg"] > 0)) if on)
-        body.append((r["pose_id"] or "—", str(r["row"]), f"{r['error_mm']:.4f}", f"{r['dx_mm']:.4f}",
-                     f"{r['dy_mm']:.4f}", f"{r['dz_mm']:.4f}", flags))
-    return [f"<h2>The worst {which} poses</h2><p>By position error of the calibrated model; "
+        body.append((r["pose_id"] or "—", str(r["row"]), *((r["camera"], r["reflector"]) if pixels else ()),
+                     f"{r[error]:.4f}", *(f"{r[k]:.4f}" for k in parts), flags))
+    return [f"<h2>The worst {which} {'rows' if pixels else 'poses'}</h2><p>By "
+            f"{'reprojection' if pixels else 'position'} error of the calibrated model; "
             "<code>--poses-out</code> writes every pose.</p>", _table(head, body)]
 
 
@@ -492,6 +506,7 @@ def calibration_html(result: CalibrationResult, command: str | None = None) -> s
                  + ".</p>")
     parts.append(_metrics_table(cols))
     parts += contact
+    parts += _camera_table(result)
     parts += _per_target(result)
     parts += _error_figures(result)
     parts += _worst(result)

@@ -129,8 +129,13 @@ def noise_line(result) -> str:
 
     n, g = result.noise, result.goodness_of_fit
     unit = getattr(result, "unit", "mm")
-    text = f"{n.label} {n.position:.3g} {unit}" + ("" if n.orientation is None else
-                                                    f", {math.degrees(n.orientation):.3g}°")
+    kinds = getattr(result, "kind_sigma", {})
+    if kinds:  # each kind of rows its own σ (and unit)
+        units = {"tracker": "mm", "contact": "mm", "camera": "px"}
+        text = f"{n.label} by kind: " + ", ".join(f"{k} rows {v:.3g} {units[k]}" for k, v in kinds.items())
+    else:
+        text = f"{n.label} {n.position:.3g} {unit}"
+    text += "" if n.orientation is None else f", {math.degrees(n.orientation):.3g}°"
     text += " (stated)" if n.source == "stated" else " (estimated from the fit: the instrument's noise plus what the " \
         "model leaves out)"
     if g is not None and g.dof > 0:
