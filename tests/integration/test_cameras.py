@@ -65,7 +65,7 @@ def test_a_wall_camera_seeing_one_marker_predicts_new_poses_in_millimetres(tmp_p
 
 
 def test_the_camera_files_and_rows_are_checked_on_one_line(tmp_path, run_cli):
-    cell, cam, data, _ = _wall_cell(1, tmp_path, n=40, noise=0.3)
+    cell, cam, data, _ = _wall_cell(1, tmp_path, n=60, noise=0.3)
     good = f"wall={tmp_path / 'wall.yaml'}"
     out = tmp_path / "out.json"
 
@@ -99,11 +99,20 @@ def test_the_camera_files_and_rows_are_checked_on_one_line(tmp_path, run_cli):
     # a known pose for a camera not given, or not six numbers
     refused(data, "--camera", good, "--camera-pose", "door=0,0,0,0,0,0", says="camera 'door' has a pose")
     refused(data, "--camera", good, "--camera-pose", "wall=0,0,0", says="NAME=x,y,z,rx,ry,rz")
-    # and the good one runs, its JSON in pixels
-    code, stdout, err = run_cli("calibrate", "kr5-arc", data, "--camera", good, "--out", out)
+    # validation rows of a camera the calibration has not, or of a marker it has not
+    other = tmp_path / "other.csv"
+    other.write_text("\n".join(text[:3] + [text[3].replace(",wall,", ",door,")]) + "\n")
+    refused(data, "--camera", good, "--validate", other, says="camera 'door' has no camera file")
+    other.write_text("\n".join(text[:3] + [text[3].replace(",m1", ",m9")]) + "\n")
+    refused(data, "--camera", good, "--validate", other, says="marker 'm9' is named in no calibration row")
+    # and the good one runs, its JSON in pixels, validation rows too
+    rng = np.random.default_rng(9)
+    fresh = cw.write_rows(cell.observe(cw.poses("kr5-arc", 40, rng, CENTRE, SPREAD), rng, 0.3), tmp_path / "fresh.csv")
+    code, stdout, err = run_cli("calibrate", "kr5-arc", data, "--camera", good, "--validate", fresh, "--out", out)
     assert code == 0, err
     saved = json.loads(out.read_text())
-    assert saved["metrics"]["after"]["unit"] == "px"
+    assert saved["metrics"]["after"]["unit"] == "px" and saved["metrics"]["validation_after"]["unit"] == "px"
+    assert saved["metrics"]["validation_after"]["position"]["rms"] < 1.0
 
 
 def _prior_draw(rng) -> dict:

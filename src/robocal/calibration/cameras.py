@@ -127,37 +127,22 @@ def attach(nominal: Robot, meas: Measurements, config: CalibrationConfig) -> tup
     if meas.constraints is not None:
         raise InputError("has camera rows beside rows that touched points or planes: calibrate camera rows alone or "
                          "beside tracker rows", source=meas.source)
-    specs = {c.name: c for c in config.cameras}
     rows = np.asarray(meas.camera, dtype=object)
-    for name in dict.fromkeys(c for c in meas.camera if c):
-        if name not in specs:
-            first = int(meas.rows[int(np.argmax(rows == name))])
-            raise InputError(f"camera {name!r} has no camera file (give it with --camera {name}=FILE)",
-                             source=meas.source, where=f"row {first}")
     intrinsics = {}
     for spec in config.cameras:
         if spec.name not in set(meas.camera):
             raise InputError(f"camera {spec.name!r} ({spec.path}) is seen in no row of {meas.source}",
                              option="camera")
-        camera = intrinsics[spec.name] = load_camera(spec.path, spec.name)
+        intrinsics[spec.name] = load_camera(spec.path, spec.name)
         seen = rows == spec.name
         if seen.sum() < MIN_ROWS:
             raise InputError(f"camera {spec.name!r} sees {int(seen.sum())} rows: its pose needs at least {MIN_ROWS}",
                              source=meas.source)
-        off = ~camera.in_image(meas.pixels) & seen
-        if off.any():
-            i = int(np.argmax(off))
-            raise InputError(f"pixel ({meas.pixels[i, 0]:g}, {meas.pixels[i, 1]:g}) lies outside the "
-                             f"{camera.width} × {camera.height} image of camera {spec.name!r}", source=meas.source,
-                             where=f"row {int(meas.rows[i])}")
+    check_pixels(meas, intrinsics)
     robot = nominal
     if config.markers is not None:
         markers = load_markers(config.markers)
-        unknown = [t for t in meas.target_names if t not in markers and t not in nominal.targets]
-        if unknown:
-            i = int(np.argmax(np.asarray(meas.targets, dtype=object) == unknown[0]))
-            raise InputError(f"marker {unknown[0]!r} is named in no markers file ({config.markers})",
-                             source=meas.source, where=f"row {int(meas.rows[i])}")
+        check_markers(meas, set(markers) | set(nominal.targets), f"no markers file ({config.markers})")
         robot = nominal.replace(targets={**nominal.targets, **markers})
     from ..math.se3 import frame_from_values
 
@@ -179,6 +164,31 @@ def attach(nominal: Robot, meas: Measurements, config: CalibrationConfig) -> tup
 def tracked(meas: Measurements) -> bool:
     """Whether tracker rows stand beside the camera rows: their frame is then the measuring frame."""
     return meas.camera is not None and not all(meas.camera)
+
+
+def check_pixels(meas: Measurements, intrinsics) -> None:
+    """Every camera row names a camera of ``intrinsics`` and lies on its image (one line naming the row)."""
+    rows = np.asarray(meas.camera, dtype=object)
+    for name in dict.fromkeys(c for c in meas.camera if c):
+        if name not in intrinsics:
+            first = int(meas.rows[int(np.argmax(rows == name))])
+            raise InputError(f"camera {name!r} has no camera file (give it with --camera {name}=FILE)",
+                             source=meas.source, where=f"row {first}")
+        camera = intrinsics[name]
+        off = ~camera.in_image(meas.pixels) & (rows == name)
+        if off.any():
+            i = int(np.argmax(off))
+            raise InputError(f"pixel ({meas.pixels[i, 0]:g}, {meas.pixels[i, 1]:g}) lies outside the "
+                             f"{camera.width} × {camera.height} image of camera {name!r}", source=meas.source,
+                             where=f"row {int(meas.rows[i])}")
+
+
+def check_markers(meas: Measurements, known: set, where: str) -> None:
+    """Every camera row's marker is one of ``known`` (else one line naming the row and ``where`` it is not)."""
+    for i, (camera, marker) in enumerate(zip(meas.camera, meas.targets or ())):
+        if camera and marker not in known:
+            raise InputError(f"marker {marker!r} is named in {where}", source=meas.source,
+                             where=f"row {int(meas.rows[i])}")
 
 
 def frames_of(frames: str, robot: Robot, meas: Measurements) -> tuple[str, list]:

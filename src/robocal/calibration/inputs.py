@@ -65,8 +65,10 @@ def load_inputs(robot, data, validate, config: CalibrationConfig, columns=None) 
             val = val.with_distances(config.point_distance, config.distance_sigma)
     nominal, meas, said = cameras.attach(nominal, meas, config)
     notes += said
-    if val is not None and val.camera is not None:  # the same cameras, seen again
+    if val is not None and val.camera is not None and any(val.camera):  # the same cameras and markers, seen again
         val = replace(val, intrinsics=meas.intrinsics)
+        cameras.check_pixels(val, meas.intrinsics)
+        cameras.check_markers(val, set(meas.target_names) | set(nominal.targets), "no calibration row")
     meas = _instrument_sigmas(meas, config, notes)
     meas = _excluded(meas, config.exclude, notes)
     if config.payload is not None:  # a stated payload where the files have no column
