@@ -427,3 +427,26 @@ def test_camera_rows_beside_tracker_rows_are_each_weighed_and_reported_in_their_
     found = np.array(fit["frames_identified"]["camera[wall]"]["xyz_mm"])
     assert np.linalg.norm(found - cam.pose[:3, 3]) < 3.0  # the tracker's frame is the world's here
     assert "camera rows, after: reprojection rms px" in stdout and "σ by kind" in stdout
+
+
+def test_square_markers_of_known_size_but_unknown_place_give_the_scale(tmp_path):
+    """A wall camera and a cube of five square markers 60 mm a side, their place on the flange unknown:
+    the corners' known sides and diagonals give the scale the corners alone cannot."""
+    rng = np.random.default_rng(4)
+    cam = cw.camera("wall", cw.look_at([1300.0, 700, 1000], [400.0, 0, 500]), f=1300, size=(1280, 960))
+    squares = cw.cube_markers()
+    cell = cw.Cell("kr5-arc", independent.uniform_deviations("kr5-arc", 1.0, np.radians(0.1), rng), [cam],
+                   cw.square_points(squares))
+    data = cw.write_rows(cell.observe(cw.poses("kr5-arc", 120, rng, CENTRE, [50, 25, 25, 120, 40, 150]), rng, 0.5,
+                                      facing=0.3), tmp_path / "rows.csv")
+    (tmp_path / "free.csv").write_text("marker,x,y,z,rx,ry,rz,size\n" + "".join(f"{k},,,,,,,60\n" for k in squares))
+    spec = f"wall={cam.write(tmp_path / 'wall.yaml')}"
+    fresh = cw.poses("kr5-arc", 200, rng, CENTRE, [50, 25, 25, 120, 40, 150])
+    truth = cell.marker_in(lambda q: cam.pose, fresh, "1:0")
+    errors = {}
+    for label, kw in (("corners", {}), ("squares", {"markers": str(tmp_path / "free.csv")})):
+        result = _calibrate("kr5-arc", str(data), spec, **kw)
+        errors[label] = np.sqrt(np.mean(np.sum((result.robot.positions(fresh, ["1:0"] * 200) - truth) ** 2, axis=1)))
+        said = " ".join(result.notes + result.warnings)
+        assert ("scale: from the markers' known sizes" in said) == (label == "squares")
+    assert errors["squares"] < 0.7 * errors["corners"], errors

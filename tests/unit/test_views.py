@@ -50,6 +50,9 @@ def test_a_robot_with_cameras_predicts_the_pixels_of_an_independent_cell(rng, tm
 
 def test_camera_rows_jacobian_is_its_finite_difference(rng, tmp_path):
     true, meas = _cell(rng, tmp_path)
+    from dataclasses import replace
+
+    meas = replace(meas, shapes=(("m1", "m2", 70.0),))  # a known distance between the two markers' offsets
     space = ParameterSpace.of(true, ("m1", "m2"))
     assert {n for n in space.names if n.startswith("camera[")} == {f"camera[{c}]_{a}" for c in ("wall", "rider")
                                                                    for a in ("x", "y", "z", "rx", "ry", "rz")}
@@ -67,6 +70,8 @@ def test_camera_rows_jacobian_is_its_finite_difference(rng, tmp_path):
     rider = np.array([c == "rider" for c in meas.camera])
     rows = np.repeat(rider, 3)
     for name in ("base_x", "base_rz", "d1", "theta1"):
-        assert np.abs(J[rows, space.names.index(name)]).max() < 1e-9
-    # pixels: two values a row
-    assert problem.n_values == 2 * meas.n_poses
+        assert np.abs(J[:len(rows)][rows, space.names.index(name)]).max() < 1e-9
+    # pixels: two values a row, and the known distance one
+    assert problem.n_shapes == 1 and problem.n_values == 2 * meas.n_poses + 1
+    d = np.linalg.norm(true.targets["m1"][:3, 3] - true.targets["m2"][:3, 3])
+    assert problem.residuals(np.zeros(space.size))[-1] == pytest.approx((d - 70.0) / meas.shape_sigma)

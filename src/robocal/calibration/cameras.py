@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import csv
 import io
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -39,11 +39,22 @@ MIN_ROWS = 6
 SQUARE_CORNERS = np.array([[-0.5, 0.5, 0.0], [0.5, 0.5, 0.0], [0.5, -0.5, 0.0], [-0.5, -0.5, 0.0]])
 
 
-def load_markers(path: str) -> dict[str, np.ndarray]:
+@dataclass(frozen=True)
+class MarkerFile:
+    """What a markers file says: the markers whose offsets are known (name → 4 × 4 on the flange) and
+    the known distances (mm) between markers whose offsets are not (a square of known size whose
+    place is unknown: its corners' sides and diagonals)."""
+
+    points: dict
+    shapes: tuple[tuple[str, str, float], ...] = ()
+
+
+def load_markers(path: str) -> MarkerFile:
     """A markers file: ``marker, x, y, z`` (mm, in the flange frame), one row a marker; with ``rx, ry,
     rz`` (deg, the marker's frame: z out of its face) and ``size`` (its side, mm) a square marker, whose
     corners ``NAME:0`` … ``NAME:3`` (OpenCV's order, as :mod:`robocal.io.detect` names them) are markers
-    too."""
+    too.  A square whose x … rz are left empty stands where the calibration finds it: its corners are
+    identified, held to the square's size by their known sides and diagonals."""
     from ..math.se3 import frame_from_values
 
     text = read_text(path, "markers file")
@@ -54,32 +65,45 @@ def load_markers(path: str) -> dict[str, np.ndarray]:
         raise InputError("expected the columns marker, x, y, z (mm, in the flange frame), and rx, ry, rz (deg), size "
                          "(mm) for square markers", source=path)
     out: dict[str, np.ndarray] = {}
+    shapes: list[tuple[str, str, float]] = []
+    named: set[str] = set()
     for line, row in enumerate(rows[1:], start=2):
         if not any(c.strip() for c in row):
             continue
         name = row[0].strip()
         if len(row) != len(header):
             raise InputError(f"has {len(row)} cells, the header {len(header)}", source=path, where=f"row {line}")
-        try:
-            values = np.array([float(c) for c in row[1:]])
-        except ValueError:
-            raise InputError("x, y, z (and rx, ry, rz, size) must be numbers", source=path, where=f"row {line}") \
-                from None
-        if not np.all(np.isfinite(values)) or not name:
-            raise InputError("needs a marker name and finite numbers", source=path, where=f"row {line}")
-        if name in out:
+        if not name:
+            raise InputError("needs a marker name", source=path, where=f"row {line}")
+        if name in named:
             raise InputError(f"marker {name!r} is given twice", source=path, where=f"row {line}")
+        named.add(name)
+        free = square and not any(c.strip() for c in row[1:7])
+        cells = row[7:] if free else row[1:]
+        try:
+            values = np.array([float(c) for c in cells])
+        except ValueError:
+            raise InputError("x, y, z (and rx, ry, rz, size) must be numbers; a square of unknown place leaves x … rz "
+                             "empty", source=path, where=f"row {line}") from None
+        if not np.all(np.isfinite(values)):
+            raise InputError("needs finite numbers", source=path, where=f"row {line}")
+        side = values[-1] if square else None
+        if square and not side > 0:
+            raise InputError(f"a marker's size must be > 0 mm, got {side:g}", source=path,
+                             where=f"row {line}, column 'size'")
+        corners = [f"{name}:{k}" for k in range(4)]
+        if free:  # its corners identified; their sides and diagonals known
+            shapes += [(corners[i], corners[j], float(side * np.linalg.norm(SQUARE_CORNERS[i] - SQUARE_CORNERS[j])))
+                       for i in range(4) for j in range(i + 1, 4)]
+            continue
         T = frame_from_values([*values[:3], *np.radians(values[3:6])])
         out[name] = homogeneous(np.eye(3), T[:3, 3])
         if square:
-            if not values[6] > 0:
-                raise InputError(f"a marker's size must be > 0 mm, got {values[6]:g}", source=path,
-                                 where=f"row {line}, column 'size'")
-            for k, corner in enumerate(SQUARE_CORNERS * values[6]):
-                out[f"{name}:{k}"] = homogeneous(np.eye(3), T[:3, :3] @ corner + T[:3, 3])
-    if not out:
+            for k, corner in enumerate(SQUARE_CORNERS * side):
+                out[corners[k]] = homogeneous(np.eye(3), T[:3, :3] @ corner + T[:3, 3])
+    if not named:
         raise InputError("names no marker", source=path)
-    return out
+    return MarkerFile(out, tuple(shapes))
 
 
 def resolve_link(robot: Robot, link: int | str, camera: str) -> tuple[int, np.ndarray]:
@@ -142,8 +166,10 @@ def attach(nominal: Robot, meas: Measurements, config: CalibrationConfig) -> tup
     robot = nominal
     if config.markers is not None:
         markers = load_markers(config.markers)
-        check_markers(meas, set(markers) | set(nominal.targets), f"no markers file ({config.markers})")
-        robot = nominal.replace(targets={**nominal.targets, **markers})
+        named = set(markers.points) | {n for pair in markers.shapes for n in pair[:2]}
+        check_markers(meas, named | set(nominal.targets), f"no markers file ({config.markers})")
+        robot = nominal.replace(targets={**nominal.targets, **markers.points})
+        meas = replace(meas, shapes=markers.shapes)
     from ..math.se3 import frame_from_values
 
     given = nominal.cameras  # a robot object may carry mountings, known ones among them
@@ -315,6 +341,8 @@ def scale_sources(problem) -> list[str]:
     out = []
     if len(points) >= 2:
         out.append("the markers' known offsets")
+    if problem.n_shapes:
+        out.append("the markers' known sizes")
     first = gauge(robot, problem.meas)
     if any(m.known for c, m in robot.cameras.items() if c != first):
         out.append("the cameras' known poses")

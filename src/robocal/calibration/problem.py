@@ -143,6 +143,7 @@ class Problem:
         self.constraints = self.meas.constraints
         # rows a camera saw: pixels in the position slots (robocal.model.views)
         self.views = self.meas.views
+        self._shapes = self._shape_pairs()
         self._frames_active = bool(np.any(self.active >= self.space.n_joint_params))
         self._backend = resolve(setup.backend)  # read once: ROBOCAL_NO_NUMBA as it is when the problem is set up
         # 1/σ of each estimated parameter's prior (0 where free): one pseudo-observation x_i/σ_i each
@@ -165,7 +166,7 @@ class Problem:
 
     @property
     def n_residuals(self) -> int:
-        return self.meas.n_poses * (6 if self.uses_orientation else 3) + self.n_distances
+        return self.meas.n_poses * (6 if self.uses_orientation else 3) + self.n_shapes + self.n_distances
 
     @property
     def n_prior(self) -> int:
@@ -184,6 +185,42 @@ class Problem:
         planes = 0 if self.constraints is None else int(self.constraints.rows_of("plane").sum())
         pixels = 0 if self.views is None else int(self.views.rows.sum())  # u, v: two values
         return self.n_residuals - 2 * planes - pixels
+
+    @property
+    def n_shapes(self) -> int:
+        """Known distances between two markers' identified offsets (:attr:`Measurements.shapes`)."""
+        return 0 if self._shapes is None else len(self._shapes[2])
+
+    def _shape_pairs(self):
+        """For each known distance between markers a and b: the positions in x of a's and b's offset
+        (x, y, z; −1 where not estimated), their nominal offsets (mm, flange frame) and the distance."""
+        shapes = [(a, b, d) for a, b, d in self.meas.shapes if a in self.space.targets and b in self.space.targets]
+        if not shapes:
+            return None
+        where = {n: i for i, n in enumerate(self.active)}
+        lookup = {n: i for i, n in enumerate(self.space.names)}
+        nominal = self.space.nominal_tools()[:, :3, 3]
+        from ..model.parameters import tool_prefix
+
+        def columns(t):
+            return [where.get(lookup.get(f"{tool_prefix(t)}_{ax}"), -1) for ax in "xyz"]
+
+        ia = np.array([columns(a) for a, _, _ in shapes])
+        ib = np.array([columns(b) for _, b, _ in shapes])
+        base = np.array([nominal[self.space.targets.index(a)] - nominal[self.space.targets.index(b)]
+                         for a, b, _ in shapes])
+        return ia, ib, np.array([d for _, _, d in shapes]), base
+
+    def _shape_offsets(self, X: np.ndarray) -> np.ndarray:
+        """(…, S, 3): each pair's offset difference a − b (mm, flange frame) at estimates X (…, k)."""
+        ia, ib, _, base = self._shapes
+        X = np.asarray(X, float)
+        take = np.concatenate([X, np.zeros(X.shape[:-1] + (1,))], axis=-1)  # index −1: not estimated, 0
+        return base + take[..., ia] - take[..., ib]
+
+    def shape_residuals(self, X: np.ndarray) -> np.ndarray:
+        """(…, S) mm: each known distance between markers' offsets missed, |t_a − t_b| − D."""
+        return np.linalg.norm(self._shape_offsets(X), axis=-1) - self._shapes[2]
 
     @property
     def n_distances(self) -> int:
@@ -252,6 +289,9 @@ class Problem:
         f = np.sum(dp * dp, axis=(-1, -2))
         if dr is not None:
             f = f + self.k * np.sum(dr * dr, axis=(-1, -2))
+        if self.n_shapes:  # in the objective's units², weighed as χ² weighs them against σp
+            ds = self.shape_residuals(X) * (self.setup.sigma_position / self.meas.shape_sigma)
+            f = f + np.sum(ds * ds, axis=-1)
         if self.n_distances:  # in the objective's mm², weighed as χ² weighs them against σp
             p = self.space.points(self.full(X), self.meas.q, self.target_idx, self.joints)
             dd = self.constraints.distance_residuals(p) * (self.setup.sigma_position / self.constraints.distance_sigma)
@@ -308,6 +348,8 @@ class Problem:
         squared norm is χ²."""
         dp, dr = self.errors(x)
         out = [self._wp * dp.ravel()] + ([] if dr is None else [self._wr * dr.ravel()])
+        if self.n_shapes:
+            out.append(self.shape_residuals(x) / self.meas.shape_sigma)
         if self.n_distances:
             p = self.space.points(self.full(x), self.meas.q, self.target_idx, self.joints)
             out.append(self.constraints.distance_residuals(p) / self.constraints.distance_sigma)
@@ -338,6 +380,17 @@ class Problem:
         out[:, : 3 * m] = self._wp * Jp.reshape(k, 3 * m)
         if self.n_distances:
             out[:, self.n_residuals - self.n_distances:] = c.distance_jacobian(Jc[:, :, :3], p) / c.distance_sigma
+        if self.n_shapes:
+            ia, ib, _, _ = self._shapes
+            d = self._shape_offsets(x)
+            u = d / np.maximum(np.linalg.norm(d, axis=-1, keepdims=True), 1e-300) / self.meas.shape_sigma
+            first = self.n_residuals - self.n_distances - self.n_shapes
+            block = np.zeros((k + 1, self.n_shapes))  # row k: offsets not estimated
+            rows = np.arange(self.n_shapes)
+            for axis in range(3):
+                np.add.at(block, (ia[:, axis], rows), u[:, axis])
+                np.add.at(block, (ib[:, axis], rows), -u[:, axis])
+            out[:, first:first + self.n_shapes] = block[:k]
         if self._Rm is not None:
             dr = orientation_error(self._Rm, R)
             w = np.ascontiguousarray(Jc[:, :, 3:])

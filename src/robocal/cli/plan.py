@@ -179,7 +179,7 @@ def _plan_cameras(r, cameras, camera_pose, markers, pixel_noise, poses, candidat
     setup = {}
     for spec in specs:
         setup[spec.name] = (load_camera(spec.path, spec.name), _placed(r, spec, placed.get(spec.name)))
-    known = None if markers is None else load_markers(str(markers))
+    known = None if markers is None else load_markers(str(markers)).points
     opt.number(pixel_noise, "pixel_noise", minimum=0.0, strict=True)
     p = plan_camera_poses(r, poses, setup, markers=known, markers_known=known is not None, candidates=candidates,
                           pixel_noise=pixel_noise, seed=seed, joint_range=jr)

@@ -137,7 +137,7 @@ def _camera_campaign(robot, poses, cameras, poses_given, markers, errors, pixel_
     poses_given_of = camera_poses(tuple(poses_given or ()), specs).get
     setup = {spec.name: (load_camera(spec.path, spec.name), placed(robot, spec, poses_given_of(spec.name)))
              for spec in specs}
-    return simulate_cameras(robot, poses, setup, markers=None if markers is None else load_markers(str(markers)),
+    return simulate_cameras(robot, poses, setup, markers=None if markers is None else load_markers(str(markers)).points,
                             deviations=errors, pixel_noise=pixel_noise, seed=seed, joint_range=joint_range)
 
 

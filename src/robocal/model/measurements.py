@@ -57,6 +57,10 @@ class Measurements:
     pixels: np.ndarray | None = None
     camera: tuple[str, ...] | None = None
     intrinsics: Mapping[str, Camera] = field(default_factory=dict)
+    #: known distances (mm) between two markers whose offsets are identified: the sides and
+    #: diagonals of a square marker of known size whose place is unknown; shape_sigma their σ
+    shapes: tuple[tuple[str, str, float], ...] = ()
+    shape_sigma: float = 0.05
 
     @property
     def views(self):
