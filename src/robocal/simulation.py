@@ -89,6 +89,17 @@ class Simulation:
     deviations: dict[str, float]
 
 
+def plant(robot: Robot, deviations: str | dict[str, float], rng: np.random.Generator) -> tuple[dict, Robot]:
+    """The deviations planted (a spec of :func:`planted_deviations` or a {parameter: value} dict, mm and
+    rad) and the true robot they make."""
+    space = ParameterSpace.of(robot)
+    planted = planted_deviations(robot, deviations, rng) if isinstance(deviations, str) else dict(deviations)
+    try:
+        return planted, space.apply(space.vector(planted))
+    except KeyError as exc:
+        raise InputError(f"unknown parameter {exc.args[0]}", option="errors") from None
+
+
 def simulate(
     robot: Robot,
     n_poses: int,
@@ -139,12 +150,7 @@ def simulate(
     if q is None and opt.integer(n_poses, "poses") < 1:
         raise InputError(f"need at least 1 pose, got {n_poses}", option="poses")
     rng = np.random.default_rng(seed)
-    space = ParameterSpace.of(robot)
-    planted = planted_deviations(robot, deviations, rng) if isinstance(deviations, str) else dict(deviations)
-    try:
-        truth = space.apply(space.vector(planted))
-    except KeyError as exc:
-        raise InputError(f"unknown parameter {exc.args[0]}", option="errors") from None
+    planted, truth = plant(robot, deviations, rng)
     if base is not None:
         truth = truth.replace(base=frame_from_values(base))
     if tool is not None:
@@ -360,12 +366,7 @@ def simulate_cameras(robot: Robot, n_poses: int, cameras: Mapping, *, markers: M
     rng = np.random.default_rng(seed)
     markers = {"m1": robot.tool} if not markers else dict(markers)
     robot = robot.replace(targets={**robot.targets, **markers})
-    space = ParameterSpace.of(robot)
-    planted = planted_deviations(robot, deviations, rng) if isinstance(deviations, str) else dict(deviations)
-    try:
-        truth = space.apply(space.vector(planted))
-    except KeyError as exc:
-        raise InputError(f"unknown parameter {exc.args[0]}", option="errors") from None
+    planted, truth = plant(robot, deviations, rng)
     q = random_joints(robot, n_poses, rng, joint_range)
     names = list(markers)
     points = np.stack([truth.positions(q, [m] * len(q)) for m in names], axis=1)  # (n, markers, 3)

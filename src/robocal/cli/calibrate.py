@@ -8,10 +8,13 @@ import typer
 
 from .common import (
     base_link_option,
+    camera_option,
+    camera_pose_option,
     decimal_option,
     delimiter_option,
     euler_option,
     json_flag,
+    markers_option,
     print_json,
     quiet_flag,
     tip_link_option,
@@ -157,14 +160,10 @@ def calibrate_cmd(
     row_order: bool = typer.Option(False, "--row-order", help="the rows are in the order they were measured: drift "
                                    "may take time, and backlash the direction of approach, from it (without time or "
                                    "dir1..dirN columns)"),
-    cameras: list[str] | None = typer.Option(None, "--camera", help="NAME=FILE or NAME=FILE,link=K: the intrinsics "
-                                             "(OpenCV YAML/JSON or ROS camera_info) of a camera the data's camera "
-                                             "rows name, fixed in the cell or on link K; repeatable"),
-    camera_poses: list[str] | None = typer.Option(None, "--camera-pose", help="NAME=x,y,z,rx,ry,rz: a camera whose "
-                                                  "pose is known (mm, deg; in the measuring frame, or its link's "
-                                                  "frame): not estimated; repeatable"),
-    markers: Path | None = typer.Option(None, "--markers", help="CSV marker,x,y,z (mm, flange frame): the markers' "
-                                        "known offsets (else they are identified)"),
+    cameras: list[str] | None = camera_option("the intrinsics (OpenCV YAML/JSON or ROS camera_info) of a camera the "
+                                              "data's camera rows name, fixed in the cell or on link K"),
+    camera_poses: list[str] | None = camera_pose_option("a camera whose pose is known, not estimated"),
+    markers: Path | None = markers_option("the markers' known offsets or sizes (else they are identified)"),
     pixel_noise: float | None = typer.Option(None, "--pixel-noise", help="σ of the camera rows' pixels, px (default: "
                                              "estimated)"),
     column: list[str] | None = typer.Option(None, "--column", help="map file columns: FILE=ROBOCAL[,FILE=ROBOCAL…]"),

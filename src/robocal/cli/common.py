@@ -162,6 +162,30 @@ def euler_option():
                         "intrinsic (XYZ), lower case extrinsic (xyz, robocal's own: R = Rz Ry Rx)")
 
 
+def camera_option(what: str):
+    """``--camera NAME=FILE[,link=K]``, repeatable: a camera's intrinsics file (OpenCV YAML/JSON or ROS
+    camera_info) and its link (a number, a URDF link or a joint; 0: fixed in the cell)."""
+    import typer
+
+    return typer.Option(None, "--camera", help=f"NAME=FILE or NAME=FILE,link=K: {what}; repeatable")
+
+
+def camera_pose_option(what: str):
+    """``--camera-pose NAME=x,y,z,rx,ry,rz`` (mm, deg), repeatable: where a camera is."""
+    import typer
+
+    return typer.Option(None, "--camera-pose", help=f"NAME=x,y,z,rx,ry,rz: {what} (mm, deg; in the measuring frame, "
+                        "or its link's frame); repeatable")
+
+
+def markers_option(what: str):
+    """``--markers M.csv``: the markers on the flange (marker, x, y, z mm; rx, ry, rz, size for squares)."""
+    import typer
+
+    return typer.Option(None, "--markers", help=f"CSV marker,x,y,z (mm, flange frame; rx,ry,rz,size for square "
+                        f"markers): {what}")
+
+
 def base_link_option():
     import typer
 

@@ -6,7 +6,16 @@ from pathlib import Path
 
 import typer
 
-from .common import base_link_option, json_flag, quiet_flag, summary_option, tip_link_option
+from .common import (
+    base_link_option,
+    camera_option,
+    camera_pose_option,
+    json_flag,
+    markers_option,
+    quiet_flag,
+    summary_option,
+    tip_link_option,
+)
 
 
 def _print_plan(p, r, poses: int, candidates: int, criterion: str, measure: str, noise: float, angle_noise: float):
@@ -63,13 +72,10 @@ def plan_cmd(
     socket: list[str] | None = typer.Option(None, "--socket", help="x,y,z (mm, the robot's base frame) of a socket "
                                             "the tool point (a ball) will touch: --poses configurations for each, "
                                             "for calibration without a tracker (repeatable)"),
-    cameras: list[str] | None = typer.Option(None, "--camera", help="NAME=FILE or NAME=FILE,link=K: plan images for "
-                                             "this camera (its intrinsics) instead of a tracker; repeatable"),
-    camera_pose: list[str] | None = typer.Option(None, "--camera-pose", help="NAME=x,y,z,rx,ry,rz: where a camera is "
-                                                 "(mm, deg; the measuring frame = the robot's base here, or its "
-                                                 "link's frame); default: a fixed camera facing the markers"),
-    markers: Path | None = typer.Option(None, "--markers", help="CSV marker,x,y,z (mm, flange frame): known markers "
-                                        "(default: one unknown marker at the tool point)"),
+    cameras: list[str] | None = camera_option("plan images for this camera (its intrinsics) instead of a tracker"),
+    camera_pose: list[str] | None = camera_pose_option("where a camera is, the measuring frame being the robot's "
+                                                       "base here; default: a fixed camera facing the markers"),
+    markers: Path | None = markers_option("known markers (default: one unknown marker at the tool point)"),
     pixel_noise: float = typer.Option(0.5, "--pixel-noise", help="pixel noise σ, px, with --camera"),
     base_link: str | None = base_link_option(),
     tip_link: str | None = tip_link_option(),
@@ -132,13 +138,10 @@ def plan_cmd(
 
 def _plan_sockets(r, sockets, poses, candidates, seed, jr, out, report, as_json, quiet) -> None:
     """Configurations to record at each socket (see :mod:`robocal.plan.contacts`)."""
-    import json
 
     from .. import options as opt
-    from ..io.atomic import atomic_write, together
     from ..io.measurements import joints_to_file
     from ..plan.contacts import plan_contacts
-    from .common import console, print_json
 
     places = [opt.floats(s, "socket", (3,)) for s in sockets]
     p = plan_contacts(r, places, poses, candidates=min(candidates, 500), seed=seed, joint_range=jr)
@@ -146,6 +149,19 @@ def _plan_sockets(r, sockets, poses, candidates, seed, jr, out, report, as_json,
     lines += [",".join(f"{v:.6f}" for v in joints_to_file(q, r.prismatic)) + f",socket{k + 1},S1"
               for q, k in zip(p.q, p.socket)]
     document = p.summary()
+    _write(lines, document, out, report, as_json, quiet, lambda: (
+        f"{len(p.q)} configurations at {len(places)} socket(s) ({', '.join(map(str, p.reachable))} distinct "
+        f"reaching configurations drawn): log det of the information per parameter {p.value:.3f} against "
+        f"{document['random_median']:.3f} for the median of {len(p.random_values)} random choices; wrote {out}"))
+
+
+def _write(lines, document, out, report, as_json, quiet, said) -> None:
+    """A plan's file and its report, all or nothing; then its JSON or what ``said()`` says."""
+    import json
+
+    from ..io.atomic import atomic_write, together
+    from .common import console, print_json
+
     with together():
         atomic_write(out, "\n".join(lines) + "\n")
         if report is not None:
@@ -153,25 +169,19 @@ def _plan_sockets(r, sockets, poses, candidates, seed, jr, out, report, as_json,
     if as_json:
         print_json(document)
     elif not quiet:
-        console().print(f"{len(p.q)} configurations at {len(places)} socket(s) ({', '.join(map(str, p.reachable))} "
-                        f"distinct reaching configurations drawn): log det of the information per parameter "
-                        f"{p.value:.3f} against {document['random_median']:.3f} for the median of "
-                        f"{len(p.random_values)} random choices; wrote {out}")
+        console().print(said(), markup=False)
 
 
 def _plan_cameras(r, cameras, camera_pose, markers, pixel_noise, poses, candidates, seed, jr, out, report, as_json,
                   quiet) -> None:
     """Images to take (see :mod:`robocal.plan.cameras`): the joint log of the chosen poses."""
-    import json
 
     from .. import options as opt
     from ..calibration.cameras import load_markers
     from ..calibration.config import camera_poses, camera_specs
-    from ..io.atomic import atomic_write, together
     from ..io.camera import load_camera
     from ..io.measurements import joints_to_file
     from ..plan.cameras import plan_camera_poses
-    from .common import console, print_json
     from .simulate import placed as _placed
 
     specs = camera_specs(cameras)
@@ -187,18 +197,11 @@ def _plan_cameras(r, cameras, camera_pose, markers, pixel_noise, poses, candidat
     lines += [f"P{j + 1:03d},P{j + 1:03d}.png," + ",".join(f"{v:.6f}" for v in joints_to_file(q, r.prismatic))
               for j, q in enumerate(p.q)]
     document = p.summary()
-    with together():
-        atomic_write(out, "\n".join(lines) + "\n")
-        if report is not None:
-            atomic_write(report, json.dumps(document, indent=1) + "\n")
-    if as_json:
-        print_json(document)
-    elif not quiet:
-        console().print(f"{len(p.q)} poses, {int(p.rows.sum())} camera rows expected ({p.in_view[0]} of "
-                        f"{p.in_view[1]} candidates see a marker): log det of the information per parameter "
-                        f"{p.value:.3f} against {document['random_median']:.3f} for the median of "
-                        f"{len(p.random_values)} random sets; wrote {out} (the joint log robocal detect reads: name "
-                        "each image as its row says)", markup=False)
+    _write(lines, document, out, report, as_json, quiet, lambda: (
+        f"{len(p.q)} poses, {int(p.rows.sum())} camera rows expected ({p.in_view[0]} of {p.in_view[1]} candidates "
+        f"see a marker): log det of the information per parameter {p.value:.3f} against "
+        f"{document['random_median']:.3f} for the median of {len(p.random_values)} random sets; wrote {out} (the "
+        "joint log robocal detect reads: name each image as its row says)"))
 
 
 def register(app: typer.Typer) -> None:

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import typer
 
-from .common import base_link_option, quiet_flag, tip_link_option
+from .common import base_link_option, camera_option, camera_pose_option, markers_option, quiet_flag, tip_link_option
 
 
 def _degrees(values):
@@ -48,13 +48,9 @@ def simulate_cmd(
     setups: int = typer.Option(4, "--setups", help="placements of the artefact, with --contact"),
     spacing: float = typer.Option(50.0, "--spacing", help="distance of the two sockets A and B, mm, with --contact "
                                   "points"),
-    cameras: list[str] | None = typer.Option(None, "--camera", help="NAME=FILE or NAME=FILE,link=K: no tracker, this "
-                                             "camera (its intrinsics file) sees the markers; repeatable"),
-    camera_pose: list[str] | None = typer.Option(None, "--camera-pose", help="NAME=x,y,z,rx,ry,rz: where a camera is "
-                                                 "(mm, deg; in the measuring frame, or its link's frame), default: a "
-                                                 "fixed camera facing the markers; repeatable"),
-    markers: Path | None = typer.Option(None, "--markers", help="CSV marker,x,y,z (mm, flange frame), with --camera "
-                                        "(default: one marker, m1, at the tool point)"),
+    cameras: list[str] | None = camera_option("no tracker, this camera (its intrinsics file) sees the markers"),
+    camera_pose: list[str] | None = camera_pose_option("where a camera is; default: a fixed camera facing the markers"),
+    markers: Path | None = markers_option("with --camera (default: one marker, m1, at the tool point)"),
     pixel_noise: float = typer.Option(0.0, "--pixel-noise", help="pixel noise σ per coordinate, px, with --camera"),
     base_link: str | None = base_link_option(),
     tip_link: str | None = tip_link_option(),
