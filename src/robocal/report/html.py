@@ -52,8 +52,9 @@ def _metrics_table(columns: dict[str, Metrics]) -> str:
 
 
 def _camera_table(result: CalibrationResult) -> list[str]:
-    """The camera rows' reprojection RMS (px), over all and per camera, before and after."""
-    if not result.cameras:
+    """The camera rows' reprojection RMS (px), over all and per camera, before and after: beside
+    tracker rows, or of several cameras (one camera's alone are the accuracy table's)."""
+    if not result.cameras or (result.unit == "px" and len(result.robot.cameras) < 2):
         return []
     keys = list(dict.fromkeys(k for figures in result.cameras.values() for k in figures))
     rows = [(k.replace("reprojection_rms_px", "reprojection RMS (px)").replace("[", " camera ").rstrip("]"),
@@ -362,12 +363,14 @@ def _floor(result: CalibrationResult) -> float | None:
 
 
 def _tied_to_cameras(result: CalibrationResult) -> list[str]:
-    """The parameters held by their prior that no pose can tell from a camera's mounting: for a
-    camera on link k, joint k+1's zero and offset along its axis (a turn or a shift along an axis
-    commutes with the joint's own turn, so the camera may take it: MODEL §10), and for Craig's
-    convention the twist and length before that axis; and what the estimate's dependences tie to
-    those or to a camera's frame."""
+    """The parameters held by their prior that no pose can tell from where the cameras, the base
+    and the markers are: for a camera on link k, joint k+1's zero and offset along its axis (a turn
+    or a shift along an axis commutes with the joint's own turn, so the camera may take it: MODEL
+    §10), and for Craig's convention the twist and length before that axis; and what the estimate's
+    dependences tie to those or to a frame (the lengths' common scale among them)."""
     robot = result.robot
+    if not robot.cameras:
+        return []
     tied = set()
     for mount in robot.cameras.values():
         if mount.link and mount.link < robot.n_joints and robot.convention in ("dh", "hayati", "craig"):
@@ -375,9 +378,9 @@ def _tied_to_cameras(result: CalibrationResult) -> list[str]:
             tied |= {f"theta{j}", f"d{j}"} | ({f"a{j}", f"alpha{j}"} if robot.convention == "craig" else set())
     at = result.at_estimate
     groups = [] if at is None else [{name, *related} for name, related in at.dependent.items()]
-    for group in groups * 2:  # twice: a dependence may tie to another that ties to a camera
-        if any(n.startswith("camera[") or n in tied for n in group):
-            tied |= {n for n in group if not n.startswith("camera[")}
+    for group in groups * 2:  # twice: a dependence may tie to another that ties to a frame
+        if any(is_frame(n) or n in tied for n in group):  # a camera, the base, a marker: they take it exactly
+            tied |= {n for n in group if not is_frame(n)}
     return [n for n in result.held if n in tied]
 
 
@@ -415,9 +418,10 @@ def next_steps(result: CalibrationResult) -> list[str]:
                        "uncertainty map is bright before relying on it across the workspace.")
     tied = _tied_to_cameras(result)
     if tied:
-        out.append(f"{html.escape(', '.join(tied))} cannot be told from where the cameras are: the pixels see the "
-                   "same whichever takes the difference, so the prior holds it (MODEL §10). No pose separates them; "
-                   "a camera's pose known by other means (--camera-pose), or tracker rows, would.")
+        out.append(f"{html.escape(', '.join(tied))} cannot be told from where the cameras, the base and the markers "
+                   "are, nor from the lengths' common scale: the pixels see the same whichever takes the difference, "
+                   "so the prior holds it (MODEL §10). No pose separates them; a camera's pose known by other means "
+                   "(--camera-pose), markers of known offsets or sizes (--markers), or tracker rows would.")
     held = [n for n in result.held if n not in tied]
     if held:
         many = len(held) > 1
