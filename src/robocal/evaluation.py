@@ -85,6 +85,9 @@ def evaluate(robot: str | Path | Robot, data: str | Path | Measurements, *, colu
         data, n_joints=r.n_joints, columns=columns, joint_unit=joint_unit, length_unit=length_unit,
         delimiter=delimiter, decimal=decimal, euler=euler,
         robot_label=r.source, prismatic=tuple(map(bool, r.prismatic)) if r.prismatic.any() else None)
+    if meas.camera is not None and any(meas.camera):
+        raise InputError("has camera rows: their pixels need the cameras the calibration found; evaluate them with "
+                         "calibrate --validate, and a model on tracker rows here", source=meas.source)
     distances = point_distances(point_distance)
     if distances or meas.constraints is not None:
         meas = meas.with_distances(distances, opt.number(distance_sigma, "distance_sigma", minimum=0.0, strict=True))

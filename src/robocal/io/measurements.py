@@ -250,6 +250,9 @@ def read_pose_table(text: str, *, source: str, options: ReadOptions = ReadOption
     qcols = _joint_columns(table, options.n_joints, require_joints, options.robot_label)
     labels = _constraint_labels(table) if require_position else None
     touched = None if labels is None else np.array([bool(a or b) for a, b in zip(labels[0], labels[1])])
+    if not require_position and any(c in table for c in CAMERA):
+        raise InputError(f"column '{next(c for c in CAMERA if c in table)}' belongs to camera rows of a measurement "
+                         "file, not here", source=source)
     seen = _camera_labels(table) if require_position else None
     if seen is not None:
         for i, (cam, label) in enumerate(zip(seen, labels[0] if labels else [""] * len(seen))):
