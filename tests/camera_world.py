@@ -239,3 +239,35 @@ def render(cell: Cell, cam: CellCamera, q: np.ndarray, squares: dict, dictionary
         del source_quiet
         rows += [(np.degrees(q), uv[k], cam.name, f"{marker_id}:{k}") for k in range(4)]
     return image, rows
+
+
+def render_board(cell: Cell, cam: CellCamera, q: np.ndarray, pose: np.ndarray, board, pixels_per_square: int = 80,
+                 facing: float = 0.3) -> tuple[np.ndarray, list]:
+    """An image of a ChArUco board (``cv2.aruco.CharucoBoard``, its lengths in mm) held at ``pose`` on the
+    flange (the board's frame as OpenCV lays out its corners: x along its columns, y along its rows, z
+    behind its printed face), drawn by OpenCV and warped onto where its outline projects; and the rows
+    of its chessboard corners in view (marker ``C:k``, exact pixel)."""
+    g = independent.geometry(cell.robot, cell.deviations)
+    Tw = cell.base @ independent.pose(g, q) @ pose
+    Tc = cell.camera_pose(cam, q)
+    columns, rows = board.getChessboardSize()
+    square = board.getSquareLength()
+    image = np.full((cam.size[1], cam.size[0]), 128, np.uint8)
+    front = -Tw[:3, 2]  # the printed face looks along −z
+    if front @ (Tc[:3, 3] - Tw[:3, 3]) / np.linalg.norm(Tc[:3, 3] - Tw[:3, 3]) < facing:
+        return image, []
+    outline = np.array([[0, 0, 0], [columns, 0, 0], [columns, rows, 0], [0, rows, 0]], float) * square
+    corners = np.asarray(board.getChessboardCorners(), float)
+    pc = ((Tw[:3, :3] @ np.vstack([outline, corners]).T).T + Tw[:3, 3] - Tc[:3, 3]) @ Tc[:3, :3]
+    if np.any(pc[:, 2] <= 100):
+        return image, []
+    uv = cam.project(pc)
+    printed = board.generateImage((columns * pixels_per_square, rows * pixels_per_square), marginSize=0)
+    source = np.array([[0, 0], [columns, 0], [columns, rows], [0, rows]], float) * pixels_per_square - 0.5
+    H = cv2.getPerspectiveTransform(source.astype(np.float32), uv[:4].astype(np.float32))
+    warped = cv2.warpPerspective(printed, H, cam.size, flags=cv2.INTER_LINEAR)
+    mask = cv2.warpPerspective(np.full(printed.shape, 255, np.uint8), H, cam.size, flags=cv2.INTER_LINEAR)
+    alpha = mask.astype(float) / 255.0
+    image = (alpha * warped + (1 - alpha) * image).round().astype(np.uint8)
+    inside = np.all((uv[4:] > 5) & (uv[4:] < np.array(cam.size) - 5), axis=1)
+    return image, [(np.degrees(q), uv[4 + k], cam.name, f"C:{k}") for k in np.flatnonzero(inside)]

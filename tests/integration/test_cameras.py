@@ -453,3 +453,56 @@ def test_square_markers_of_known_size_but_unknown_place_give_the_scale(tmp_path)
         said = " ".join(result.notes + result.warnings)
         assert ("scale: from the markers' known sizes" in said) == (label == "squares")
     assert errors["squares"] < 0.7 * errors["corners"], errors
+
+
+def test_a_charuco_board_on_the_flange_detects_and_calibrates_with_its_place_found(tmp_path, run_cli):
+    """A ChArUco board (5 × 7 squares of 40 mm) held on the flange where nobody measured it: robocal detect
+    finds its corners and writes its layout as one body; the calibration finds its place and takes the
+    scale from its known geometry, as the exact pixels of the same corners would."""
+    import cv2
+
+    rng = np.random.default_rng(6)
+    cam = cw.camera("wall", cw.look_at([1300.0, 700, 1000], [400.0, 0, 500]), f=1300, dist=(0, 0, 0, 0, 0),
+                    size=(1280, 960))
+    board = cv2.aruco.CharucoBoard((5, 7), 40.0, 30.0, cv2.aruco.getPredefinedDictionary(cv2.aruco.DICT_4X4_50))
+    from scipy.spatial.transform import Rotation
+
+    pose = np.eye(4)  # the board 90 mm out, turned, its face towards −z of the flange turned about x
+    pose[:3, :3] = Rotation.from_euler("xyz", [180, 0, 20], degrees=True).as_matrix()
+    pose[:3, 3] = [-100.0, -140.0, 90.0]
+    cell = cw.Cell("kr5-arc", independent.uniform_deviations("kr5-arc", 1.0, np.radians(0.1), rng), [cam], {})
+    folder = tmp_path / "images"
+    folder.mkdir()
+    log, exact = ["image," + ",".join(f"q{i + 1}" for i in range(6))], []
+    for i, q in enumerate(cw.poses("kr5-arc", 60, rng, [0, -60, 90, 0, 30, 0], [50, 25, 25, 60, 35, 90])):
+        image, rows = cw.render_board(cell, cam, q, pose, board)
+        cv2.imwrite(str(folder / f"p{i:03d}.png"), image)
+        log.append(f"p{i:03d}.png," + ",".join(repr(float(v)) for v in np.degrees(q)))
+        exact += rows
+    (tmp_path / "joints.csv").write_text("\n".join(log) + "\n")
+    detected, layout = tmp_path / "detected.csv", tmp_path / "board.csv"
+    code, _, err = run_cli("detect", folder, "--joints", tmp_path / "joints.csv", "--camera", "wall", "--aruco",
+                           "4X4_50", "--charuco", "5x7,40,30", "--markers-out", layout, "--out", detected)
+    assert code == 0, err
+    from robocal.io.measurements import load_measurements
+
+    found = load_measurements(detected, n_joints=6)
+    truth = {(tuple(np.round(q, 9)), m): uv for q, uv, _, m in exact}
+    miss = np.array([found.pixels[i] - truth[(tuple(np.round(np.degrees(found.q[i]), 9)), found.targets[i])]
+                     for i in range(found.n_poses)])
+    assert found.n_poses >= 0.8 * len(exact) and len(exact) > 200  # a corner is found where its markers are
+    assert np.sqrt(np.mean(np.sum(miss ** 2, axis=1))) < 0.3
+    spec = f"wall={cam.write(tmp_path / 'wall.yaml')}"
+    result = _calibrate("kr5-arc", str(detected), spec, markers=str(layout))
+    said = " ".join(result.notes + result.warnings)
+    assert "scale: from the markers' known sizes" in said
+    # the board's corners found where they are on the flange
+    corners = np.asarray(board.getChessboardCorners(), float)
+    placed = (pose[:3, :3] @ corners.T).T + pose[:3, 3]
+    found_at = np.array([result.robot.targets[f"C:{k}"][:3, 3] for k in range(len(corners))
+                         if f"C:{k}" in result.robot.targets])
+    assert len(found_at) >= 20
+    # (a calibration moves the flange frame with the chain's last parameters: compare the board's shape)
+    d_found = np.linalg.norm(found_at[:, None] - found_at[None], axis=-1)
+    d_true = np.linalg.norm(placed[:len(found_at), None] - placed[None, :len(found_at)], axis=-1)
+    assert np.abs(d_found - d_true).max() < 0.5

@@ -54,18 +54,25 @@ def load_markers(path: str) -> MarkerFile:
     rz`` (deg, the marker's frame: z out of its face) and ``size`` (its side, mm) a square marker, whose
     corners ``NAME:0`` … ``NAME:3`` (OpenCV's order, as :mod:`robocal.io.detect` names them) are markers
     too.  A square whose x … rz are left empty stands where the calibration finds it: its corners are
-    identified, held to the square's size by their known sides and diagonals."""
+    identified, held to the square's size by their known sides and diagonals.  With a ``body``
+    column, the rows of one body give their places in that body's own frame (a marker cube, a ChArUco
+    board as ``robocal detect --markers-out`` writes it): the body stands where the calibration finds
+    it, its markers identified and held to their known distances, every pair of them."""
     from ..math.se3 import frame_from_values
 
     text = read_text(path, "markers file")
     rows = list(csv.reader(io.StringIO(text)))
     header = [h.strip() for h in rows[0]] if rows else []
-    square = header[4:] == ["rx", "ry", "rz", "size"]
-    if header[:4] != ["marker", "x", "y", "z"] or not (len(header) == 4 or square):
-        raise InputError("expected the columns marker, x, y, z (mm, in the flange frame), and rx, ry, rz (deg), size "
-                         "(mm) for square markers", source=path)
+    rest = header[4:]
+    body = bool(rest) and rest[-1] == "body"
+    square = (rest[:-1] if body else rest) == ["rx", "ry", "rz", "size"]
+    if header[:4] != ["marker", "x", "y", "z"] or (rest[:-1] if body else rest) not in ([], ["rx", "ry", "rz", "size"]):
+        raise InputError("expected the columns marker, x, y, z (mm, in the flange frame), then rx, ry, rz (deg), size "
+                         "(mm) for square markers, then body for markers of a body whose place is unknown",
+                         source=path)
     out: dict[str, np.ndarray] = {}
     shapes: list[tuple[str, str, float]] = []
+    bodies: dict[str, dict[str, np.ndarray]] = {}
     named: set[str] = set()
     for line, row in enumerate(rows[1:], start=2):
         if not any(c.strip() for c in row):
@@ -78,8 +85,10 @@ def load_markers(path: str) -> MarkerFile:
         if name in named:
             raise InputError(f"marker {name!r} is given twice", source=path, where=f"row {line}")
         named.add(name)
-        free = square and not any(c.strip() for c in row[1:7])
-        cells = row[7:] if free else row[1:]
+        owner = row[-1].strip() if body else ""
+        numbers = row[1:-1] if body else row[1:]
+        free = square and not owner and not any(c.strip() for c in numbers[:6])
+        cells = numbers[6:] if free else numbers
         try:
             values = np.array([float(c) for c in cells])
         except ValueError:
@@ -97,10 +106,17 @@ def load_markers(path: str) -> MarkerFile:
                        for i in range(4) for j in range(i + 1, 4)]
             continue
         T = frame_from_values([*values[:3], *np.radians(values[3:6])])
-        out[name] = homogeneous(np.eye(3), T[:3, 3])
+        points = {name: T[:3, 3]}
         if square:
-            for k, corner in enumerate(SQUARE_CORNERS * side):
-                out[corners[k]] = homogeneous(np.eye(3), T[:3, :3] @ corner + T[:3, 3])
+            points.update({corners[k]: T[:3, :3] @ c + T[:3, 3] for k, c in enumerate(SQUARE_CORNERS * side)})
+        if owner:  # places in the body's frame: only their distances are known
+            bodies.setdefault(owner, {}).update(points)
+        else:
+            out.update({k: homogeneous(np.eye(3), v) for k, v in points.items()})
+    for points in bodies.values():
+        names = list(points)
+        shapes += [(a, b, float(np.linalg.norm(points[a] - points[b]))) for i, a in enumerate(names)
+                   for b in names[i + 1:]]
     if not named:
         raise InputError("names no marker", source=path)
     return MarkerFile(out, tuple(shapes))

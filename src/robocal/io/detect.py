@@ -129,6 +129,60 @@ def detector(name: str):
     return cv2.aruco.ArucoDetector(dictionary(name), parameters)
 
 
+@dataclass(frozen=True)
+class Board:
+    """A ChArUco board: ``columns`` × ``rows`` squares of ``square`` mm, its markers ``marker`` mm a side,
+    of an ArUco dictionary."""
+
+    columns: int
+    rows: int
+    square: float
+    marker: float
+    dictionary: str
+
+    @classmethod
+    def parse(cls, text: str, dictionary_name: str) -> Board:
+        """``COLSxROWS,SQUARE_MM,MARKER_MM`` (``5x7,30,22``)."""
+        try:
+            size, square, marker = (x.strip() for x in str(text).split(","))
+            columns, rows = (int(x) for x in size.lower().split("x"))
+            board = cls(columns, rows, float(square), float(marker), dictionary_name)
+        except ValueError:
+            raise InputError(f"expected COLSxROWS,SQUARE_MM,MARKER_MM (5x7,30,22), got {text!r}", option="charuco") \
+                from None
+        if min(columns, rows) < 2 or not 0 < board.marker < board.square or not math.isfinite(board.square):
+            raise InputError(f"a board has at least 2 × 2 squares and markers smaller than its squares, got {text!r}",
+                             option="charuco")
+        return board
+
+    def opencv(self):
+        cv2 = _cv2()
+        return cv2.aruco.CharucoBoard((self.columns, self.rows), self.square, self.marker, dictionary(self.dictionary))
+
+    def corners(self) -> np.ndarray:
+        """Its chessboard corners (N, 3) mm in the board's frame, in OpenCV's numbering."""
+        return np.asarray(self.opencv().getChessboardCorners(), float)
+
+    def markers_csv(self) -> str:
+        """A markers file of its corners ``C:k`` as one body whose place is unknown
+        (:func:`robocal.calibration.cameras.load_markers`)."""
+        lines = ["marker,x,y,z,body"]
+        lines += [f"C:{k},{x!r},{y!r},{z!r},board" for k, (x, y, z) in enumerate(self.corners().tolist())]
+        return "\n".join(lines) + "\n"
+
+
+def find_board(path: str | Path, found_by) -> dict[int, np.ndarray]:
+    """A ChArUco board's chessboard corners in one image: corner id → (2,) px (OpenCV's convention)."""
+    cv2 = _cv2()
+    image = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
+    if image is None:
+        raise InputError("is not an image OpenCV can read", source=str(path))
+    corners, ids, _, _ = found_by.detectBoard(image)
+    if ids is None:
+        return {}
+    return {int(i): np.asarray(c, float).reshape(2) for i, c in zip(ids.ravel(), corners)}
+
+
 def find_markers(path: str | Path, found_by) -> dict[int, np.ndarray]:
     """The markers in one image: id → its four corners (4, 2) px, in OpenCV's order."""
     cv2 = _cv2()
@@ -161,14 +215,15 @@ class Detection:
 
 
 def detect_campaign(folder: str | Path, log: JointLog, camera: str, dictionary_name: str, *,
-                    centres: bool = False, ids: Sequence[int] | None = None) -> Detection:
+                    centres: bool = False, ids: Sequence[int] | None = None, board: Board | None = None) -> Detection:
     """Camera rows (CSV text: pose_id, q1..qn, u, v, camera, marker) of the markers of
     ``dictionary_name`` that ``camera`` saw in each image of the log; ``centres``: one row a marker at
-    its centre instead of one a corner; ``ids``: only these markers (others in view are left out)."""
+    its centre instead of one a corner; ``ids``: only these markers (others in view are left out);
+    ``board``: a ChArUco board's chessboard corners instead, one row each (``C:k``)."""
     folder = Path(folder)
     if not folder.is_dir():
         raise InputError("is not a folder of images", source=str(folder))
-    found_by = detector(dictionary_name)
+    found_by = detector(dictionary_name) if board is None else _cv2().aruco.CharucoDetector(board.opencv())
     keep = None if ids is None else set(int(i) for i in ids)
     n = log.q.shape[1]
     out = io.StringIO()
@@ -179,15 +234,19 @@ def detect_campaign(folder: str | Path, log: JointLog, camera: str, dictionary_n
         path = folder / image
         if not path.is_file():
             raise InputError(f"image {image!r} is not in {folder}", source=log.source, where=f"row {line}")
-        markers = {k: v for k, v in find_markers(path, found_by).items() if keep is None or k in keep}
+        found = find_markers(path, found_by) if board is None else find_board(path, found_by)
+        markers = {k: v for k, v in found.items() if keep is None or k in keep}
         if not markers:
             empty.append(image)
             continue
         pose = Path(image).stem
         for marker_id in sorted(markers):
             corners = markers[marker_id]
-            points = [(str(marker_id), centre(corners))] if centres else \
-                [(f"{marker_id}:{k}", corners[k]) for k in range(4)]
+            if board is not None:
+                points = [(f"C:{marker_id}", corners)]
+            else:
+                points = [(str(marker_id), centre(corners))] if centres else \
+                    [(f"{marker_id}:{k}", corners[k]) for k in range(4)]
             for name, (u, v) in points:
                 w.writerow([pose, *(repr(float(x)) for x in q), repr(float(u)), repr(float(v)), camera, name])
                 names.add(name)
