@@ -171,13 +171,18 @@ class Board:
         return "\n".join(lines) + "\n"
 
 
-def find_board(path: str | Path, found_by) -> dict[int, np.ndarray]:
-    """A ChArUco board's chessboard corners in one image: corner id → (2,) px (OpenCV's convention)."""
+def _grey(path: str | Path) -> np.ndarray:
+    """An image in grey, as OpenCV reads it (one line naming the file where it cannot)."""
     cv2 = _cv2()
     image = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
     if image is None:
         raise InputError("is not an image OpenCV can read", source=str(path))
-    corners, ids, _, _ = found_by.detectBoard(image)
+    return image
+
+
+def find_board(path: str | Path, found_by) -> dict[int, np.ndarray]:
+    """A ChArUco board's chessboard corners in one image: corner id → (2,) px (OpenCV's convention)."""
+    corners, ids, _, _ = found_by.detectBoard(_grey(path))
     if ids is None:
         return {}
     return {int(i): np.asarray(c, float).reshape(2) for i, c in zip(ids.ravel(), corners)}
@@ -185,11 +190,7 @@ def find_board(path: str | Path, found_by) -> dict[int, np.ndarray]:
 
 def find_markers(path: str | Path, found_by) -> dict[int, np.ndarray]:
     """The markers in one image: id → its four corners (4, 2) px, in OpenCV's order."""
-    cv2 = _cv2()
-    image = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
-    if image is None:
-        raise InputError("is not an image OpenCV can read", source=str(path))
-    corners, ids, _ = found_by.detectMarkers(image)
+    corners, ids, _ = found_by.detectMarkers(_grey(path))
     if ids is None:
         return {}
     return {int(i): np.asarray(c, float).reshape(4, 2) + APRILTAG_SHIFT for i, c in zip(ids.ravel(), corners)}
