@@ -506,3 +506,28 @@ def test_a_charuco_board_on_the_flange_detects_and_calibrates_with_its_place_fou
     d_found = np.linalg.norm(found_at[:, None] - found_at[None], axis=-1)
     d_true = np.linalg.norm(placed[:len(found_at), None] - placed[None, :len(found_at)], axis=-1)
     assert np.abs(d_found - d_true).max() < 0.5
+
+
+def test_a_calibrated_stereo_rig_on_the_link_predicts_depth_within_the_floor(tmp_path):
+    """The two torso cameras as a rig whose relative pose is known (NAME@OTHER): the pair triangulates,
+    and new poses are predicted along the optical axis too within 1.5× of the fit that knows both
+    cameras' mounting."""
+    from robocal.math.se3 import transform_to_xyz_rpy
+
+    cell, data, specs, markers, rng = _torso_cell(7, tmp_path, 150)
+    left, right = cell.cameras
+    xyz, rpy = transform_to_xyz_rpy(np.linalg.inv(left.pose) @ right.pose)
+    pose = "right@left=" + ",".join(f"{v:.12g}" for v in (*xyz, *np.degrees(rpy)))
+    result = _calibrate("kr5-arc", data, *specs, markers=str(markers), camera_poses=(pose,))
+    assert "camera-pose" not in " ".join(result.warnings)
+    assert any("fixed as given (a calibrated rig)" in n for n in result.notes)
+    known = robocal.load_robot("kr5-arc").replace(cameras={c.name: CameraMount(1, c.pose, known=True)
+                                                           for c in cell.cameras})
+    floor = _calibrate(known, data, *specs, markers=str(markers))
+    fresh = cw.poses("kr5-arc", 200, rng, CENTRE, SPREAD_TORSO)
+    seen = cell.seen_from(left, fresh, "m1")
+    ours, best = _in_camera(result.robot, "left", fresh) - seen, _in_camera(floor.robot, "left", fresh) - seen
+    rms = lambda e: float(np.sqrt(np.mean(np.sum(e ** 2, axis=1))))  # noqa: E731
+    assert rms(ours[:, :2]) <= 1.5 * rms(best[:, :2]) and rms(ours[:, 2:]) <= 1.5 * rms(best[:, 2:])
+    saved = result.to_dict()["frames_identified"]["camera[right]"]
+    assert saved["known"] and saved["of"] == "left" and saved["link"] == 1

@@ -22,8 +22,14 @@ def _cell(rng, tmp_path):
     dev = independent.uniform_deviations("kr5-arc", 1.0, np.radians(0.1), rng)
     wall = cw.camera("wall", cw.look_at([2000.0, 1200, 1300], [240.0, 10, 440]))
     rider = cw.camera("rider", cw.look_at([300.0, -600, 900], [700.0, 0, 300]), link=1)
+    # the rider's partner on a rig: 120 mm to its right, turned 5° towards it (its pose in the rider's frame)
+    from robocal.math.se3 import homogeneous as _h
+    from robocal.math.so3 import exp_so3
+
+    rig = _h(exp_so3(np.array([0.0, np.radians(-5.0), 0.0])), np.array([120.0, 0.0, 0.0]))
+    partner = cw.camera("partner", rider.pose @ rig, link=1)
     markers = {"m1": (np.array([20.0, 10, 80]), None), "m2": (np.array([-40.0, 30, 60]), None)}
-    cell = cw.Cell("kr5-arc", dev, [wall, rider], markers)
+    cell = cw.Cell("kr5-arc", dev, [wall, rider, partner], markers)
     q = cw.poses("kr5-arc", 80, rng, centre_deg=[0, -60, 90, 0, 30, 0], spread_deg=[50, 25, 25, 80, 35, 80])
     rows = cell.observe(q, rng, 0.0)
     intrinsics = {c.name: load_camera(c.write(tmp_path / f"{c.name}.yaml"), c.name) for c in cell.cameras}
@@ -37,13 +43,14 @@ def _cell(rng, tmp_path):
     geometry = nominal.geometry.copy()
     geometry[:, :4] = np.column_stack([g["a"], g["alpha"], g["theta"], g["d"]])
     true = nominal.replace(geometry=geometry, targets={k: homogeneous(np.eye(3), p) for k, (p, _) in markers.items()},
-                           cameras={"wall": CameraMount(0, wall.pose), "rider": CameraMount(1, rider.pose)})
+                           cameras={"wall": CameraMount(0, wall.pose), "rider": CameraMount(1, rider.pose),
+                                    "partner": CameraMount(1, rig, known=True, of="rider")})
     return true, meas
 
 
 def test_a_robot_with_cameras_predicts_the_pixels_of_an_independent_cell(rng, tmp_path):
     true, meas = _cell(rng, tmp_path)
-    assert set(meas.camera) == {"wall", "rider"} and meas.n_poses > 60
+    assert set(meas.camera) == {"wall", "rider", "partner"} and meas.n_poses > 60
     dp, _ = pose_errors(true, meas)
     np.testing.assert_allclose(dp, 0.0, atol=1e-6)  # measured pixels (noise-free) are the predicted ones
 
@@ -54,7 +61,8 @@ def test_camera_rows_jacobian_is_its_finite_difference(rng, tmp_path):
 
     meas = replace(meas, shapes=(("m1", "m2", 70.0),))  # a known distance between the two markers' offsets
     space = ParameterSpace.of(true, ("m1", "m2"))
-    assert {n for n in space.names if n.startswith("camera[")} == {f"camera[{c}]_{a}" for c in ("wall", "rider")
+    cameras = ("wall", "rider", "partner")
+    assert {n for n in space.names if n.startswith("camera[")} == {f"camera[{c}]_{a}" for c in cameras
                                                                    for a in ("x", "y", "z", "rx", "ry", "rz")}
     problem = Setup(space, meas, use_orientation=False).problem(space.names)
     x = rng.normal(0, 1e-3, space.size)
@@ -67,7 +75,7 @@ def test_camera_rows_jacobian_is_its_finite_difference(rng, tmp_path):
         np.testing.assert_allclose(J[:, i], fd, rtol=1e-4, atol=1e-4 * max(1.0, np.abs(fd).max()),
                                    err_msg=space.names[i])
     # a camera on link 1 sees neither the base nor joint 1's parameters
-    rider = np.array([c == "rider" for c in meas.camera])
+    rider = np.array([c in ("rider", "partner") for c in meas.camera])
     rows = np.repeat(rider, 3)
     for name in ("base_x", "base_rz", "d1", "theta1"):
         assert np.abs(J[:len(rows)][rows, space.names.index(name)]).max() < 1e-9

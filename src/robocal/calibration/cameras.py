@@ -190,6 +190,7 @@ def attach(nominal: Robot, meas: Measurements, config: CalibrationConfig) -> tup
 
     given = nominal.cameras  # a robot object may carry mountings, known ones among them
     mounts = {}
+    rig = {k.partition("@")[0]: (k.partition("@")[2], v) for k, v in config.camera_poses.items() if "@" in k}
     for spec in config.cameras:
         values = config.camera_poses.get(spec.name)
         mounts[spec.name] = mount_of(nominal, spec.name, spec.link, None if values is None else
@@ -199,6 +200,8 @@ def attach(nominal: Robot, meas: Measurements, config: CalibrationConfig) -> tup
                 raise InputError(f"camera {spec.name!r} is on link {mounts[spec.name].link}, but the robot has it on "
                                  f"link {given[spec.name].link}", option="camera")
             mounts[spec.name] = given[spec.name]
+    for name, (of, values) in rig.items():  # fixed to another camera: its pose in that one's frame, known
+        mounts[name] = CameraMount(mounts[of].link, frame_from_values(values), known=True, of=of)
     robot = robot.replace(cameras=mounts)
     return robot, replace(meas, intrinsics=intrinsics), notes
 
@@ -256,9 +259,15 @@ def frames_of(frames: str, robot: Robot, meas: Measurements) -> tuple[str, list]
         said = "the markers' offsets are identified" if unknown else "the markers stand where the markers file says"
         notes.append(Note(f"frames auto: {said} (frames {frames})"))
     if fixed:
-        notes.append(Note(f"camera {fixed[0]!r} is the measuring frame: a fixed camera and the base frame trade off, "
-                          f"so the base is found in its frame" + (f" and cameras {', '.join(map(repr, fixed[1:]))} "
-                                                                   "against it" if len(fixed) > 1 else "")))
+        first = gauge(robot)
+        others = [c for c in fixed if c != first]
+        notes.append(Note(f"camera {first!r} is the measuring frame: a fixed camera and the base frame trade off, "
+                          f"so the base is found in its frame" + (f" and cameras {', '.join(map(repr, others))} "
+                                                                   "against it" if others else "")))
+    rigs = [f"{c!r} to {m.of!r}" for c, m in robot.cameras.items() if m.of]
+    if rigs:
+        notes.append(Note(f"camera{'s' if len(rigs) > 1 else ''} {', '.join(rigs)} fixed as given (a calibrated rig): "
+                          "found with the camera it is fixed to"))
     linked = [c for c, m in robot.cameras.items() if m.link > 0]
     if linked and not fixed:
         notes.append(Note(f"the base frame is not seen: camera{'s' if len(linked) > 1 else ''} "
@@ -271,7 +280,7 @@ def gauge(robot: Robot, meas: Measurements | None = None) -> str | None:
     tracker rows stand beside the camera rows (the tracker's frame is then the measuring frame)."""
     if meas is not None and tracked(meas):
         return None
-    return next((c for c, m in robot.cameras.items() if m.link == 0), None)
+    return next((c for c, m in robot.cameras.items() if m.link == 0 and not m.of), None)
 
 
 def register(robot: Robot, meas: Measurements) -> Robot:

@@ -346,7 +346,8 @@ def camera_specs(value) -> tuple[CameraSpec, ...]:
 
 def camera_poses(value, specs: Sequence[CameraSpec]) -> dict[str, tuple[float, ...]]:
     """Known camera poses: ``NAME=x,y,z,rx,ry,rz`` items (mm, deg) or {name: (mm…, rad…)}; each names
-    a camera of ``specs``."""
+    a camera of ``specs``; ``NAME@OTHER=…`` is NAME's pose in OTHER's frame (a calibrated rig: OTHER
+    found, NAME fixed to it)."""
     if isinstance(value, Mapping):
         named = {str(k): tuple(float(x) for x in v) for k, v in value.items()}
         for name, v in named.items():
@@ -358,9 +359,14 @@ def camera_poses(value, specs: Sequence[CameraSpec]) -> dict[str, tuple[float, .
             raise InputError("expected NAME=x,y,z,rx,ry,rz (mm, deg) for each camera whose pose is known",
                              option="camera_pose")
     known = {s.name for s in specs}
-    for name in named:
-        if name not in known:
-            raise InputError(f"camera {name!r} has a pose but no --camera {name}=FILE", option="camera_pose")
+    for key in named:
+        name, _, of = key.partition("@")  # NAME@OTHER: NAME's pose in OTHER's frame (a calibrated rig)
+        for n in (name, of) if of else (name,):
+            if n not in known:
+                raise InputError(f"camera {n!r} has a pose but no --camera {n}=FILE", option="camera_pose")
+        if of and (of == name or any(k.startswith(f"{of}@") for k in named)):
+            raise InputError(f"{key}: a camera is fixed to another that is not itself fixed to a third",
+                             option="camera_pose")
     return named
 
 

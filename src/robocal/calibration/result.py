@@ -48,7 +48,8 @@ from .noise import NoiseEstimate
 #: (something to act on, or a reason to doubt a figure), and marks screened ladder rows; 9 added
 #: camera rows: ``metrics.*.unit`` (``px`` where every row is a camera's), the headline's ``unit``,
 #: ``rms`` and ``max`` (``position_rms_mm``/``position_max_mm`` only where it is a length) and the
-#: cameras' frames (``camera[NAME]`` with ``link`` and ``known``) in ``frames_*``
+#: cameras' frames (``camera[NAME]`` with ``link``, ``known`` and, for a rig's camera, ``of``: its pose
+#: is in that camera's frame) in ``frames_*``
 SCHEMA_VERSION = 9
 #: a deviation smaller than this many standard uncertainties is "not significant"
 SIGNIFICANCE_SIGMAS = 2.0
@@ -556,5 +557,6 @@ def frames_dict(robot: Robot) -> dict:
     for name, T in robot.targets.items():
         out[f"tool[{name}]"] = one(T)
     for name, mount in robot.cameras.items():  # in the measuring frame, or its link's frame
-        out[f"camera[{name}]"] = {**one(mount.pose), "link": mount.link, "known": mount.known}
+        out[f"camera[{name}]"] = {**one(mount.pose), "link": mount.link, "known": mount.known,
+                                  **({"of": mount.of} if mount.of else {})}
     return out

@@ -153,11 +153,14 @@ class CameraMount:
     """Where a camera is: ``link`` 0 fixed in the measuring frame, k on the robot's link k (the
     frame its chain reaches after joint k, the frame forward kinematics with k joints gives);
     ``pose`` (4 × 4, mm) the camera's frame (z its optical axis) in that frame.  ``known``: the
-    pose is given, not estimated."""
+    pose is given, not estimated.  ``of``: fixed to that camera instead, ``pose`` in its frame."""
 
     link: int = 0
     pose: np.ndarray = field(default_factory=lambda: np.eye(4))
     known: bool = False
+    #: the camera this one is fixed to (a stereo rig's calibrated pair): ``pose`` is then in that
+    #: camera's frame, known, and ``link`` is that camera's
+    of: str = ""
 
     def moved(self, pose: np.ndarray) -> CameraMount:
-        return CameraMount(self.link, np.asarray(pose, float), self.known)
+        return CameraMount(self.link, np.asarray(pose, float), self.known, self.of)

@@ -229,7 +229,7 @@ class ParameterSpace:
         extra = {t: v for t, v in self.robot.targets.items() if t not in named}
         changes = {"geometry": geom, "base": base, "tool": default, "targets": {**extra, **named}}
         if self.cameras:
-            poses = self.camera_poses(deviation)
+            poses = self.camera_poses(deviation, composed=False)
             changes["cameras"] = {**self.robot.cameras, **{c: self.robot.cameras[c].moved(poses[i])
                                                           for i, c in enumerate(self.cameras)}}
         if self.n_term_params:
@@ -243,14 +243,27 @@ class ParameterSpace:
         start = self.n_joint_params + 6 + 6 * len(self.targets)
         return slice(start, start + 6 * len(self.cameras))
 
-    def camera_poses(self, deviation: np.ndarray) -> np.ndarray:
+    def camera_link(self, camera: str) -> int:
+        """The link a camera rides on (that of the camera it is fixed to, for one of a rig)."""
+        mount = self.robot.cameras[camera]
+        return self.robot.cameras[mount.of].link if mount.of else mount.link
+
+    def camera_poses(self, deviation: np.ndarray, composed: bool = True) -> np.ndarray:
         """Each camera's pose in its parent frame (…, C, 4, 4): the measuring frame for a fixed
         camera, its link's frame for one on the robot.  Its deviation turns it about its own origin
-        by a rotation vector in the parent's axes, R = Exp(δ) R°, and moves it, t = t° + δt."""
+        by a rotation vector in the parent's axes, R = Exp(δ) R°, and moves it, t = t° + δt.  A
+        camera fixed to another (a rig) is that one's pose composed with its own (``composed``; else
+        its own, in the other's frame)."""
         d = np.asarray(deviation, float)[..., self._camera_slice()]
         d = d.reshape(d.shape[:-1] + (len(self.cameras), 6))
         nominal = np.stack([self.robot.cameras[c].pose for c in self.cameras])
-        return homogeneous(exp_so3(d[..., 3:]) @ nominal[:, :3, :3], nominal[:, :3, 3] + d[..., :3])
+        poses = homogeneous(exp_so3(d[..., 3:]) @ nominal[:, :3, :3], nominal[:, :3, 3] + d[..., :3])
+        if composed:
+            for c, name in enumerate(self.cameras):
+                of = self.robot.cameras[name].of
+                if of:
+                    poses[..., c, :, :] = poses[..., self.cameras.index(of), :, :] @ poses[..., c, :, :]
+        return poses
 
     def camera_frames(self, deviation: np.ndarray, q: np.ndarray, index: np.ndarray,
                       joints: JointData | None = None) -> np.ndarray:
@@ -260,7 +273,7 @@ class ParameterSpace:
         poses = self.camera_poses(deviation)
         lead = deviation.shape[:-1]
         out = np.broadcast_to(np.eye(4), lead + (len(q), 4, 4)).copy()
-        linked = [c for c, name in enumerate(self.cameras) if self.robot.cameras[name].link > 0]
+        linked = [c for c, name in enumerate(self.cameras) if self.camera_link(name) > 0]
         if linked:
             geom, base, _ = self.expand(deviation)
             qe = np.broadcast_to(self.effective_joints(deviation, q, joints), lead + np.shape(q))
@@ -268,7 +281,7 @@ class ParameterSpace:
             rows = index == c
             if not rows.any():
                 continue
-            link = self.robot.cameras[name].link
+            link = self.camera_link(name)
             if link == 0:
                 out[..., rows, :, :] = poses[..., c:c + 1, :, :]
                 continue
@@ -294,9 +307,11 @@ class ParameterSpace:
             rows = index == c
             if not rows.any():
                 continue
-            link = self.robot.cameras[name].link
-            col = self._camera_slice().start + 6 * c
-            Wc = left_jacobian(d[c, 3:])  # Exp(δ+ε) = Exp(J_l ε) Exp(δ): about the parent's axes
+            link = self.camera_link(name)
+            of = self.robot.cameras[name].of
+            own = self.cameras.index(of) if of else c  # a rig's camera moves with the one it is fixed to
+            col = self._camera_slice().start + 6 * own
+            Wc = left_jacobian(d[own, 3:])  # Exp(δ+ε) = Exp(J_l ε) Exp(δ): about the parent's axes
             if link == 0:
                 R_parent = np.eye(3)[None]
             else:
@@ -312,9 +327,22 @@ class ParameterSpace:
                     Jq = Jj[np.arange(link), cols]
                     J[self.size - self.n_term_params:, rows] = np.einsum("imk,mit->tmk", Jq,
                                                                         joints.basis[rows][:, :link])
+            arm = 0.0
+            if of:  # turning the camera it is fixed to swings this one about that one's origin
+                sub = None if joints is None else joints.subset(rows)
+                ref = self.camera_frames(deviation, q[rows], np.full(int(rows.sum()), own), sub)
+                arm = frames[rows, :3, 3] - ref[:, :3, 3]
+                # its own deviation, in the frame of the camera it is fixed to
+                mine, W = self._camera_slice().start + 6 * c, ref[:, :3, :3] @ left_jacobian(d[c, 3:])
+                for k in range(3):
+                    J[mine + k, rows, :3] = ref[:, :3, k]
+                    J[mine + 3 + k, rows, 3:] = W[:, :, k]
             for k in range(3):
                 J[col + k, rows, :3] = R_parent[:, :, k]
-                J[col + 3 + k, rows, 3:] = (R_parent @ Wc)[:, :, k]
+                w = (R_parent @ Wc)[:, :, k]
+                J[col + 3 + k, rows, 3:] = w
+                if of:
+                    J[col + 3 + k, rows, :3] = np.cross(w, arm)
         return frames, J
 
     def _tools_for(self, tools: np.ndarray, target_idx: np.ndarray | None) -> np.ndarray:

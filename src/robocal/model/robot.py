@@ -155,12 +155,15 @@ class Robot:
             if name not in self.cameras:
                 raise ValueError(f"robot has no pose for camera {name!r}")
             mount, rows = self.cameras[name], names == name
+            pose = mount.pose
+            if mount.of:  # fixed to another camera: its pose composed with that one's
+                pose, mount = self.cameras[mount.of].pose @ pose, self.cameras[mount.of]
             if mount.link == 0:
-                out[rows] = mount.pose
+                out[rows] = pose
                 continue
             k = mount.link
             R, p = chain_pose(self.convention, self.geometry[:k], self.effective_joints(q, inputs)[rows, :k],
-                              self.base, mount.pose[None])
+                              self.base, pose[None])
             out[rows] = homogeneous(R, p)
         return out
 
