@@ -349,6 +349,35 @@ def facing(camera, points: np.ndarray, fill: float = 0.7) -> np.ndarray:
     return look_at(centre + distance * direction / np.linalg.norm(direction), centre)
 
 
+def camera_rows(robot: Robot, q: np.ndarray, intrinsics: Mapping, markers: Sequence[str], *, noise: float = 0.0,
+                rng: np.random.Generator | None = None, margin: float | None = None):
+    """Every (pose, camera, marker) the cell of ``robot`` (its cameras' poses) sees at joints q: the pose
+    index, the camera, the marker and its pixel (with Gaussian ``noise``, px a coordinate).  Seen: in
+    front of the camera and on its image (:meth:`~robocal.model.camera.Camera.in_image`), or with
+    ``margin`` that share of the image's size inside its border (an unstated size taken as 2 cx, 2 cy)."""
+    pose, cams, names, pixels = [], [], [], []
+    points = np.stack([robot.positions(q, [m] * len(q)) for m in markers], axis=1)  # (n, markers, 3)
+    for name, camera in intrinsics.items():
+        T = robot.camera_frames([name] * len(q), q)
+        width, height = camera.width or 2 * camera.cx, camera.height or 2 * camera.cy
+        for k, marker in enumerate(markers):
+            pc = np.einsum("mji,mj->mi", T[:, :3, :3], points[:, k] - T[:, :3, 3])
+            uv = camera.project(pc)
+            uv = uv + (rng.normal(0.0, noise, uv.shape) if noise > 0 else 0.0)
+            if margin is None:
+                ok = camera.in_image(uv) & (pc[:, 2] > 0)
+            else:
+                ok = (pc[:, 2] > 0) & np.all(np.isfinite(uv), axis=1)
+                ok &= (uv[:, 0] > margin * width) & (uv[:, 0] < (1 - margin) * width)
+                ok &= (uv[:, 1] > margin * height) & (uv[:, 1] < (1 - margin) * height)
+            idx = np.flatnonzero(ok)
+            pose.append(idx)
+            pixels.append(uv[idx])
+            cams += [name] * len(idx)
+            names += [marker] * len(idx)
+    return np.concatenate(pose), tuple(cams), tuple(names), np.concatenate(pixels)
+
+
 def simulate_cameras(robot: Robot, n_poses: int, cameras: Mapping, *, markers: Mapping[str, np.ndarray] | None = None,
                      deviations: str | dict[str, float] = "none", pixel_noise: float = 0.0, seed: int | None = 0,
                      joint_range=None) -> Simulation:
@@ -369,37 +398,26 @@ def simulate_cameras(robot: Robot, n_poses: int, cameras: Mapping, *, markers: M
     planted, truth = plant(robot, deviations, rng)
     q = random_joints(robot, n_poses, rng, joint_range)
     names = list(markers)
-    points = np.stack([truth.positions(q, [m] * len(q)) for m in names], axis=1)  # (n, markers, 3)
+    points = np.concatenate([truth.positions(q, [m] * len(q)) for m in names])
     mounts = {}
     for name, (camera, mount) in cameras.items():
         if mount is None:
-            mount = CameraMount(0, facing(camera, points.reshape(-1, 3)))
+            mount = CameraMount(0, facing(camera, points))
         elif mount.link > robot.n_joints:
             raise InputError(f"camera {name!r} is on link {mount.link}, but the robot has {robot.n_joints} joints",
                              option="camera")
         mounts[name] = mount
     truth = truth.replace(cameras=mounts)
-    rows_q, rows_uv, rows_cam, rows_marker = [], [], [], []
-    for name, (camera, _) in cameras.items():
-        frames = truth.camera_frames([name] * len(q), q)
-        for k, marker in enumerate(names):
-            pc = np.einsum("mji,mj->mi", frames[:, :3, :3], points[:, k] - frames[:, :3, 3])
-            uv = camera.project(pc)
-            uv = uv + (rng.normal(0.0, pixel_noise, uv.shape) if pixel_noise > 0 else 0.0)
-            seen = camera.in_image(uv) & (pc[:, 2] > 0)
-            rows_q.append(np.flatnonzero(seen))
-            rows_uv.append(uv[seen])
-            rows_cam += [name] * int(seen.sum())
-            rows_marker += [marker] * int(seen.sum())
+    intrinsics = {name: camera for name, (camera, _) in cameras.items()}
+    pose, rows_cam, rows_marker, rows_uv = camera_rows(truth, q, intrinsics, names, noise=pixel_noise, rng=rng)
+    for name in cameras:
         if name not in rows_cam:
             raise InputError(f"camera {name!r} sees no marker at any of the {n_poses} poses: place it elsewhere",
                              option="camera")
-    pose = np.concatenate(rows_q)
     order = np.argsort(pose, kind="stable")  # in the order the poses were taken
-    intrinsics = {name: camera for name, (camera, _) in cameras.items()}
     meas = Measurements(q=q[pose[order]], position=np.full((len(pose), 3), np.nan),
                         targets=tuple(np.asarray(rows_marker, dtype=object)[order]), source="<simulated>",
                         pose_ids=tuple(str(int(i) + 1) for i in pose[order]),
-                        pixels=np.concatenate(rows_uv)[order], camera=tuple(np.asarray(rows_cam, dtype=object)[order]),
+                        pixels=rows_uv[order], camera=tuple(np.asarray(rows_cam, dtype=object)[order]),
                         intrinsics=intrinsics)
     return Simulation(meas, truth, planted)

@@ -53,9 +53,6 @@ class Views:
     def only(self) -> bool:
         return bool(np.all(self.index >= 0))
 
-    def labels(self) -> tuple[str, ...]:
-        return tuple(self.names[i] if i >= 0 else "" for i in self.index)
-
     def project(self, p: np.ndarray, frames: np.ndarray, jacobian: bool = False):
         """Predicted pixels (…, m, 2) of points p (…, m, 3) mm in the measuring frame seen from each
         row's camera frame (…, m, 4, 4); with ``jacobian`` also ∂uv/∂p_c (…, m, 2, 3), the points in
@@ -92,20 +89,3 @@ class Views:
         out = np.zeros(Jp.shape)
         out[..., :2] = -np.einsum("mab,kmb->kma", Jpi, dpc)
         return np.where(self.rows[None, :, None], out, 0.0)
-
-    def figures(self, p: np.ndarray, frames: np.ndarray) -> dict[str, float]:
-        """``reprojection_rms_px`` over the camera rows, and per camera ``reprojection_rms_px[NAME]``."""
-        e = np.linalg.norm(self.errors(p, frames)[:, :2], axis=-1)
-        out = {"reprojection_rms_px": float(np.sqrt(np.mean(e[self.rows] ** 2)))}
-        if len(self.names) > 1:
-            for c, name in enumerate(self.names):
-                out[f"reprojection_rms_px[{name}]"] = float(np.sqrt(np.mean(e[self.index == c] ** 2)))
-        return out
-
-    def subset(self, index: np.ndarray) -> Views | None:
-        """The camera rows of rows ``index`` (cameras no kept row saw left out), or None."""
-        labels = tuple(self.labels()[i] for i in index)
-        if not any(labels):
-            return None
-        kept = dict(zip(self.names, self.cameras))
-        return Views.of(labels, self.pixels[index], kept)

@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .. import options as opt
-from ..calibration import cameras as camera_rows
+from ..calibration.cameras import frame_names
 from ..calibration.identifiability import analyse
 from ..calibration.problem import Setup
 from ..exceptions import InputError
@@ -27,7 +27,7 @@ from ..model.candidates import complete, frame_candidates, joint_candidates
 from ..model.measurements import Measurements
 from ..model.parameters import ParameterSpace, is_angle
 from ..model.robot import Robot
-from ..simulation import facing, random_joints
+from ..simulation import camera_rows, facing, random_joints
 
 #: a marker counts as seen where its pixel lies this share of the image's size inside its border
 MARGIN = 0.05
@@ -62,27 +62,6 @@ def _logdet(M: np.ndarray) -> np.ndarray:
     return np.where(sign > 0, value, -np.inf)
 
 
-def _seen(robot: Robot, q: np.ndarray, intrinsics: Mapping, markers: list[str]):
-    """Every (pose, camera, marker) the nominal cell sees: pose index, camera, marker, pixel."""
-    pose, cams, names, pixels = [], [], [], []
-    points = np.stack([robot.positions(q, [m] * len(q)) for m in markers], axis=1)
-    for name, camera in intrinsics.items():
-        T = robot.camera_frames([name] * len(q), q)
-        width, height = camera.width or 2 * camera.cx, camera.height or 2 * camera.cy
-        for k, marker in enumerate(markers):
-            pc = np.einsum("mji,mj->mi", T[:, :3, :3], points[:, k] - T[:, :3, 3])
-            uv = camera.project(pc)
-            ok = (pc[:, 2] > 0) & np.all(np.isfinite(uv), axis=1)
-            ok &= (uv[:, 0] > MARGIN * width) & (uv[:, 0] < (1 - MARGIN) * width)
-            ok &= (uv[:, 1] > MARGIN * height) & (uv[:, 1] < (1 - MARGIN) * height)
-            idx = np.flatnonzero(ok)
-            pose.append(idx)
-            pixels.append(uv[idx])
-            cams += [name] * len(idx)
-            names += [marker] * len(idx)
-    return np.concatenate(pose), tuple(cams), tuple(names), np.concatenate(pixels)
-
-
 def plan_camera_poses(robot: Robot, n_poses: int, cameras: Mapping, *, markers: Mapping[str, np.ndarray] | None = None,
                       markers_known: bool = False, candidates: int = 2000, pixel_noise: float = 0.5, seed: int = 0,
                       joint_range=None, random_sets: int = 20) -> CameraPlan:
@@ -107,7 +86,7 @@ def plan_camera_poses(robot: Robot, n_poses: int, cameras: Mapping, *, markers: 
             mount = CameraMount(0, facing(camera, points))
         mounts[name], intrinsics[name] = mount, camera
     robot = robot.replace(cameras=mounts)
-    pose, cams, names, pixels = _seen(robot, q, intrinsics, list(markers))
+    pose, cams, names, pixels = camera_rows(robot, q, intrinsics, list(markers), margin=MARGIN)
     if not len(pose):
         raise InputError(f"no camera sees a marker at any of {candidates} candidate joint sets: check the cameras' "
                          "poses (--camera-pose)", option="camera")
@@ -116,7 +95,7 @@ def plan_camera_poses(robot: Robot, n_poses: int, cameras: Mapping, *, markers: 
     fixed = any(m.link == 0 for m in mounts.values())
     frames = ("base" if fixed else "none") if markers_known else ("base+tool" if fixed else "tcp")
     params = joint_candidates(robot) + frame_candidates(frames, list(markers), False) + \
-        camera_rows.frame_names(robot, meas)
+        frame_names(robot, meas)
     space = ParameterSpace.of(robot, list(markers))
     problem = Setup(space, meas, sigma_position=pixel_noise, use_orientation=False).problem(params)
     J = problem.residual_jacobian(np.zeros(problem.n_params))
