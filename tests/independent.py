@@ -28,6 +28,10 @@ TABLES = {
     # ROS-Industrial's kuka_experimental URDF by hand: frame 0 sits at the shoulder's height, turned over (BASES)
     "kr5-kuka": [(180, 90, 0, 0), (600, 0, 0, 0), (120, 90, -90, 0), (0, 90, 180, -620), (0, 90, 180, 0),
                  (0, 0, 0, -115)],
+    # a torso that turns the arm about the vertical, 500 mm below the arm's own base: a KR5 arc on
+    # a turning column (the head's cameras ride on the torso, link 1)
+    "torso-kr5": [(0, 0, 0, 500), (180, -90, 0, 400), (600, 0, -90, 0), (120, 90, 0, 0), (0, -90, 0, -620),
+                  (0, 90, 0, 0), (0, 180, 0, -115)],
 }
 LIMITS_DEG = {
     "er10l-c10": [(-180, 180)] * 6,
@@ -36,6 +40,7 @@ LIMITS_DEG = {
     "ur10": [(-360, 360)] * 6,
     "ur5": [(-360, 360)] * 6,
     "kr5-kuka": [(-155, 155), (-180, 65), (-15, 158), (-350, 350), (-130, 130), (-350, 350)],
+    "torso-kr5": [(-170, 170), (-155, 155), (-180, 65), (-15, 158), (-350, 350), (-130, 130), (-350, 350)],
 }
 
 

@@ -116,13 +116,19 @@ def test_undistorting_inverts_the_lens_model_as_opencv_does(rng):
     np.testing.assert_allclose(cam.normalized(uv), theirs, atol=1e-6)
 
 
-def test_a_cameras_pose_from_points_and_pixels_is_opencvs_solvepnp(rng):
+@pytest.mark.parametrize("planar", [False, True])
+def test_a_cameras_pose_from_points_and_pixels_is_opencvs_solvepnp(rng, planar):
+    """Points in space (the direct linear transform), and points on one plane (markers on one face, a
+    planar campaign: the homography), both to OpenCV's own iterative PnP."""
     from scipy.spatial.transform import Rotation
 
     cam = _random_camera(rng)
     R = Rotation.from_rotvec(rng.normal(0, 1, 3)).as_matrix()
     eye = rng.uniform(-500, 500, 3)
     pc = np.column_stack([rng.uniform(-400, 400, 40), rng.uniform(-300, 300, 40), rng.uniform(1200, 2000, 40)])
+    if planar:  # onto a plane tilted to the optical axis
+        normal = np.array([0.3, -0.2, 1.0]) / np.linalg.norm([0.3, -0.2, 1.0])
+        pc -= np.outer((pc - [0.0, 0.0, 1500.0]) @ normal, normal)
     world = pc @ R.T + eye  # the camera frame (R, eye) in the world
     uv = cam.project(pc) + rng.normal(0, 0.3, (40, 2))
     ours = cam.pose_of(world, uv)
@@ -131,6 +137,23 @@ def test_a_cameras_pose_from_points_and_pixels_is_opencvs_solvepnp(rng):
     np.testing.assert_allclose(ours[:3, :3], Rc.T, atol=1e-5)
     np.testing.assert_allclose(ours[:3, 3], (-Rc.T @ tvec).ravel(), atol=1e-2)
     assert np.linalg.norm(ours[:3, 3] - eye) < 5.0
+
+
+def test_points_that_cannot_give_a_cameras_pose_are_refused(rng):
+    cam = _random_camera(rng)
+    line = np.outer(np.linspace(-1, 1, 10), [100.0, 50.0, 20.0]) + [0.0, 0.0, 1500.0]
+    with pytest.raises(ValueError, match="on one line"):
+        cam.pose_of(line, cam.project(line))
+    with pytest.raises(ValueError, match="cannot give"):
+        cam.pose_of(line[:3], cam.project(line[:3]))
+
+
+def test_the_image_spans_half_a_pixel_beyond_its_outer_pixel_centres():
+    """OpenCV's pixel (i, j) has its centre at (i, j): a W-pixel row spans [−0.5, W − 0.5]."""
+    cam = Camera("c", 500.0, 500.0, 320.0, 240.0, width=640, height=480)
+    inside = cam.in_image(np.array([[-0.5, -0.5], [639.5, 479.5], [0.0, 0.0]]))
+    outside = cam.in_image(np.array([[-0.6, 10.0], [639.6, 10.0], [10.0, 479.6], [10.0, -0.51]]))
+    assert inside.all() and not outside.any()
 
 
 def test_detected_corners_are_in_opencvs_pixel_convention(tmp_path):

@@ -302,7 +302,12 @@ def register(robot: Robot, meas: Measurements) -> Robot:
             Rk, pk = chain_pose(robot.convention, robot.geometry[:link],
                                 robot.effective_joints(meas.q, meas.inputs)[rows, :link])
             points = np.einsum("mji,mj->mi", Rk, points - pk)
-        poses[name] = views.cameras[c].pose_of(points, meas.pixels[rows])
+        try:
+            poses[name] = views.cameras[c].pose_of(points, meas.pixels[rows])
+        except ValueError as exc:
+            raise InputError(f"camera {name!r}: its rows' markers, placed by the nominal robot, {exc} (they must "
+                             "span the camera's view: more poses, or markers off one line)", source=meas.source) \
+                from None
     first = gauge(robot, meas)
     base = robot.base
     if first is not None:  # the measuring frame is this camera's, or the world its known pose is in
@@ -312,7 +317,26 @@ def register(robot: Robot, meas: Measurements) -> Robot:
             continue
         pose = poses[name] if mount.link > 0 else base @ poses[name]
         mounts[name] = mount.moved(np.eye(4) if name == first else pose)
-    return robot.replace(base=base, cameras=mounts)
+    robot = robot.replace(base=base, cameras=mounts)
+    check_in_front(robot, meas, "the cameras' start (their poses from the nominal robot's markers)")
+    return robot
+
+
+def check_in_front(robot: Robot, meas: Measurements, where: str = "the nominal robot") -> None:
+    """Every camera row's marker lies in front of its camera for ``robot`` (one line naming the
+    first row that does not: a camera on the wrong link, a wrong camera file or marker name)."""
+    views = meas.views
+    if views is None:
+        return
+    from ..model.metrics import camera_frames
+
+    p = robot.positions(meas.q, meas.targets, meas.inputs)
+    behind = views.behind(p, camera_frames(robot, meas))
+    if behind.any():
+        i = int(np.argmax(behind))
+        raise InputError(f"marker {meas.targets[i]!r} lies behind camera {meas.camera[i]!r} for {where}: check the "
+                         "camera's link and file, and the row's camera and marker", source=meas.source,
+                         where=f"row {int(meas.rows[i])}")
 
 
 def frame_names(robot: Robot, meas: Measurements | None = None) -> list[str]:

@@ -143,6 +143,8 @@ class Problem:
         self.constraints = self.meas.constraints
         # rows a camera saw: pixels in the position slots (robocal.model.views)
         self.views = self.meas.views
+        # each camera row's camera in the space's order (the views' own follows the files)
+        self._camera_index = None if self.views is None else self.views.indices(self.space.cameras)
         self._shapes = self._shape_pairs()
         self._frames_active = bool(np.any(self.active >= self.space.n_joint_params))
         self._backend = resolve(setup.backend)  # read once: ROBOCAL_NO_NUMBA as it is when the problem is set up
@@ -256,7 +258,7 @@ class Problem:
             dp = np.where(c.rows[:, None], c.errors(p), dp)
         v = self.views
         if v is not None:
-            frames = self.space.camera_frames(self.full(X), self.meas.q, v.index, self.joints)
+            frames = self.space.camera_frames(self.full(X), self.meas.q, self._camera_index, self.joints)
             dp = np.where(v.rows[:, None], v.errors(p, frames), dp)
         return dp
 
@@ -375,7 +377,7 @@ class Problem:
                                                         -Jc[:, :, :3])
         v = self.views
         if v is not None:
-            frames, Jf = self.space.camera_frame_columns(self.full(x), self.meas.q, v.index, self.joints)
+            frames, Jf = self.space.camera_frame_columns(self.full(x), self.meas.q, self._camera_index, self.joints)
             Jp = np.where(v.rows[None, :, None], v.error_jacobian(Jc[:, :, :3], Jf[self.active], p, frames), Jp)
         out[:, : 3 * m] = self._wp * Jp.reshape(k, 3 * m)
         if self.n_distances:

@@ -69,25 +69,34 @@ def choose_candidates(setup: Setup, config: CalibrationConfig, frames_mode: str)
     return Candidates(joints, joints + [n for n in frames + terms if n not in joints], requested is not None)
 
 
-def _still_reasons(setup: Setup, ident: Identifiability, names: list[str]) -> Identifiability:
+def _still_reasons(setup: Setup, ident: Identifiability, names: list[str]) -> tuple[Identifiability, np.ndarray | None]:
     """With joints that never moved, identifiability is judged with each held at its mean: a
     joint's read-back jitter of a few thousandths of a degree must not make its geometry look
     separable from the frames that absorb it (it would be fitted to the jitter).  Parameters
     kept on the data as measured but not when held still are dropped for that reason."""
     still = checks.still_joints(setup.meas)
     if not still:
-        return ident
+        return ident, None
     probe = setup.with_measurements(checks.held_still(setup.meas)).problem(names)
-    held = analyse(probe.residual_jacobian(np.zeros(probe.n_params)), names, probe.angle_mask, setup.meas.n_poses,
-                   setup.space.robot.reach())
+    J = probe.residual_jacobian(np.zeros(probe.n_params))
+    held = analyse(J, names, probe.angle_mask, setup.meas.n_poses, setup.space.robot.reach())
     newly = [n for n in held.dropped if n in ident.kept]
     if not newly:
-        return ident
+        return ident, J
     joints = tuple(i + 1 for i in still)
     reasons = {**held.reasons, **{n: Reason(STILL, held.reasons[n].related, coefficients=held.reasons[n].coefficients,
                                             joints=joints) for n in newly}}
+    return held.with_changes(reasons=reasons), J
+
+
+def _still_warning(ident: Identifiability) -> Identifiability:
+    """The warning that names what the still joints dropped (after the prior kept what it can hold)."""
+    newly = [n for n in ident.dropped if ident.reasons[n].kind == STILL]
+    if not newly:
+        return ident
+    joints = ident.reasons[newly[0]].joints
     many = len(joints) > 1
-    return held.with_changes(reasons=reasons, warnings=held.warnings + [
+    return ident.with_changes(warnings=ident.warnings + [
         f"joint{'s' if many else ''} {', '.join(map(str, joints))} never move{'' if many else 's'}: "
         f"{', '.join(newly)} dropped (absorbed by the frames and the other joints)"])
 
@@ -191,7 +200,7 @@ def _prior_held(setup: Setup, ident: Identifiability, J: np.ndarray, names: list
     kept = [column[n] for n in ident.kept]
     back = []
     for n, r in ident.reasons.items():
-        if r.kind != DEPENDENT or n not in column:
+        if r.kind not in (DEPENDENT, STILL) or n not in column:
             continue
         c = np.linalg.lstsq(Jn[:, kept], Jn[:, column[n]], rcond=None)[0]
         shared = float(np.linalg.norm(c[finite[kept]]) / max(np.linalg.norm(c), 1e-300))
@@ -214,9 +223,10 @@ def analyse_identifiability(setup: Setup, candidates: Candidates) -> tuple[Ident
     probe = setup.problem(gauge + names)
     J = probe.residual_jacobian(np.zeros(probe.n_params))
     ident = analyse(J, gauge + names, probe.angle_mask, setup.meas.n_poses, setup.space.robot.reach(), prefer=gauge)
-    if setup.meas.views is not None:
-        ident = _prior_held(setup, ident, J, gauge + names)
-    ident = _without_gauge(setup, _still_reasons(setup, ident, gauge + names), gauge, candidates.names)
+    ident, still = _still_reasons(setup, ident, gauge + names)
+    if setup.meas.views is not None:  # on the Jacobian the analysis ended on: with still joints held still
+        ident = _prior_held(setup, ident, J if still is None else still, gauge + names)
+    ident = _without_gauge(setup, _still_warning(ident), gauge, candidates.names)
     if unvaried:
         reasons = {**ident.reasons, **unvaried}
         ident = ident.with_changes(dropped=[n for n in candidates.names if n in reasons], reasons=reasons,

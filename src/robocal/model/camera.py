@@ -58,13 +58,15 @@ class Camera:
         return np.where((z > 0)[..., None], uv, np.nan)
 
     def in_image(self, uv: np.ndarray) -> np.ndarray:
-        """Whether pixels (..., 2) lie on the image (everywhere finite where its size is not stated)."""
+        """Whether pixels (..., 2) lie on the image (everywhere finite where its size is not stated).
+        OpenCV puts pixel (i, j)'s centre at u = i, v = j: the image spans [−0.5, W − 0.5] ×
+        [−0.5, H − 0.5]."""
         uv = np.asarray(uv, float)
         inside = np.all(np.isfinite(uv), axis=-1)
         if self.width is not None:
-            inside &= (uv[..., 0] >= 0.0) & (uv[..., 0] <= self.width)
+            inside &= (uv[..., 0] >= -0.5) & (uv[..., 0] <= self.width - 0.5)
         if self.height is not None:
-            inside &= (uv[..., 1] >= 0.0) & (uv[..., 1] <= self.height)
+            inside &= (uv[..., 1] >= -0.5) & (uv[..., 1] <= self.height - 0.5)
         return inside
 
     def normalized(self, uv: np.ndarray, iterations: int = 20) -> np.ndarray:
@@ -84,30 +86,28 @@ class Camera:
 
     def pose_of(self, points: np.ndarray, uv: np.ndarray) -> np.ndarray:
         """The pose (4 × 4) of the camera's frame in the points' frame from points (m, 3) and the
-        pixels (m, 2) they were seen at (m ≥ 6, not all on one plane): the direct linear
-        transform on the undistorted rays, then least squares on the pixels.  A start for a
-        calibration, which refines it with everything else."""
+        pixels (m, 2) they were seen at (m ≥ 6; or m ≥ 4 on one plane): the direct linear
+        transform on the undistorted rays (a homography where the points lie on a plane: a
+        planar campaign, markers on one face), then least squares on the pixels.  A start for a
+        calibration, which refines it with everything else.  Raises ValueError where the points
+        cannot give a pose (all on one line, or too few)."""
         from scipy.optimize import least_squares
 
         from ..math.se3 import homogeneous
-        from ..math.so3 import exp_so3, project_to_so3
+        from ..math.so3 import exp_so3
 
         P = np.asarray(points, float)
         x = self.normalized(uv)
-        centre, scale = P.mean(0), max(float(np.sqrt(np.mean(np.sum((P - P.mean(0)) ** 2, 1)))), 1e-9)
-        Pn = (P - centre) / scale
-        Ph = np.column_stack([Pn, np.ones(len(P))])
-        A = np.zeros((2 * len(P), 12))
-        A[0::2, 0:4], A[0::2, 8:12] = Ph, -x[:, :1] * Ph
-        A[1::2, 4:8], A[1::2, 8:12] = Ph, -x[:, 1:] * Ph
-        M = np.linalg.svd(A)[2][-1].reshape(3, 4)
-        M = M / np.cbrt(np.linalg.det(M[:, :3]))  # det 1: R up to the scale the SVD left
-        if np.mean(Ph @ M[2]) < 0:  # the points in front of the camera
-            M = -M
-        R = project_to_so3(M[:, :3])
-        t = M[:, 3] / np.linalg.norm(M[:, :3], axis=1).mean()
-        # points (normalised) in the camera: R Pn + t → unnormalised: R P + (scale t − R centre)
-        t = scale * t - R @ centre
+        ok = np.all(np.isfinite(P), axis=1) & np.all(np.isfinite(x), axis=1)
+        P, x, uv = P[ok], x[ok], np.asarray(uv, float)[ok]
+        centre = P.mean(0) if len(P) else np.zeros(3)
+        spread = np.linalg.svd(P - centre, compute_uv=False) if len(P) >= 3 else np.zeros(3)
+        if len(P) < 4 or not spread[1] > 1e-6 * max(spread[0], 1e-300):
+            raise ValueError(f"{len(P)} points {'on one line ' if len(P) >= 4 else ''}cannot give a camera's pose")
+        planar = spread[2] <= 1e-3 * spread[0]
+        if not planar and len(P) < 6:
+            raise ValueError(f"{len(P)} points off one plane cannot give a camera's pose (at least 6)")
+        R, t = _planar_start(P, x) if planar else _dlt_start(P, x)
 
         def residuals(v):
             pc = P @ (exp_so3(v[:3]) @ R).T + t + v[3:]
@@ -146,6 +146,56 @@ class Camera:
         J[..., 1, 2] = -self.fy * (c * x + d * y) * iz
         uv = np.stack([self.fx * xd + self.cx, self.fy * yd + self.cy], axis=-1)
         return uv, J
+
+
+def _dlt_start(P: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(R, t) taking points (m, 3) into a camera that sees them along the undistorted rays x (m, 2):
+    the direct linear transform on normalised points (economy SVD: a 2m × 12 system)."""
+    from ..math.so3 import project_to_so3
+
+    centre = P.mean(0)
+    scale = max(float(np.sqrt(np.mean(np.sum((P - centre) ** 2, 1)))), 1e-9)
+    Ph = np.column_stack([(P - centre) / scale, np.ones(len(P))])
+    A = np.zeros((2 * len(P), 12))
+    A[0::2, 0:4], A[0::2, 8:12] = Ph, -x[:, :1] * Ph
+    A[1::2, 4:8], A[1::2, 8:12] = Ph, -x[:, 1:] * Ph
+    M = np.linalg.svd(A, full_matrices=False)[2][-1].reshape(3, 4)
+    det = np.linalg.det(M[:, :3])
+    if not abs(det) > 1e-300:
+        raise ValueError("the points cannot give a camera's pose (degenerate)")
+    M = M / np.cbrt(det)  # det 1: R up to the scale the SVD left
+    if np.mean(Ph @ M[2]) < 0:  # the points in front of the camera
+        M = -M
+    R = project_to_so3(M[:, :3])
+    t = M[:, 3] / np.linalg.norm(M[:, :3], axis=1).mean()
+    # points (normalised) in the camera: R Pn + t → unnormalised: R P + (scale t − R centre)
+    return R, scale * t - R @ centre
+
+
+def _planar_start(P: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(R, t) of :func:`_dlt_start` for points on one plane: the homography from the plane's own
+    coordinates to the rays, H ∝ [r1 r2 t] (Zhang's decomposition)."""
+    from ..math.so3 import project_to_so3
+
+    centre = P.mean(0)
+    basis = np.linalg.svd(P - centre, full_matrices=False)[2]  # rows: the plane's axes, then its normal
+    if np.linalg.det(basis) < 0:
+        basis[2] = -basis[2]
+    local = (P - centre) @ basis[:2].T
+    scale = max(float(np.sqrt(np.mean(np.sum(local ** 2, 1)))), 1e-9)
+    Q = np.column_stack([local / scale, np.ones(len(P))])
+    A = np.zeros((2 * len(P), 9))
+    A[0::2, 0:3], A[0::2, 6:9] = Q, -x[:, :1] * Q
+    A[1::2, 3:6], A[1::2, 6:9] = Q, -x[:, 1:] * Q
+    H = np.linalg.svd(A, full_matrices=False)[2][-1].reshape(3, 3)
+    H = H / np.mean(np.linalg.norm(H[:, :2], axis=0))
+    if H[2, 2] < 0:  # the plane's centre in front of the camera
+        H = -H
+    r1, r2 = H[:, 0], H[:, 1]
+    Rp = project_to_so3(np.column_stack([r1, r2, np.cross(r1, r2)]))
+    # the plane's frame (basis, centre) in the camera: (Rp, H[:, 2] · scale); the points' frame's
+    R = Rp @ basis
+    return R, scale * H[:, 2] - R @ centre
 
 
 @dataclass(frozen=True, eq=False)

@@ -25,6 +25,8 @@ from .camera import Camera
 
 #: the unit of a camera row's errors
 PIXEL = "px"
+#: the pixel a marker behind its camera is given (px): far off any image, finite
+BEHIND = 1.0e6
 
 
 @dataclass(frozen=True, eq=False)
@@ -39,10 +41,18 @@ class Views:
 
     @classmethod
     def of(cls, labels: Sequence[str], pixels: np.ndarray, cameras: Mapping[str, Camera]) -> Views:
-        names = tuple(dict.fromkeys(c for c in labels if c))
+        # the cameras in the mapping's order, whichever row comes first: a subset of the rows (a
+        # fold) keeps every camera's index
+        names = tuple(cameras) + tuple(dict.fromkeys(c for c in labels if c and c not in cameras))
         lookup = {n: i for i, n in enumerate(names)}
         return cls(names, tuple(cameras[n] for n in names), np.array([lookup.get(c, -1) for c in labels], int),
                    np.asarray(pixels, float))
+
+    def indices(self, order: Sequence[str]) -> np.ndarray:
+        """Each row's camera as an index into ``order`` (a parameter space's cameras; −1: not a
+        camera row)."""
+        lookup = np.array([list(order).index(n) if n in order else -1 for n in self.names] + [-1], int)
+        return lookup[self.index]
 
     @property
     def rows(self) -> np.ndarray:
@@ -72,11 +82,20 @@ class Views:
 
     def errors(self, p: np.ndarray, frames: np.ndarray) -> np.ndarray:
         """The camera rows' errors (…, m, 3): measured less predicted pixel (px) in the first two
-        slots, zero in the third; zeros at other rows."""
-        uv = self.project(p, frames)
+        slots, zero in the third; zeros at other rows.  A marker behind its camera has no pixel:
+        its error is :data:`BEHIND` px, finite, so that a step that takes a marker there is
+        refused by the fit instead of ending it (the start is checked:
+        :func:`robocal.calibration.cameras.check_in_front`)."""
+        uv = np.nan_to_num(self.project(p, frames), nan=BEHIND)
         e = np.zeros(p.shape)
         e[..., :2] = np.where(self.rows[:, None], self.pixels - uv, 0.0)
         return e
+
+    def behind(self, p: np.ndarray, frames: np.ndarray) -> np.ndarray:
+        """Mask (m,) of the camera rows whose marker lies behind (or on) its camera's image plane."""
+        R, t = frames[..., :3, :3], frames[..., :3, 3]
+        depth = np.einsum("...j,...j->...", R[..., :, 2], p - t)
+        return self.rows & ~(depth > 0)
 
     def error_jacobian(self, Jp: np.ndarray, Jf: np.ndarray, p: np.ndarray, frames: np.ndarray) -> np.ndarray:
         """∂(errors)/∂x (k, m, 3) from the points' Jacobian Jp (k, m, 3) and the camera frames'
@@ -87,5 +106,5 @@ class Views:
         moved = Jp - Jf[..., :3] + np.cross(d[None], Jf[..., 3:])  # ∂(p − t_c) + (p − t_c) × ∂ω_c
         dpc = np.einsum("mji,kmj->kmi", R, moved)
         out = np.zeros(Jp.shape)
-        out[..., :2] = -np.einsum("mab,kmb->kma", Jpi, dpc)
+        out[..., :2] = -np.einsum("mab,kmb->kma", np.nan_to_num(Jpi), dpc)
         return np.where(self.rows[None, :, None], out, 0.0)
