@@ -531,3 +531,24 @@ def test_a_calibrated_stereo_rig_on_the_link_predicts_depth_within_the_floor(tmp
     assert rms(ours[:, :2]) <= 1.5 * rms(best[:, :2]) and rms(ours[:, 2:]) <= 1.5 * rms(best[:, 2:])
     saved = result.to_dict()["frames_identified"]["camera[right]"]
     assert saved["known"] and saved["of"] == "left" and saved["link"] == 1
+
+
+def test_a_subset_of_rows_keeps_each_rows_camera_whichever_camera_comes_first(tmp_path):
+    """A fold of the rows whose first row another camera saw predicts its rows as the whole data
+    does: each row's camera is found by name, not by the order the rows name them in."""
+    from robocal.calibration.config import CalibrationConfig
+    from robocal.calibration.inputs import load_inputs
+    from robocal.calibration.parametric import fit_parametric, term_spec
+
+    _, data, specs, markers, _ = _torso_cell(11, tmp_path, 30)
+    config = CalibrationConfig(cameras=specs, markers=str(markers))
+    inputs = load_inputs("kr5-arc", str(data), None, config, None)
+    fit = fit_parametric(inputs, config, term_spec((), inputs.meas, config))
+    problem, x = fit.estimate.problem, fit.estimate.x
+    meas = problem.meas
+    order = np.argsort(np.asarray(meas.camera) != "right", kind="stable")  # the right camera's rows first
+    assert meas.camera[0] == "left" and meas.camera[order[0]] == "right"
+    sub = problem.setup.with_measurements(meas.subset(order)).problem(problem.names)
+    np.testing.assert_allclose(sub.errors(x)[0], problem.errors(x)[0][order], atol=1e-9)
+    np.testing.assert_allclose(sub.residual_jacobian(x), problem.residual_jacobian(x).reshape(len(meas.q), 3, -1)
+                               [order].reshape(3 * len(order), -1), atol=1e-9)
