@@ -206,6 +206,23 @@ def attach(nominal: Robot, meas: Measurements, config: CalibrationConfig) -> tup
     return robot, replace(meas, intrinsics=intrinsics), notes
 
 
+def check_parts(parts: list[Measurements], config: CalibrationConfig, nominal: Robot) -> None:
+    """Each file's camera rows checked on its own, before the files are joined (so that a message
+    names the file and its row): the pixels on their camera's image, the markers known."""
+    seen = [p for p in parts if p.camera is not None and any(p.camera)]
+    if not seen or not config.cameras:
+        return
+    intrinsics = {spec.name: load_camera(spec.path, spec.name) for spec in config.cameras}
+    named = set(nominal.targets)
+    if config.markers is not None:
+        markers = load_markers(config.markers)
+        named |= set(markers.points) | {n for pair in markers.shapes for n in pair[:2]}
+    for part in seen:
+        check_pixels(part, intrinsics)
+        if config.markers is not None:
+            check_markers(part, named, f"no markers file ({config.markers})")
+
+
 def tracked(meas: Measurements) -> bool:
     """Whether tracker rows stand beside the camera rows: their frame is then the measuring frame."""
     return meas.camera is not None and not all(meas.camera)

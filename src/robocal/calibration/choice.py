@@ -81,16 +81,16 @@ class Candidate:
         return rms(self.errors)
 
 
-def choose(candidates: list[Candidate], groups: np.ndarray) -> Candidate:
+def choose(candidates: list[Candidate], groups: np.ndarray, significance: float = SIGNIFICANCE) -> Candidate:
     """The simplest candidate (the first, in ladder order) that predicts held-out poses as well
     as the best one: within :data:`TIE` of its RMS, or not worse by the paired test at
-    :data:`SIGNIFICANCE`.  A richer model must earn its place beyond the luck of the folds, and
+    ``significance``.  A richer model must earn its place beyond the luck of the folds, and
     never predicts the held-out poses worse than the first (geometry)."""
     simplest = candidates[0]
     eligible = [simplest] + [c for c in candidates[1:] if c.cv_rms < simplest.cv_rms]
     best = min(eligible, key=lambda c: c.cv_rms)
     for c in eligible:
         if c is best or c.cv_rms <= best.cv_rms * (1 + TIE) or \
-                worse_p_value(c.errors, best.errors, groups) >= SIGNIFICANCE:
+                worse_p_value(c.errors, best.errors, groups) >= significance:
             return c
     return best

@@ -27,8 +27,10 @@ HALTON = ("scrambled", "plain")
 LEARNED = ("trees", "residual")
 #: what a model may hold beyond geometry (MODEL §4); ``auto`` chooses among them by cross-validation
 MODEL_TERMS = (*TERMS, *LEARNED)
-#: named candidate sets: every joint parameter of the convention, or a paper's 24
-PARAMETER_SETS = ("auto", "all", "wen2019", "kou2022")
+#: named candidate sets: chosen by held-out data where the rows are a camera's, else every joint
+#: parameter (``auto``); every joint parameter (``all``); each joint's zero (``zeros``); none, the
+#: frames alone (``frames``); a paper's 24
+PARAMETER_SETS = ("auto", "all", "zeros", "frames", "wen2019", "kou2022")
 
 
 @dataclass(frozen=True)
@@ -428,7 +430,7 @@ def _model(value) -> str:
 
 def _params(value) -> str | tuple[str, ...] | None:
     if value is None or value in PARAMETER_SETS:
-        return None if value in (None, "auto", "all") else value
+        return None if value in (None, "auto") else value
     names = [p.strip() for p in value.split(",")] if isinstance(value, str) else [str(p) for p in value]
     names = [n for n in names if n]
     if not names:
@@ -436,12 +438,18 @@ def _params(value) -> str | tuple[str, ...] | None:
     return tuple(dict.fromkeys(names))
 
 
-def resolve_params(params: str | Sequence[str] | None, n_joints: int) -> list[str] | None:
-    """The candidate joint names a config asks for, or None for the convention's defaults."""
+def resolve_params(params: str | Sequence[str] | None, robot) -> list[str] | None:
+    """The candidate joint names a config asks for of ``robot``, or None for the convention's defaults."""
+    from ..model.candidates import zero_candidates
     from ..presets import kou2022, wen2019
 
-    if params is None:
+    n_joints = robot.n_joints
+    if params is None or params == "all":
         return None
+    if params == "zeros":
+        return zero_candidates(robot)
+    if params == "frames":
+        return []
     if params == "wen2019":
         return list(wen2019.PARAMETERS)
     if params == "kou2022":

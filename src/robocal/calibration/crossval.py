@@ -45,9 +45,81 @@ def pose_groups(meas: Measurements) -> np.ndarray:
     return np.unique(labels.astype(str), return_inverse=True)[1]
 
 
+@dataclass(frozen=True)
+class Scheme:
+    """Which rows a cross-validation holds out together, and how many folds: whole sessions
+    (``sessions``, one fold each: a calibration is used in sessions after the one that measured
+    it), whole setups of rows that touched points or planes (``setups``: their points are new
+    unknowns), contiguous blocks of the measuring order (``blocks``: camera rows without
+    sessions, whose neighbouring poses share a mounting and a drift that a random fold would
+    count as new), or poses drawn at random (``poses``)."""
+
+    kind: str
+    k: int
+
+    @property
+    def new(self) -> str:
+        """What a held-out figure predicts: "a new session", "new poses", "new setups"."""
+        return {"sessions": "a new session", "setups": "new setups"}.get(self.kind, "new poses")
+
+    @property
+    def short(self) -> str:
+        """The scheme in a column title: "leave-one-session-out", "5-fold CV"."""
+        return {"sessions": "leave-one-session-out", "blocks": f"{self.k} blocks in order"}.get(
+            self.kind, f"{self.k}-fold CV")
+
+    @property
+    def phrase(self) -> str:
+        """The scheme in a sentence: "leave-one-session-out, 10 sessions"."""
+        return {"sessions": f"leave-one-session-out, {self.k} sessions",
+                "setups": f"{self.k}-fold cross-validation by setup: their points are new unknowns",
+                "blocks": f"{self.k}-fold cross-validation by contiguous blocks of the rows' order (no session "
+                          "column: neighbouring poses share what a random fold would count as new)",
+                "poses": f"{self.k}-fold cross-validation of the calibration poses"}[self.kind]
+
+    def to_dict(self) -> dict:
+        return {"kind": self.kind, "folds": self.k, "predicts": self.new, "description": self.phrase}
+
+
+def scheme(meas: Measurements) -> Scheme:
+    """How ``meas`` is cross-validated (:class:`Scheme`)."""
+    if len(meas.sessions) >= 2:
+        return Scheme("sessions", len(meas.sessions))
+    groups = pose_groups(meas)
+    k = max(2, min(K_FOLDS, int(groups.max()) + 1))
+    c = meas.constraints
+    if c is not None and any(c.setup):
+        return Scheme("setups", k)
+    if meas.unit == "px":
+        return Scheme("blocks", k)
+    return Scheme("poses", k)
+
+
+def held_groups(meas: Measurements) -> np.ndarray:
+    """The units a paired test of held-out errors pairs: sessions where the rows hold several
+    (the poses of one session share its mounting: they are not independent looks), else poses."""
+    if len(meas.sessions) >= 2:
+        return np.unique(np.asarray(meas.session, dtype=str), return_inverse=True)[1].ravel()
+    return pose_groups(meas)
+
+
 def folds(meas: Measurements, k: int, seed: int | None) -> list[np.ndarray]:
-    """K folds of pose indices; poses sharing a pose_id (several reflectors) stay together."""
-    return group_folds(pose_groups(meas), k, seed)
+    """The folds of pose indices of :func:`scheme` (``k`` where poses are drawn): a session each,
+    contiguous blocks of poses, or groups drawn with the seed; poses sharing a pose_id (several
+    reflectors), or a camera's rows at one pose, stay together."""
+    how = scheme(meas)
+    if how.kind == "sessions":
+        index = held_groups(meas)
+        first = np.unique(index, return_index=True)[1]
+        return [np.flatnonzero(index == g) for g in index[np.sort(first)]]
+    groups = pose_groups(meas)
+    if how.kind == "blocks":
+        first = np.unique(groups, return_index=True)[1]  # each pose's first row: the measuring order
+        rank = np.empty(len(first), int)
+        rank[np.argsort(first)] = np.arange(len(first))
+        block = (rank * how.k) // len(first)
+        return [np.flatnonzero(block[groups] == b) for b in range(how.k)]
+    return group_folds(groups, k, seed)
 
 
 @dataclass
@@ -62,6 +134,7 @@ class CrossValidation:
     unit: str = "mm"  # px where every row is a camera's
     #: the rows the figures are of: every row, or those in mm where camera rows stand beside them
     keep: np.ndarray | None = None
+    scheme: Scheme | None = None
 
     @property
     def rms(self) -> float:
@@ -141,7 +214,8 @@ def cross_validate(fit: Fit, config: CalibrationConfig, start: np.ndarray | None
             orientation[test] = dr
         estimates.append(x)
     mixed = meas.unit == "mm" and meas.camera is not None
-    return CrossValidation(errors, index_sets, estimates, orientation, meas.unit, meas.length_rows if mixed else None)
+    return CrossValidation(errors, index_sets, estimates, orientation, meas.unit, meas.length_rows if mixed else None,
+                           scheme(meas))
 
 
 def predict(fit: Fit, config: CalibrationConfig) -> tuple[CrossValidation, Metrics]:

@@ -5,6 +5,7 @@ against each other; the frames mode in effect and what was noticed on the way.
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from pathlib import Path
 
 import numpy as np
 
@@ -12,7 +13,7 @@ from ..exceptions import InputError, Note
 from ..io.measurements import load_measurements
 from ..io.robotfile import load_robot
 from ..model.kinematics import joint_parameter_names
-from ..model.measurements import Measurements
+from ..model.measurements import Measurements, concatenate
 from ..model.prior import unknown_names
 from ..model.robot import Robot
 from . import cameras, checks
@@ -35,6 +36,19 @@ class Inputs:
 
 
 def _measurements(data, nominal: Robot, config: CalibrationConfig, columns) -> Measurements:
+    """One measurements file (or object), or several: each then a session of its own (its stem), or
+    the sessions its own session column names."""
+    if isinstance(data, (list, tuple)):
+        parts = [_measurements(d, nominal, config, columns) for d in data]
+        if not parts:
+            raise InputError("no data file given")
+        if len(parts) == 1:
+            return parts[0]
+        stems = [Path(p.source).stem for p in parts]
+        labels = stems if len(set(stems)) == len(stems) else [p.source for p in parts]
+        parts = [p if p.session is not None else p.in_session(label) for p, label in zip(parts, labels)]
+        cameras.check_parts(parts, config, nominal)
+        return concatenate(parts)
     if isinstance(data, Measurements):
         if data.n_joints != nominal.n_joints:
             raise InputError(f"data have {data.n_joints} joints, the robot has {nominal.n_joints}", source=data.source)
@@ -56,6 +70,8 @@ def load_inputs(robot, data, validate, config: CalibrationConfig, columns=None) 
     _check_prior(nominal, config)
     meas = _measurements(data, nominal, config, columns)
     val = None if validate is None else _measurements(validate, nominal, config, columns)
+    if val is not None and meas.session is not None and val.session is None:  # one more session
+        val = val.in_session("validation")
     if not (meas.full_pose and config.use_orientation):
         meas = meas.position_only()
         val = None if val is None else val.position_only()

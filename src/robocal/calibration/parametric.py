@@ -44,7 +44,7 @@ from .weighting import reweigh, weigh_instrument, weigh_kinds
 def complete_model(robot: Robot, config: CalibrationConfig) -> Robot:
     """The robot with β offered on DH parallel axes (:func:`robocal.model.candidates.complete`),
     unless the user's parameter list leaves β out (the papers' 24, for instance)."""
-    requested = resolve_params(config.params, robot.n_joints)
+    requested = resolve_params(config.params, robot)
     if requested is not None and not any(n.startswith("beta") for n in requested):
         return robot
     return complete(robot)

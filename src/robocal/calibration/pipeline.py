@@ -24,7 +24,7 @@ calibration's own and not that of finding the tracker frame.
 from __future__ import annotations
 
 import warnings
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import replace
 from pathlib import Path
 
@@ -52,7 +52,7 @@ from .timing import stage, timed
 
 def calibrate(
     robot: str | Path | Robot,
-    data: str | Path | Measurements,
+    data: str | Path | Measurements | Sequence[str | Path | Measurements],
     method: str = "lm",
     *,
     config: CalibrationConfig | None = None,
@@ -62,7 +62,8 @@ def calibrate(
     stages: Callable[[str], None] | None = None,
     **options,
 ) -> CalibrationResult:
-    """Calibrate ``robot`` (file, built-in name or Robot) on ``data`` (file or Measurements).
+    """Calibrate ``robot`` (file, built-in name or Robot) on ``data`` (file or Measurements; several:
+    each a session, or the sessions its ``session`` column names, held out in turn).
 
     Options are those of :class:`CalibrationConfig` (``frames``, ``params``, ``model``, …),
     given as keywords or as ``config``.  validate: poses not used to identify, for honest
@@ -141,7 +142,7 @@ def geometry_for_receivers(calibrated: Robot, geometric: Robot | None) -> Robot:
 
 
 def export_figures(calibrated: Robot, receiver: Robot, metrics: dict, meas: Measurements,
-                   validation: Measurements | None, geometry: Metrics | None) -> ExportFigures:
+                   validation: Measurements | None, geometry: Metrics | None, held_out: str) -> ExportFigures:
     """The figures of the whole model and of what a URDF or a kinematics YAML carries of it
     (``receiver``, :func:`geometry_for_receivers`), on the validation poses when given, else
     predicted by cross-validation (``geometry``: the held-out figures of the receiver's part),
@@ -158,7 +159,7 @@ def export_figures(calibrated: Robot, receiver: Robot, metrics: dict, meas: Meas
     if geometric:
         part = whole
     return ExportFigures(key, whole.position["rms"], whole.position["max"], part.position["rms"],
-                         part.position["max"], geometric, "poses" if meas.constraints is None else "setups",
+                         part.position["max"], geometric, held_out,
                          "the model's own" if receiver.geometry is calibrated.geometry or geometric
                          else "the geometric calibration's", meas.unit)
 
@@ -206,8 +207,10 @@ def _calibrate(robot, data, validate, cfg: CalibrationConfig, columns, progress,
         metrics = {"before": metrics["before"], "predicted": chosen.prediction, **metrics}
     geometric = None if chosen.geometric is None or chosen.geometric is fit else chosen.geometric.robot
     receiver = geometry_for_receivers(calibrated, geometric)
+    scheme = chosen.scheme
+    held_out = "new poses" if scheme is None else f"{scheme.new} ({scheme.phrase})"
     exports = export_figures(calibrated, receiver, metrics, est.problem.meas, inputs.validation,
-                             chosen.geometric_prediction)
+                             chosen.geometric_prediction, held_out)
     contact, seen = {}, {}
     for key, robot, data in (("before", initial, est.problem.meas), ("after", calibrated, est.problem.meas),
                              ("validation_before", initial, inputs.validation),
@@ -229,4 +232,5 @@ def _calibrate(robot, data, validate, cfg: CalibrationConfig, columns, progress,
         prior_sigma=est.problem.prior_sigma if est.problem.has_prior else None, prior_share=fit.prior_share,
         physical=fit.physical, at_estimate=fit.at_estimate, exports=exports, cameras=seen,
         kind_sigma=getattr(est.problem.setup.instrument, "present", {}),  # KindWeights: σ by kind
+        cross_validation=scheme,
     )

@@ -22,6 +22,7 @@ from ..model.terms import reported_unit
 from ..model.uncertainty import UncertaintyMap, tcp_map
 from ..optimize.result import OptimizeResult
 from .config import CalibrationConfig
+from .crossval import Scheme
 from .diagnostics import GoodnessOfFit, Physicality
 from .identifiability import Identifiability
 from .instrument import InstrumentFit
@@ -100,8 +101,8 @@ class ExportFigures:
     """What each kind of export hands its receiver, on the same poses: the whole model (a robot
     TOML, which every robocal command reads) and its geometry and frames alone (what a URDF or a
     kinematics YAML can hold: a controller or ROS gets no joint terms and no learned correction).
-    figure: ``validation`` (the validation poses), ``predicted`` (5-fold cross-validation of the
-    calibration poses) or ``fit``; RMS and max position errors in mm."""
+    figure: ``validation`` (the validation poses), ``predicted`` (cross-validation of the
+    calibration data, as ``held_out`` says) or ``fit``; RMS and max position errors in mm."""
 
     figure: str
     whole_rms_mm: float
@@ -110,8 +111,9 @@ class ExportFigures:
     geometry_max_mm: float
     #: the model holds no more than geometry and frames: every export carries it whole
     geometric: bool
-    #: what the held-out figure predicts: new poses, or new setups of rows that touched points or planes
-    held_out: str = "poses"
+    #: what the held-out figure predicts and how: "new poses (5-fold cross-validation of the calibration
+    #: poses)", "a new session (leave-one-session-out, 10 sessions)", …
+    held_out: str = "new poses (5-fold cross-validation of the calibration poses)"
     #: whose geometry a URDF or YAML carries: "the model's own", or "the geometric calibration's"
     #: where the model holds joint terms (its own geometry was fitted beside them)
     geometry_of: str = "the model's own"
@@ -121,7 +123,7 @@ class ExportFigures:
     @property
     def where(self) -> str:
         return {"validation": "on the validation poses",
-                "predicted": f"predicted on new {self.held_out} (5-fold cross-validation)"}.get(
+                "predicted": f"predicted on {self.held_out}"}.get(
             self.figure, "on the calibration poses (in-sample)")
 
     def sentence(self, path, sidecar=None) -> str:
@@ -219,6 +221,26 @@ class CalibrationResult:
     #: camera: px), else empty
     kind_sigma: dict = field(default_factory=dict)
     receiver: Robot | None = field(default=None, repr=False)
+    #: how the held-out figures were made (:class:`~robocal.calibration.crossval.Scheme`)
+    cross_validation: Scheme | None = None
+
+    @property
+    def held_out(self) -> str:
+        """What the cross-validated figure predicts, and how: "a new session (leave-one-session-out,
+        10 sessions)"."""
+        s = self.cross_validation
+        return "new poses (5-fold cross-validation of the calibration poses)" if s is None else \
+            f"{s.new} ({s.phrase})"
+
+    @property
+    def selection_title(self) -> str:
+        """What the model-selection table's figures are: "leave-one-session-out reprojection RMS (px)
+        on the calibration data"."""
+        s = self.cross_validation
+        how = "5-fold cross-validated" if s is None else (f"{s.short}" if s.kind == "sessions" else
+                                                          f"{s.k}-fold cross-validated")
+        what = "reprojection" if self.unit == "px" else "position"
+        return f"{how} {what} RMS ({self.unit}) on the calibration data"
 
     @property
     def held(self) -> list[str]:
@@ -230,9 +252,8 @@ class CalibrationResult:
     def headline(self) -> tuple[str, str, Metrics]:
         """The figure to lead with: (key, label, metrics): accuracy on the validation poses when
         given, else the cross-validated prediction, else (a model returned unchanged) the fit."""
-        held = "setups (5-fold cross-validation by setup: their points are new unknowns)" if self.contact else \
-            "poses (5-fold cross-validation of the calibration poses)"
-        for key, label in (("validation_after", "on the validation poses"), ("predicted", f"predicted on new {held}")):
+        for key, label in (("validation_after", "on the validation poses"),
+                           ("predicted", f"predicted on {self.held_out}")):
             if key in self.metrics:
                 return key, label, self.metrics[key]
         return "after", "the fit itself (in-sample: not a prediction)", self.metrics["after"]
@@ -243,7 +264,8 @@ class CalibrationResult:
         m = self.metrics
         cols = {"before": m["before"]}
         if "predicted" in m:
-            cols["predicted (5-fold CV)"] = m["predicted"]
+            cols[f"predicted ({self.cross_validation.short if self.cross_validation else '5-fold CV'})"] = \
+                m["predicted"]
         cols["after (fit)"] = m["after"]
         if "validation_before" in m:
             cols["validation before"], cols["validation after"] = m["validation_before"], m["validation_after"]
@@ -406,6 +428,7 @@ class CalibrationResult:
             "loss": cfg.loss,
             "model": self.model,
             "model_selection": [r.to_dict() for r in self.model_selection],
+            "cross_validation": None if self.cross_validation is None else self.cross_validation.to_dict(),
             "error_budget": [r.to_dict() for r in self.error_budget],
             "residual_model": None if self.robot.residual is None else self.robot.residual.summary(),
             "region": None if self.robot.region is None else self.robot.region.to_dict(),

@@ -45,7 +45,17 @@ from ..model.robot import Robot
 from ..model.terms import TERMS
 from .choice import SIGNIFICANCE, TRIAL_ORDER, Candidate, choose, learned_of, model_name, with_term
 from .config import LEARNED, CalibrationConfig
-from .crossval import K_FOLDS, CrossValidation, FoldData, cross_validate, pose_groups, predict, rms
+from .crossval import (
+    K_FOLDS,
+    CrossValidation,
+    FoldData,
+    Scheme,
+    cross_validate,
+    held_groups,
+    pose_groups,
+    predict,
+    rms,
+)
 from .inputs import Inputs
 from .learned import (
     MIN_RESIDUAL_POSES,
@@ -68,6 +78,7 @@ from .learned import (
 from .parametric import Fit, fit_parametric, term_spec, unsupported_terms
 from .residual import HYPER_POINTS, MAX_POINTS, tune_kernels
 from .result import BudgetRow, LadderRow
+from .sets import choose_set, offered
 from .timing import stage
 from .trees import choose_settings
 
@@ -92,6 +103,8 @@ class Chosen:
     #: the geometric fit for the guard to fall back on; None for a model returned unchanged
     prediction: Metrics | None = None
     geometric_prediction: Metrics | None = None
+    #: how the held-out errors were made (:class:`~robocal.calibration.crossval.Scheme`)
+    scheme: Scheme | None = None
 
     def budget(self, calibrated: Robot, validation: Measurements | None) -> list[BudgetRow]:
         """What each part of the model removes on the validation poses: position RMS (mm) of the
@@ -171,9 +184,16 @@ def fit_model(inputs: Inputs, config: CalibrationConfig, progress=None, stages=N
                              f"leaves: {len(set(pose_groups(meas)))} poses are too few (at least "
                              f"{MIN_RESIDUAL_POSES}); measure more, or calibrate the parametric model alone",
                              option="model")
-        fit = fit_parametric(inputs, config, term_spec(terms, meas, config), progress)
+        choice = choose_set(inputs, config, progress, say) if offered(inputs, config) else None
+        if choice is not None:  # the parameters the held-out data chose: the terms go on them
+            config = choice.config
+        if choice is not None and not terms:
+            fit, cv = choice.fit, choice.cv
+            prediction = cv.metrics()
+        else:
+            fit = fit_parametric(inputs, config, term_spec(terms, meas, config), progress)
+            cv, prediction = predict(fit, config)  # how it predicts poses it has not seen, with or without validation
         residual = None
-        cv, prediction = predict(fit, config)  # how it predicts poses it has not seen, with or without validation
         parametric_prediction = prediction
         if learned:
             with worker_pool() as pool:
@@ -195,12 +215,14 @@ def fit_model(inputs: Inputs, config: CalibrationConfig, progress=None, stages=N
         geometric_prediction = parametric_prediction if geometric is fit else predict(geometric, config)[1]
         said = [Note("model auto: camera rows beside tracker rows are compared in no one unit, so the geometric "
                      "model is fitted alone")] if config.model == "auto" else []
-        return Chosen(model_name(terms), fit, residual, notes=said + spent_dof(fit, residual), geometric=geometric,
-                      prediction=prediction, geometric_prediction=geometric_prediction)
-    groups = pose_groups(meas)
+        return Chosen(model_name(terms), fit, residual, [] if choice is None else choice.rows,
+                      notes=([] if choice is None else choice.notes) + said + spent_dof(fit, residual),
+                      geometric=geometric, prediction=prediction, geometric_prediction=geometric_prediction,
+                      scheme=cv.scheme)
+    groups, poses = held_groups(meas), pose_groups(meas)
     # a learned correction corrects measured positions: rows that touched points or planes, and
     # camera rows (pixels), have none
-    residuals = groups.max() + 1 >= MIN_RESIDUAL_POSES and meas.constraints is None and meas.camera is None
+    residuals = poses.max() + 1 >= MIN_RESIDUAL_POSES and meas.constraints is None and meas.camera is None
     ladder: list[tuple[Candidate, CrossValidation]] = []
     # at most: geometry, each term alone, then each further term on the one kept so far
     lacking = unsupported_terms(TRIAL_ORDER, meas, config)
@@ -209,7 +231,7 @@ def fit_model(inputs: Inputs, config: CalibrationConfig, progress=None, stages=N
     steps = 1 + k * (k + 1) // 2 + (2 if residuals else 0)
     # what a stage tells the terminal is work done, in parametric fits: the learned candidates
     # (their tunings on up to 1000 poses and their folds) are about 12 of them on a thousand poses
-    process = max(1.0, 12.0 * (min(len(set(groups)), HYPER_POINTS) / 1000) ** 2)
+    process = max(1.0, 12.0 * (min(len(set(poses)), HYPER_POINTS) / 1000) ** 2)
     work = steps - 2 + 2 * process if residuals else steps
 
     def rungs(wanted: list[tuple[str, ...]], parent: Candidate, pool: worker_pool) -> list[Candidate]:
@@ -231,10 +253,15 @@ def fit_model(inputs: Inputs, config: CalibrationConfig, progress=None, stages=N
     # that predicts held-out poses better (as :func:`choose` judges), until none does.  A round's
     # fits run on numpy's kernels, here or on forked workers, whatever the load: numba's OpenMP
     # kernels abort in a forked child, and the numbers must not depend on the machine's load
+    choice = choose_set(inputs, config, progress, say) if offered(inputs, config) else None
+    if choice is not None:  # the parameters the held-out data chose: the terms go on them
+        config = choice.config
+        geometric, geometric_cv = choice.fit, choice.cv
     rung_config = CalibrationConfig.build(config, backend="numpy")
-    say(0, work, f"model 1/{steps}: geometric, fit and {K_FOLDS} folds")
-    geometric = fit_parametric(inputs, config, term_spec((), meas, config), progress)
-    geometric_cv = cross_validate(geometric, config)
+    if choice is None:
+        say(0, work, f"model 1/{steps}: geometric, fit and {K_FOLDS} folds")
+        geometric = fit_parametric(inputs, config, term_spec((), meas, config), progress)
+        geometric_cv = cross_validate(geometric, config)
     ladder.append((Candidate((), "", geometric, geometric_cv.errors), geometric_cv))
     parametric = ladder[0][0]
     with worker_pool() as pool:
@@ -340,8 +367,10 @@ def fit_model(inputs: Inputs, config: CalibrationConfig, progress=None, stages=N
         notes.append(Note(f"model auto: {' and '.join(lacking)} not tried: "
                           + "; ".join(f"the {name} term needs {needs}" for name, needs in lacking.items())))
     chosen_cv = next(cv for c, cv in ladder if c.fit is chosen.fit)
+    if choice is not None:  # the sets compared, then the terms on the one kept
+        rows, notes = choice.rows + rows[1:], choice.notes + notes
     return Chosen(chosen.name, chosen.fit, residual, rows, notes + spent_dof(chosen.fit, residual),
                   geometric=candidates[0].fit, prediction=chosen_cv.metrics(chosen.errors),
-                  geometric_prediction=geometric_cv.metrics())
+                  geometric_prediction=geometric_cv.metrics(), scheme=chosen_cv.scheme)
 
 

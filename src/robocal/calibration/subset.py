@@ -57,7 +57,7 @@ class Candidates:
 def choose_candidates(setup: Setup, config: CalibrationConfig, frames_mode: str) -> Candidates:
     """Step 3: joint candidates (the convention's or the config's) and the frames' parameters."""
     robot = setup.space.robot
-    requested = resolve_params(config.params, robot.n_joints)
+    requested = resolve_params(config.params, robot)
     joints = joint_candidates(robot) if requested is None else requested
     unknown = [n for n in joints if n not in setup.space.names]
     if unknown:
@@ -66,7 +66,10 @@ def choose_candidates(setup: Setup, config: CalibrationConfig, frames_mode: str)
     frames = frame_candidates(frames_mode, setup.meas.target_names, setup.full_pose) + \
         cameras.frame_names(robot, setup.meas)
     terms = setup.space.terms.names(robot.n_joints)
-    return Candidates(joints, joints + [n for n in frames + terms if n not in joints], requested is not None)
+    # a named set (zeros, frames) is a choice of kind, not of parameters: what it offers that the data
+    # cannot see is dropped as any default's would be
+    explicit = requested is not None and config.params not in ("zeros", "frames")
+    return Candidates(joints, joints + [n for n in frames + terms if n not in joints], explicit)
 
 
 def _still_reasons(setup: Setup, ident: Identifiability, names: list[str]) -> tuple[Identifiability, np.ndarray | None]:

@@ -42,7 +42,7 @@ CLI_ONLY = ("robot", "data", "validate", "out", "export", "report", "column", "b
             "position_only", "poses_out", "exclude_file", "as_json", "require")
 
 
-def _print_summary(result, robot_name: str, data: Path) -> None:
+def _print_summary(result, robot_name: str, data: str) -> None:
     from ..report.tables import (
         BUDGET_COLUMNS,
         FRAME_COLUMNS,
@@ -82,7 +82,7 @@ def _print_summary(result, robot_name: str, data: Path) -> None:
     if result.model_selection:
         rows = ladder_rows(result)
         columns = ladder_columns(result)
-        out.print(table("model selection: 5-fold cross-validated position RMS (mm) on the calibration poses",
+        out.print(table(f"model selection: {result.selection_title}",
                         columns, rows, text_columns=(0, len(columns) - 1)))
     if result.error_budget:
         out.print(table("error budget on the validation poses: position RMS (mm), and per axis", BUDGET_COLUMNS,
@@ -104,7 +104,8 @@ def _print_summary(result, robot_name: str, data: Path) -> None:
 
 def calibrate_cmd(
     robot: str = typer.Argument(..., help="nominal robot: file or built-in name"),
-    data: Path = typer.Argument(..., help="measurement CSV"),
+    data: list[Path] = typer.Argument(..., help="measurement CSV; several: each a session (or the sessions their "
+                                      "session column names), calibrated together, held out in turn"),
     method: str = typer.Option("lm", "--method", help="lm | pso | ipso | ldpso-bt | hybrid"),
     validate: Path | None = typer.Option(None, "--validate", help="validation CSV (poses not used to identify)"),
     frames: str = typer.Option("auto", "--frames", help="auto | none | base | base+tool | tcp (auto: registered if "
@@ -201,7 +202,7 @@ def calibrate_cmd(
     if validate is None and any(c.figure.startswith("validation") for c in checks):
         raise InputError("validation figures need validation poses: give --validate, or require cv_rms",
                          option="require")
-    check_outputs((robot, data, validate), out=out, export=export, report=report, poses_out=poses_out)
+    check_outputs((robot, *data, validate), out=out, export=export, report=report, poses_out=poses_out)
     if exclude_file is not None:
         from ..io.atomic import read_text
 
@@ -223,8 +224,8 @@ def calibrate_cmd(
     with progress_bar(not quiet and method != "lm", method, total) as callback, \
             stage_status(not quiet and cfg.model == "auto") as stages, warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        result = calibrate(nominal, data, config=cfg, validate=validate, columns=opt.column_map(column),
-                           progress=callback, stages=stages)
+        result = calibrate(nominal, data[0] if len(data) == 1 else list(data), config=cfg, validate=validate,
+                           columns=opt.column_map(column), progress=callback, stages=stages)
     with together():  # all or nothing: a failure leaves every earlier output as it was
         if out is not None:
             result.save(out)
@@ -252,7 +253,7 @@ def calibrate_cmd(
     if as_json:
         print_json(result.to_dict())
     elif not quiet:
-        _print_summary(result, nominal.name, data)
+        _print_summary(result, nominal.name, " + ".join(map(str, data)))
     for files in written if result.exports is not None else []:
         sidecar = next((w for w in files[1:] if w.suffix == ".toml"), None)
         parts = "" if files[0].suffix.lower() in (".urdf", ".yaml", ".yml") or len(files) < 2 else \

@@ -3,8 +3,10 @@
 Columns: ``q1 … qn`` (deg; mm for a prismatic joint), ``x, y, z`` (mm), optionally ``rx, ry, rz`` (deg, rpy with
 ``R = Rz(rz) Ry(ry) Rx(rx)``) for full-pose data, ``pose_id`` (rows sharing one are one pose: its
 reflectors, and repeated measurements of each, which are averaged), ``target`` (which point on
-the flange) and ``cycle`` (repeated measuring cycles of a pose_id: each cycle is its own
-measurement, with its own joint read-back).  Positions and orientations are in the measuring
+the flange), ``cycle`` (repeated measuring cycles of a pose_id: each cycle is its own
+measurement, with its own joint read-back) and ``session`` (any label: the rows measured in one
+session, between which the instrument, the markers or the cameras may have been moved;
+cross-validation then holds out whole sessions).  Positions and orientations are in the measuring
 device's frame.
 """
 
@@ -29,7 +31,7 @@ from .table import DECIMALS, DELIMITERS, CsvTable, numbers, read_csv, strings
 
 POSITION = ("x", "y", "z")
 ORIENTATION = ("rx", "ry", "rz")
-OPTIONAL = ("pose_id", "target", "payload", "cycle", "time", "temperature")
+OPTIONAL = ("pose_id", "target", "payload", "cycle", "time", "temperature", "session")
 #: rows without a measured position: the tool point touched an unknown point or plane, one of a setup's
 CONSTRAINT = ("point", "plane", "setup")
 #: rows a camera saw: the pixel (px) where the camera named saw the marker named (a target on the tool)
@@ -76,6 +78,7 @@ class PoseTable:
     setup: list[str] | None = None
     camera: list[str] | None = None
     pixels: np.ndarray | None = None
+    session: list[str] | None = None
 
 
 def _per_joint_columns(table: CsvTable, n_joints: int, pattern: re.Pattern, what: str) -> list[str] | None:
@@ -244,8 +247,9 @@ def read_pose_table(text: str, *, source: str, options: ReadOptions = ReadOption
     for h in table.header:
         if h not in known and not any(p.match(h) for p in (_JOINT, _TORQUE, _DIRECTION)):
             raise InputError(f"unknown column '{h}' (expected q1..qn, x, y, z, optional rx, ry, rz, pose_id, "
-                             "target, cycle, tau1..taun, payload, dir1..dirn, time, temperature, sx, sy, sz, srx, sry, "
-                             "srz, point, plane, setup, u, v, camera, marker; map other names with a column mapping)",
+                             "target, cycle, session, tau1..taun, payload, dir1..dirn, time, temperature, sx, sy, sz, "
+                             "srx, sry, srz, point, plane, setup, u, v, camera, marker; map other names with a column "
+                             "mapping)",
                              source=source)
     qcols = _joint_columns(table, options.n_joints, require_joints, options.robot_label)
     labels = _constraint_labels(table) if require_position else None
@@ -321,6 +325,7 @@ def read_pose_table(text: str, *, source: str, options: ReadOptions = ReadOption
         torques=numbers(table, taus, MAX_TORQUE_NM, "N·m") if taus else None,
         payload=payload,
         cycles=strings(table, "cycle", required=True) if "cycle" in table else None,
+        session=strings(table, "session", required=True) if "session" in table else None,
         directions=_directions(table, len(qcols)) if qcols else None,
         time=numbers(table, ["time"], MAX_TIME_S, "s")[:, 0] if "time" in table else None,
         temperature=numbers(table, ["temperature"], MAX_TEMPERATURE_C, "°C")[:, 0] if "temperature" in table else None,
@@ -483,6 +488,7 @@ def parse_measurements(text: str, *, source: str = "<data>", average: bool = Tru
         setup=None if t.setup is None else tuple(t.setup),
         pixels=t.pixels,
         camera=None if t.camera is None else tuple(t.camera),
+        session=None if t.session is None else tuple(t.session),
     )
     if t.cycles is not None and t.pose_ids is None:
         raise InputError("a cycle column numbers the measuring cycles of each pose: it needs a pose_id column",
@@ -547,10 +553,12 @@ def average_repeats(meas: Measurements, tolerance: float = REPEAT_TOLERANCE_MM, 
     not noise).  Different cycles of one pose_id stay separate measurements of that pose.
     """
     cycle = ("",) * meas.n_poses if cycles is None else tuple(cycles)
-    labels = [f"pose_id {p!r}" + (f", cycle {c!r}" if cycles is not None else "") for p, c in
-              zip(meas.pose_ids, cycle)]
-    _check_one_pose(meas, _groups(meas.pose_ids, cycle), labels, joint_tolerance)
-    group = _groups(meas.pose_ids, cycle, meas.targets or ("",) * meas.n_poses)
+    session = meas.session or ("",) * meas.n_poses  # a pose_id names a pose of its session
+    labels = [f"pose_id {p!r}" + (f", cycle {c!r}" if cycles is not None else "")
+              + (f", session {s!r}" if meas.session is not None else "") for p, c, s in
+              zip(meas.pose_ids, cycle, session)]
+    _check_one_pose(meas, _groups(meas.pose_ids, cycle, session), labels, joint_tolerance)
+    group = _groups(meas.pose_ids, cycle, session, meas.targets or ("",) * meas.n_poses)
     n = group.max() + 1
     if n == meas.n_poses:
         return meas
@@ -591,6 +599,7 @@ def average_repeats(meas: Measurements, tolerance: float = REPEAT_TOLERANCE_MM, 
         targets=None if meas.targets is None else tuple(meas.targets[i] for i in first),
         pose_ids=tuple(meas.pose_ids[i] for i in first),
         rows=meas.rows[first],
+        session=None if meas.session is None else tuple(meas.session[i] for i in first),
     )
 
 
@@ -636,8 +645,8 @@ def measurements_to_csv(meas: Measurements, *, extra: Mapping[str, Sequence] | N
     if np.all(np.isnan(meas.position)):  # every row touched a point or plane: nothing measured
         groups = groups[1:]
     groups = [(names, np.asarray(v, float)) for names, v in groups if v is not None]
-    extra = {**{k: v for k, v in (("point", meas.point), ("plane", meas.plane), ("setup", meas.setup))
-                if v is not None}, **dict(extra or {})}
+    extra = {**{k: v for k, v in (("point", meas.point), ("plane", meas.plane), ("setup", meas.setup),
+                                  ("session", meas.session)) if v is not None}, **dict(extra or {})}
     marker = meas.camera is not None and meas.targets is not None  # a camera row's target is its marker
     if meas.camera is not None:
         pixels = [("" if np.isnan(u) else repr(float(u)), "" if np.isnan(v) else repr(float(v)))

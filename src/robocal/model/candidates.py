@@ -47,6 +47,15 @@ def joint_candidates(robot: Robot) -> list[str]:
     return names
 
 
+def zero_candidates(robot: Robot) -> list[str]:
+    """Each joint's zero: the parameter its joint value adds to (θ, or d where it slides; a URDF
+    joint's offset), the classic few a camera calibration of a hand-eye kind estimates."""
+    from .kinematics import joint_value_columns
+
+    columns = joint_value_columns(robot.convention, robot.geometry)
+    return [names[c] for names, c in zip(joint_parameter_names(robot.convention, robot.geometry), columns)]
+
+
 def frame_candidates(mode: str, targets: Sequence[str], full_pose: bool) -> list[str]:
     """Frame parameters of a frames mode: 6 for the base, 3 (position data) or 6 per tool."""
     names = []

@@ -61,6 +61,14 @@ class Measurements:
     #: diagonals of a square marker of known size whose place is unknown; shape_sigma their σ
     shapes: tuple[tuple[str, str, float], ...] = ()
     shape_sigma: float = 0.05
+    #: each row's session (any label), or None: one session.  Between sessions the instrument, the
+    #: markers or the cameras may have moved: cross-validation holds out whole sessions
+    session: tuple[str, ...] | None = None
+
+    @property
+    def sessions(self) -> tuple[str, ...]:
+        """The sessions' labels in order of first appearance (one "" where the rows name none)."""
+        return ("",) if self.session is None else tuple(dict.fromkeys(self.session))
 
     @property
     def views(self):
@@ -226,10 +234,59 @@ class Measurements:
             setup=pick(self.setup),
             pixels=None if self.pixels is None else self.pixels[index],
             camera=pick(self.camera),
+            session=pick(self.session),
         )
 
     def position_only(self) -> Measurements:
         return replace(self, rotation=None, sigma_orientation=None)
+
+    def in_session(self, label: str) -> Measurements:
+        """The same rows, every one of them in session ``label``."""
+        return replace(self, session=(str(label),) * self.n_poses)
+
+
+def concatenate(parts: list[Measurements], source: str | None = None) -> Measurements:
+    """The rows of several measurements one after another (each keeps its file's row numbers and
+    its sessions): every part must have the same joints and the same kinds of columns."""
+    first = parts[0]
+    if len(parts) == 1:
+        return first
+
+    # where one part lacks what another has: labels "" (no camera, no point), no pixel, and a pose
+    # of its own for each row (a file without pose_ids)
+    fill = {"camera": lambda p: ("",) * p.n_poses, "point": lambda p: ("",) * p.n_poses,
+            "plane": lambda p: ("",) * p.n_poses, "setup": lambda p: ("",) * p.n_poses,
+            "targets": lambda p: ("",) * p.n_poses, "session": lambda p: ("",) * p.n_poses,
+            "pose_ids": lambda p: tuple(f"{p.source}:row {int(r)}" for r in p.rows),
+            "pixels": lambda p: np.full((p.n_poses, 2), np.nan)}
+
+    def stack(name):
+        values = [getattr(p, name) for p in parts]
+        if all(v is None for v in values):
+            return None
+        if any(v is None for v in values):
+            if name not in fill:
+                from ..exceptions import InputError
+
+                lacking = next(p for p, v in zip(parts, values) if v is None)
+                having = next(p for p, v in zip(parts, values) if v is not None)
+                raise InputError(f"has no {name} where {having.source} has: files calibrated together give the "
+                                 "same kinds of columns", source=lacking.source)
+            values = [fill[name](p) if v is None else v for p, v in zip(parts, values)]
+        if isinstance(values[0], tuple):
+            return tuple(x for v in values for x in v)
+        return np.concatenate(values)
+
+    sigma_source = next((p.sigma_source for p in parts if p.sigma_source), "")
+    return replace(
+        first, q=stack("q"), position=stack("position"), rotation=stack("rotation"), targets=stack("targets"),
+        pose_ids=stack("pose_ids"), rows=stack("rows"), source=source or " + ".join(p.source for p in parts),
+        n_raw=sum(p.n_raw for p in parts), torques=stack("torques"), payload=stack("payload"),
+        directions=stack("directions"), time=stack("time"), temperature=stack("temperature"),
+        sigma_position=stack("sigma_position"), sigma_orientation=stack("sigma_orientation"),
+        sigma_source=sigma_source, point=stack("point"), plane=stack("plane"), setup=stack("setup"),
+        pixels=stack("pixels"), camera=stack("camera"), session=stack("session"),
+        intrinsics={k: v for p in parts for k, v in p.intrinsics.items()})
 
 
 def move_directions(q: np.ndarray, order: np.ndarray | None = None, still: float = 1e-7) -> np.ndarray:

@@ -226,11 +226,13 @@ def _model_tables(result: CalibrationResult) -> list[str]:
     parts = []
     if result.model_selection:
         rows = ladder_rows(result)
-        parts += [f"<h2>Model selection</h2><p>Model {html.escape(result.model)}, chosen by 5-fold cross-validation "
-                  "on the calibration poses (folds by pose): each model refitted without a fold predicts it. A "
-                  "richer model is kept only if it predicts the held-out poses better than a simpler one.</p>",
-                  _table(tuple({"cv RMS": "cross-validated position RMS (mm)",
-                                "validation RMS": "validation position RMS (mm)"}.get(c, c)
+        how = result.cross_validation.phrase if result.cross_validation else "5-fold cross-validation"
+        what = "reprojection" if result.unit == "px" else "position"
+        parts += [f"<h2>Model selection</h2><p>Model {html.escape(result.model)}, chosen by {html.escape(how)}: "
+                  "each model refitted without a fold predicts it. A richer model is kept only if it predicts the "
+                  "held-out data better than a simpler one.</p>",
+                  _table(tuple({"cv RMS": f"cross-validated {what} RMS ({result.unit})",
+                                "validation RMS": f"validation {what} RMS ({result.unit})"}.get(c, c)
                                for c in ladder_columns(result)), rows)]
     if result.error_budget:
         rows = budget_rows(result)
@@ -503,7 +505,7 @@ def calibration_html(result: CalibrationResult, command: str | None = None) -> s
     parts.append("<h2>Accuracy</h2><p>“Before” is the nominal geometry with the registered frames; “after (fit)” "
                  "the calibrated model on the poses it was fitted to, which flatters it; "
                  + ("“validation” the poses kept out of the fit. " if result.validation else
-                    "“predicted” each pose held out of a 5-fold refit, what the model does on poses it has not seen. ")
+                    f"“predicted” what the model does on {html.escape(result.held_out)}, each held out of a refit. ")
                  + "Measured: "
                  f"{html.escape(result.measurements.describe() if result.measurements else str(result.n_poses))}"
                  + (f"; validation: {html.escape(result.validation.describe())}" if result.validation else "")
