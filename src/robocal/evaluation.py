@@ -35,6 +35,9 @@ class Evaluation:
     #: data whose rows touched unknown points or planes: point_spread_rms, plane_rms,
     #: distance_error_rms (mm; :meth:`robocal.model.constraints.Constraints.figures`)
     contact: dict = field(default_factory=dict)
+    #: camera rows: each camera's reprojection figures (px), and what the rows are
+    per_camera: dict[str, Metrics] = field(default_factory=dict)
+    described: str = ""
 
     def uncertainty_summary(self) -> dict | None:
         if self.sigma is None:
@@ -49,6 +52,8 @@ class Evaluation:
             out["frames"] = self.frames
         if len(self.per_target) > 1:
             out["per_target"] = {t: m.to_dict() for t, m in self.per_target.items()}
+        if self.per_camera:
+            out["per_camera"] = {c: m.to_dict() for c, m in self.per_camera.items()}
         if self.sigma is not None:
             out["uncertainty"] = {**self.uncertainty_summary(), "per_pose": [
                 {"pose": p, "sigma_mm": float(s)} for p, s in zip(self.poses, self.sigma)]}
@@ -58,7 +63,8 @@ class Evaluation:
 def evaluate(robot: str | Path | Robot, data: str | Path | Measurements, *, columns: Mapping[str, str] | None = None,
              frames: str = "none", joint_unit: str | None = None, length_unit: str | None = None,
              payload: float | None = None, uncertainty: bool = False, delimiter: str = ",", decimal: str = ".",
-             euler: str = "xyz", point_distance=(), distance_sigma: float = 0.05) -> Evaluation:
+             euler: str = "xyz", point_distance=(), distance_sigma: float = 0.05, cameras=(),
+             markers: str | None = None) -> Evaluation:
     """Error metrics of ``robot`` (file, built-in name or Robot) on ``data`` (file or Measurements).
 
     frames: ``none`` evaluates the model as it is (a calibrated model carries its frames);
@@ -71,6 +77,9 @@ def evaluate(robot: str | Path | Robot, data: str | Path | Measurements, *, colu
     well the model's tool points meet (``point_spread_rms``, ``plane_rms``) and, with
     ``point_distance`` (``"A,B=MM"``), how far the points' means miss the stated distances
     (``distance_error_rms``); a held-out setup is the honest test, its points being new unknowns.
+    Camera rows are judged by their reprojection error (px) with the model's cameras (a
+    calibration's export carries their poses): ``cameras`` gives each one's intrinsics
+    (``NAME=FILE`` items), ``markers`` a markers file for markers the model does not carry.
     """
     from .calibration.checks import check_units
     from .calibration.config import point_distances
@@ -86,8 +95,16 @@ def evaluate(robot: str | Path | Robot, data: str | Path | Measurements, *, colu
         delimiter=delimiter, decimal=decimal, euler=euler,
         robot_label=r.source, prismatic=tuple(map(bool, r.prismatic)) if r.prismatic.any() else None)
     if meas.camera is not None and any(meas.camera):
-        raise InputError("has camera rows: their pixels need the cameras the calibration found; evaluate them with "
-                         "calibrate --validate, and a model on tracker rows here", source=meas.source)
+        if not all(meas.camera):
+            raise InputError("has camera rows beside tracker rows: evaluate each kind in a file of its own",
+                             source=meas.source)
+        if frames in ("base", "base+tool"):
+            raise InputError("camera rows are judged with the cameras the calibration found, in its frames: "
+                             "evaluate them with frames none (or auto)", source=meas.source, option="frames")
+        frames = "none"
+    from .calibration.cameras import attach_known
+
+    r, meas = attach_known(r, meas, cameras, markers)
     distances = point_distances(point_distance)
     if distances or meas.constraints is not None:
         meas = meas.with_distances(distances, opt.number(distance_sigma, "distance_sigma", minimum=0.0, strict=True))
@@ -96,7 +113,8 @@ def evaluate(robot: str | Path | Robot, data: str | Path | Measurements, *, colu
     if contact is not None and contact.only and frames in ("base", "base+tool"):
         raise InputError("the base frame is not observable from rows that touched points or planes whose place is "
                          "unknown: evaluate with frames none", source=meas.source, option="frames")
-    if length_unit is None and tracker.n_poses:
+    seen = meas.views is not None  # camera rows: judged in the model's own frames, in px
+    if length_unit is None and tracker.n_poses and not seen:
         check_units(r, tracker, frames)
     if payload is not None and meas.payload is None:
         meas = replace(meas, payload=np.full(meas.n_poses, opt.number(payload, "payload", minimum=0.0)))
@@ -107,13 +125,13 @@ def evaluate(robot: str | Path | Robot, data: str | Path | Measurements, *, colu
                                     region_note(r, meas.q, known_targets(r, meas), meas.inputs)) if w]
     mode = frames
     missing = [t for t in meas.target_names if t and t not in r.targets]
-    if missing and frames == "none":
+    if missing and frames == "none" and not seen:
         # a reflector without a tool frame cannot be evaluated as given: its offset must be fitted
         notes.append(f"reflector '{missing[0]}' has no tool frame in the robot {r.source or r.name}: base and tools "
                      "fitted to these data (frames base+tool) before evaluating")
         frames = "base+tool"
-    if contact is not None and contact.only:
-        mode = "none"  # points and planes stand in any frame
+    if (contact is not None and contact.only) or seen:
+        mode = "none"  # points and planes stand in any frame; cameras are where the calibration found them
     elif frames in ("none", "auto"):
         choice = choose_frames(r, tracker)
         if frames == "none" and choice.mode != "none":
@@ -142,5 +160,8 @@ def evaluate(robot: str | Path | Robot, data: str | Path | Measurements, *, colu
         for row, s in zip(rows, sigma):
             row["sigma_mm"] = float(s)
     figures = {} if contact is None else contact.figures(r.positions(meas.q, meas.targets, meas.inputs))
-    return Evaluation(Metrics.of(r, meas), mode, notes, per_target, sigma,
-                      tuple(meas.label(i) for i in range(meas.n_poses)) if uncertainty else (), rows, figures)
+    per_camera = {c: Metrics.of(r, meas.subset([i for i, x in enumerate(meas.camera) if x == c]))
+                  for c in dict.fromkeys(meas.camera)} if seen else {}
+    return Evaluation(Metrics.of(r, meas), mode, notes, {} if seen else per_target, sigma,
+                      tuple(meas.label(i) for i in range(meas.n_poses)) if uncertainty else (), rows, figures,
+                      per_camera, meas.describe())

@@ -552,3 +552,40 @@ def test_a_subset_of_rows_keeps_each_rows_camera_whichever_camera_comes_first(tm
     np.testing.assert_allclose(sub.errors(x)[0], problem.errors(x)[0][order], atol=1e-9)
     np.testing.assert_allclose(sub.residual_jacobian(x), problem.residual_jacobian(x).reshape(len(meas.q), 3, -1)
                                [order].reshape(3 * len(order), -1), atol=1e-9)
+
+
+def test_a_camera_calibrations_export_loads_everywhere_and_reproduces_its_held_out_figure(tmp_path, run_cli):
+    """The export carries the cameras' poses and the markers: evaluate reads camera rows with it and
+    gives the validation figure calibrate gave; compensate, filter and load_robot take it."""
+    cell, data, specs, markers, rng = _torso_cell(21, tmp_path, 60)
+    held = cw.write_rows(cell.observe(cw.poses("kr5-arc", 40, rng, CENTRE, SPREAD_TORSO), rng, 0.5),
+                         tmp_path / "held.csv")
+    out, export = tmp_path / "fit.json", tmp_path / "cal.toml"
+    cams = [a for s in specs for a in ("--camera", s)]
+    code, _, err = run_cli("calibrate", "kr5-arc", data, *cams, "--markers", markers, "--validate", held,
+                           "--out", out, "--export", export, "-q")
+    assert code == 0, err
+    saved = json.loads(out.read_text())
+    robot = robocal.load_robot(str(export))
+    assert set(robot.cameras) == {"left", "right"} and all(m.link == 1 for m in robot.cameras.values())
+    assert robot.uncertainty is not None and any(n.startswith("camera[") for n in robot.uncertainty.names)
+    plain = [s.split(",")[0] for s in specs]  # the link is the model's: NAME=FILE is enough
+    code, stdout, err = run_cli("evaluate", export, held, *[a for s in plain for a in ("--camera", s)], "--json")
+    assert code == 0, err
+    validation = saved["metrics"]["validation_after"]["position"]["rms"]
+    assert json.loads(stdout)["position"]["rms"] == pytest.approx(validation, rel=1e-9)
+    # a link that is not the model's, and a camera the model has no pose for, are one line each
+    code, _, err = run_cli("evaluate", export, held, "--camera", plain[0] + ",link=2", "--camera", plain[1])
+    assert code == 2 and "on link 2, but the model has it on link 1" in err
+    code, _, err = run_cli("evaluate", "kr5-arc", held, *[a for s in plain for a in ("--camera", s)])
+    assert code == 2 and "has no pose for it" in err and len(err.strip().splitlines()) == 1
+    # the other commands take it as any calibrated model
+    q = np.radians([[0, -60, 90, 0, 30, 0], [10, -50, 80, 20, 40, 10]])
+    goals = tmp_path / "goals.csv"
+    goals.write_text("q1,q2,q3,q4,q5,q6\n" + "\n".join(",".join(f"{v:.6f}" for v in np.degrees(r)) for r in q) + "\n")
+    code, _, err = run_cli("compensate", "kr5-arc", export, goals, "--out", tmp_path / "c.csv", "-q")
+    assert code in (0, 3), err
+    program = tmp_path / "p.src"
+    program.write_text("DEF p()\n  PTP {A1 0, A2 -60, A3 90, A4 0, A5 30, A6 0}\nEND\n")
+    code, _, err = run_cli("filter", export, program, "--nominal", "kr5-arc", "--out", tmp_path / "f.src", "-q")
+    assert code in (0, 3), err

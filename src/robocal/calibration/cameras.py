@@ -206,6 +206,43 @@ def attach(nominal: Robot, meas: Measurements, config: CalibrationConfig) -> tup
     return robot, replace(meas, intrinsics=intrinsics), notes
 
 
+def attach_known(robot: Robot, meas: Measurements, specs, markers: str | None) -> tuple[Robot, Measurements]:
+    """Camera rows judged with a model whose cameras are known (a calibration's export, which
+    carries their poses, ``[cameras.NAME]``): each camera's intrinsics from ``specs`` (``NAME=FILE``
+    items, a link given must be the model's), the markers from the model's targets or a markers file;
+    one line naming what is missing or does not match."""
+    from .config import camera_specs
+
+    specs = camera_specs(specs)
+    if meas.camera is None or not any(meas.camera):
+        if specs:
+            raise InputError(f"camera {specs[0].name!r} is given, but {meas.source} has no camera rows (columns u, v, "
+                             "camera, marker)", option="camera")
+        return robot, meas
+    intrinsics = {}
+    for spec in specs:
+        mount = robot.cameras.get(spec.name)
+        if mount is None:
+            raise InputError(f"camera {spec.name!r}: the model {robot.source or robot.name} has no pose for it (a "
+                             "calibration's export carries its cameras: [cameras.NAME])", option="camera")
+        link = mount_of(robot, spec.name, spec.link).link if spec.link != 0 else None
+        if link is not None and link != (robot.cameras[mount.of].link if mount.of else mount.link):
+            raise InputError(f"camera {spec.name!r} is on link {link}, but the model has it on link {mount.link}",
+                             option="camera")
+        intrinsics[spec.name] = load_camera(spec.path, spec.name)
+    check_pixels(meas, intrinsics)
+    if markers is not None:
+        found = load_markers(markers)
+        if found.shapes:
+            raise InputError("gives markers of unknown place: a model judged on camera rows needs each marker's "
+                             "offset (the calibration's export carries the ones it found)", source=markers)
+        robot = robot.replace(targets={**robot.targets, **found.points})
+    check_markers(meas, set(robot.targets), f"neither the model {robot.source or robot.name} nor a markers file")
+    meas = replace(meas, intrinsics=intrinsics)
+    check_in_front(robot, meas, f"the model {robot.source or robot.name}")
+    return robot, meas
+
+
 def check_parts(parts: list[Measurements], config: CalibrationConfig, nominal: Robot) -> None:
     """Each file's camera rows checked on its own, before the files are joined (so that a message
     names the file and its row): the pixels on their camera's image, the markers known."""

@@ -73,8 +73,7 @@ class Scheme:
         """The scheme in a sentence: "leave-one-session-out, 10 sessions"."""
         return {"sessions": f"leave-one-session-out, {self.k} sessions",
                 "setups": f"{self.k}-fold cross-validation by setup: their points are new unknowns",
-                "blocks": f"{self.k}-fold cross-validation by contiguous blocks of the rows' order (no session "
-                          "column: neighbouring poses share what a random fold would count as new)",
+                "blocks": f"{self.k}-fold cross-validation by blocks of the rows' order",
                 "poses": f"{self.k}-fold cross-validation of the calibration poses"}[self.kind]
 
     def to_dict(self) -> dict:

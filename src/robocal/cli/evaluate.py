@@ -8,10 +8,12 @@ import typer
 
 from .common import (
     base_link_option,
+    camera_option,
     decimal_option,
     delimiter_option,
     euler_option,
     json_flag,
+    markers_option,
     quiet_flag,
     tip_link_option,
 )
@@ -40,6 +42,9 @@ def evaluate_cmd(
                                                     "stand MM apart (data whose rows touched points; repeatable)"),
     distance_sigma: float = typer.Option(0.05, "--distance-sigma", help="standard uncertainty of a stated distance, "
                                          "mm"),
+    cameras: list[str] | None = camera_option("the intrinsics of a camera the data's camera rows name (its pose is "
+                                              "the model's: a calibration's export carries it)"),
+    markers: Path | None = markers_option("the markers' offsets the model does not carry"),
     require: list[str] | None = typer.Option(None, "--require", help="a verdict for CI: FIGURE<=VALUE (rms, mean, "
                                              "max, std; point_spread_rms, distance_error_rms, plane_rms for contact "
                                              "data; mm); not met: exit 4, named on stderr; repeatable"),
@@ -54,11 +59,12 @@ def evaluate_cmd(
     from .common import check_outputs, load, print_said, verdict
 
     checks = parse_requirements(require, "evaluate")
-    check_outputs((robot, data), poses_out=poses_out)
+    check_outputs((robot, data, markers), poses_out=poses_out)
     ev = evaluate(load(robot, base_link, tip_link), data, columns=opt.column_map(column), frames=frames,
                   joint_unit=joint_unit, length_unit=length_unit, payload=payload, uncertainty=uncertainty,
                   delimiter=delimiter, decimal=decimal, euler=euler, point_distance=tuple(point_distance or ()),
-                  distance_sigma=distance_sigma)
+                  distance_sigma=distance_sigma, cameras=tuple(cameras or ()),
+                  markers=None if markers is None else str(markers))
     print_said(ev.notes, quiet)
     if poses_out is not None:
         from ..io.atomic import atomic_write
@@ -79,8 +85,10 @@ def evaluate_cmd(
 def _print_tables(ev, robot, data) -> None:
     from .common import console, metrics_table
 
-    title = f"{robot} on {data} ({ev.metrics.n} poses{'' if ev.frames == 'none' else ', frames ' + ev.frames})"
-    columns = {"error": ev.metrics, **(ev.per_target if len(ev.per_target) > 1 else {})}
+    what = ev.described or f"{ev.metrics.n} poses"
+    title = f"{robot} on {data} ({what}{'' if ev.frames == 'none' else ', frames ' + ev.frames})"
+    columns = {"error": ev.metrics, **(ev.per_target if len(ev.per_target) > 1 else {}),
+               **(ev.per_camera if len(ev.per_camera) > 1 else {})}
     console().print(metrics_table(title, columns))
     if ev.contact:
         console().print("points and planes touched: " + ", ".join(f"{k.replace('_', ' ')} {v:.4f} mm"

@@ -37,7 +37,7 @@ from .atomic import atomic_write, read_text
 from .builtins import builtin_names, builtin_text
 
 TOP_KEYS = {"name", "convention", "joint", "base", "tool", "targets", "source", "gravity", "drift", "residual",
-            "region", "fallback", "uncertainty", "controller", "prior"}
+            "region", "fallback", "uncertainty", "controller", "prior", "cameras"}
 CONTROLLER_KEYS = {"coupling"}
 COUPLING_KEYS = {"joint", "plus", "factor"}
 GEOMETRY_KEYS = {"a", "alpha", "d", "theta", "beta", "limits", "type", "name"}
@@ -49,6 +49,9 @@ JOINT_TYPES = ("revolute", "prismatic")
 GRAVITY_KEYS = {"direction", "payload_com"}
 DRIFT_KEYS = {"clock", "reference"}
 FRAME_KEYS = {"xyz", "rpy"}
+#: a camera's mounting: its link (0: fixed in the measuring frame), its frame there, whether it was
+#: given rather than found, and the camera it is fixed to (a calibrated rig)
+CAMERA_KEYS = FRAME_KEYS | {"link", "known", "of"}
 _RADIAN_LOOKALIKES = (math.pi / 2, math.pi, math.pi / 4)
 
 
@@ -393,13 +396,43 @@ def parse_robot(text: str, *, source: str = "<robot>", default_name: str = "robo
     uncertainty = None if "uncertainty" not in data else _covariance(data["uncertainty"], source)
     coupling = () if "controller" not in data else _coupling(data["controller"], len(joints), source)
     prior = None if "prior" not in data else _prior(data["prior"], conv, geom, source)
+    cameras = {} if "cameras" not in data else _cameras(data["cameras"], len(joints), source)
     robot = Robot(conv, geom, limits, joint_names=tuple(nm or f"joint{i + 1}" for i, nm in enumerate(names))
                   if any(names) else None, base=base, tool=tool, targets=targets, name=name or default_name,
                   source=source, terms=terms, residual=residual, region=region, uncertainty=uncertainty,
-                  coupling=coupling, prior=prior)
+                  coupling=coupling, prior=prior, cameras=cameras)
     if uncertainty is not None:
         _check_covariance_names(robot, uncertainty, source)
     return robot
+
+
+def _cameras(table, n: int, source: str) -> dict:
+    """``[cameras.NAME]``: each camera's ``link`` (0: fixed in the measuring frame; k: on the link
+    after joint k), its frame there (``xyz`` mm, ``rpy`` deg: z its optical axis), ``known`` (given,
+    not found by a calibration) and ``of`` (fixed to that camera: its frame in that one's)."""
+    from ..model.camera import CameraMount
+
+    if not isinstance(table, dict) or not all(isinstance(v, dict) for v in table.values()):
+        raise InputError("expected tables [cameras.NAME] with link, xyz and rpy", source=source, where="[cameras]")
+    out = {}
+    for name, entry in table.items():
+        where = f"[cameras.{name}]"
+        _known_keys(entry, CAMERA_KEYS, source, where)
+        link = entry.get("link", 0)
+        if not isinstance(link, int) or isinstance(link, bool) or not 0 <= link <= n:
+            raise InputError(f"link must be a whole number 0…{n} (0: fixed in the measuring frame), got {link!r}",
+                             source=source, where=f"{where} link")
+        known = entry.get("known", False)
+        of = entry.get("of", "")
+        if not isinstance(known, bool) or not isinstance(of, str):
+            raise InputError("known is true or false, of a camera's name", source=source, where=where)
+        out[str(name)] = CameraMount(link, _frame({k: entry[k] for k in FRAME_KEYS & set(entry)}, source,
+                                                  f"cameras.{name}"), known, of)
+    for name, mount in out.items():
+        if mount.of and (mount.of not in out or out[mount.of].of):
+            raise InputError(f"is fixed to camera {mount.of!r}, which the file does not give as a camera of its own",
+                             source=source, where=f"[cameras.{name}] of")
+    return out
 
 
 def _prior(table, convention: str, geom: np.ndarray, source: str) -> Prior:
@@ -487,7 +520,8 @@ def _covariance(table, source: str) -> ParameterCovariance:
     if C.shape != (k, k) or not np.all(np.isfinite(C)):
         raise InputError(f"covariance must be a {k}×{k} matrix of numbers (one row per parameter)", source=source,
                          where=f"{where} covariance")
-    if np.any(np.diag(C) < 0) or not np.allclose(C, C.T, rtol=1e-6, atol=1e-30):
+    scale = np.sqrt(np.abs(np.outer(np.diag(C), np.diag(C))))  # each entry against its variances'
+    if np.any(np.diag(C) < 0) or np.any(np.abs(C - C.T) > 1e-6 * scale + 1e-300):
         raise InputError("covariance must be symmetric with variances ≥ 0", source=source, where=f"{where} covariance")
     return ParameterCovariance(tuple(names), C)
 
@@ -634,6 +668,12 @@ def robot_to_toml(robot: Robot, comment: str | None = None, residual_file: str |
     lines += _frame_text("[tool]", robot.tool) + [""]
     for name, T in robot.targets.items():
         lines += _frame_text(f"[targets.{_quote(name)}]", T) + [""]
+    for name, mount in robot.cameras.items():
+        where = f"camera {mount.of!r}'s frame" if mount.of else \
+            "the measuring frame" if mount.link == 0 else f"link {mount.link}'s frame"
+        lines += _frame_text(f"[cameras.{_quote(name)}]  # its frame in {where} (z its optical axis)", mount.pose)
+        lines += [f"link = {mount.link}"] + (["known = true"] if mount.known else []) + \
+            ([f"of = {_quote(mount.of)}"] if mount.of else []) + [""]
     lines += _region_lines(robot)
     lines += _prior_lines(robot)
     lines += _uncertainty_lines(robot)
@@ -656,7 +696,10 @@ def _uncertainty_lines(robot: Robot) -> list[str]:
     u = robot.uncertainty
     if u is None:
         return []
-    rows = ",\n  ".join(_list(r, lambda v: repr(float(v))) for r in u.matrix)
+    # the written covariance is symmetric to the last digit: a product of floats (J⁻¹ and its
+    # transpose) leaves asymmetries of 1e-16 relative that a reader's check would refuse
+    matrix = (u.matrix + u.matrix.T) / 2
+    rows = ",\n  ".join(_list(r, lambda v: repr(float(v))) for r in matrix)
     return ["[uncertainty]  # covariance of the identified parameters (mm, rad; joint terms in their own units)",
             f"parameters = [{', '.join(_quote(n) for n in u.names)}]", f"covariance = [\n  {rows},\n]", ""]
 
