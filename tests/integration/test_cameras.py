@@ -99,9 +99,11 @@ def test_the_camera_files_and_rows_are_checked_on_one_line(tmp_path, run_cli):
     # a known pose for a camera not given, or not six numbers
     refused(data, "--camera", good, "--camera-pose", "door=0,0,0,0,0,0", says="camera 'door' has a pose")
     refused(data, "--camera", good, "--camera-pose", "wall=0,0,0", says="NAME=x,y,z,rx,ry,rz")
-    # camera rows where a command cannot read them: evaluate (the cameras' poses are a calibration's)
+    # camera rows evaluated without their camera's file, or with a model that has no pose for the camera
     code, _, err = run_cli("evaluate", "kr5-arc", data)
-    assert code == 2 and "has camera rows" in err and len(err.strip().splitlines()) == 1
+    assert code == 2 and "camera 'wall' has no camera file" in err and len(err.strip().splitlines()) == 1
+    code, _, err = run_cli("evaluate", "kr5-arc", data, "--camera", good)
+    assert code == 2 and "has no pose for it" in err and len(err.strip().splitlines()) == 1
     # validation rows of a camera the calibration has not, or of a marker it has not
     other = tmp_path / "other.csv"
     other.write_text("\n".join(text[:3] + [text[3].replace(",wall,", ",door,")]) + "\n")

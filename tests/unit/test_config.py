@@ -43,7 +43,9 @@ def test_bad_values_name_their_option(options, option, message):
 def test_defaults_and_coercions():
     c = CalibrationConfig(method="pso", box="0.5,0.01", params="a1, d2,a1", seed="4")
     assert c.objective_kind == "sum_norms" and c.box == (0.5, 0.01) and c.params == ("a1", "d2") and c.seed == 4
-    assert CalibrationConfig(params="wen2019").params == "wen2019" and CalibrationConfig(params="all").params is None
+    assert CalibrationConfig(params="wen2019").params == "wen2019" and CalibrationConfig(params="auto").params is None
+    # all: every joint parameter, whatever the data (auto chooses among the sets for camera rows)
+    assert CalibrationConfig(params="all").params == "all" and CalibrationConfig(params="zeros").params == "zeros"
     assert CalibrationConfig.build(c, method="lm").method == "lm"
     with pytest.raises(TypeError):
         CalibrationConfig.build(None, speed=3)

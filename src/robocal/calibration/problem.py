@@ -368,8 +368,7 @@ class Problem:
     def residual_jacobian(self, x: np.ndarray) -> np.ndarray:
         """Exact ∂(whitened residuals)/∂x, (n_residuals, k_active), Fortran-ordered as MINPACK wants."""
         Jc, R, p = self.space.jacobian_columns(self.full(x), self.meas.q, self.target_idx, frames=self._frames_active,
-                                               joints=self.joints)
-        Jc = Jc[self.active]  # (k, m, 6)
+                                               joints=self.joints, active=self.active)  # (k, m, 6)
         k, m = Jc.shape[0], Jc.shape[1]
         out = np.empty((k, self.n_residuals))
         c = self.constraints
@@ -377,8 +376,10 @@ class Problem:
                                                         -Jc[:, :, :3])
         v = self.views
         if v is not None:
-            frames, Jf = self.space.camera_frame_columns(self.full(x), self.meas.q, self._camera_index, self.joints)
-            Jp = np.where(v.rows[None, :, None], v.error_jacobian(Jc[:, :, :3], Jf[self.active], p, frames), Jp)
+            frames, Jf = self.space.camera_frame_columns(self.full(x), self.meas.q, self._camera_index, self.joints,
+                                                         active=self.active)
+            Jp = v.error_jacobian(Jc[:, :, :3], Jf, p, frames) if v.only else \
+                np.where(v.rows[None, :, None], v.error_jacobian(Jc[:, :, :3], Jf, p, frames), Jp)
         out[:, : 3 * m] = self._wp * Jp.reshape(k, 3 * m)
         if self.n_distances:
             out[:, self.n_residuals - self.n_distances:] = c.distance_jacobian(Jc[:, :, :3], p) / c.distance_sigma

@@ -291,13 +291,15 @@ class ParameterSpace:
         return out
 
     def camera_frame_columns(self, deviation: np.ndarray, q: np.ndarray, index: np.ndarray,
-                             joints: JointData | None = None):
+                             joints: JointData | None = None, active: np.ndarray | None = None):
         """The camera frames of :meth:`camera_frames` (m, 4, 4) and their twist Jacobian (k, m, 6)
-        (origin mm, rotation about the measuring frame's axes) for one deviation vector (k,)."""
+        (origin mm, rotation about the measuring frame's axes) for one deviation vector (k,);
+        ``active`` as in :meth:`jacobian_columns`."""
         deviation = np.asarray(deviation, dtype=float)
         frames = self.camera_frames(deviation, q, index, joints)
         m = len(q)
-        J = np.zeros((self.size, m, 6))
+        at, size = self._rows(active)
+        J = np.zeros((size + 1, m, 6))
         poses = self.camera_poses(deviation)
         d = deviation[self._camera_slice()].reshape(len(self.cameras), 6)
         geom, base, _ = self.expand(deviation)
@@ -317,16 +319,18 @@ class ParameterSpace:
             else:
                 Jj, _, _, R_parent = chain_twist_jacobian(self.robot.convention, geom[:link], qe[rows, :link], base,
                                                           poses[c][None])
-                J[: link * kinds, rows] = Jj[:, :kinds].reshape(link * kinds, -1, 6)
+                where = np.flatnonzero(rows)
+                J[at[: link * kinds, None], where] = Jj[:, :kinds].reshape(link * kinds, -1, 6)
                 nj = self.n_joint_params
-                Jb = np.zeros((6, int(rows.sum()), 6))
-                self._base_columns(Jb, deviation[nj:nj + 6], frames[rows, :3, 3] - base[:3, 3])
-                J[nj:nj + 6, rows] = Jb
+                if np.any(at[nj:nj + 6] < size):
+                    Jb = np.zeros((6, len(where), 6))
+                    self._base_columns(Jb, deviation[nj:nj + 6], frames[rows, :3, 3] - base[:3, 3])
+                    J[at[nj:nj + 6, None], where] = Jb
                 if self.n_term_params:
                     cols = joint_value_columns(self.robot.convention, self.robot.geometry)[:link]
                     Jq = Jj[np.arange(link), cols]
-                    J[self.size - self.n_term_params:, rows] = np.einsum("imk,mit->tmk", Jq,
-                                                                        joints.basis[rows][:, :link])
+                    J[at[self.size - self.n_term_params:, None], where] = np.einsum(
+                        "imk,mit->tmk", Jq, joints.basis[rows][:, :link])
             arm = 0.0
             if of:  # turning the camera it is fixed to swings this one about that one's origin
                 sub = None if joints is None else joints.subset(rows)
@@ -335,15 +339,15 @@ class ParameterSpace:
                 # its own deviation, in the frame of the camera it is fixed to
                 mine, W = self._camera_slice().start + 6 * c, ref[:, :3, :3] @ left_jacobian(d[c, 3:])
                 for k in range(3):
-                    J[mine + k, rows, :3] = ref[:, :3, k]
-                    J[mine + 3 + k, rows, 3:] = W[:, :, k]
+                    J[at[mine + k], rows, :3] = ref[:, :3, k]
+                    J[at[mine + 3 + k], rows, 3:] = W[:, :, k]
             for k in range(3):
-                J[col + k, rows, :3] = R_parent[:, :, k]
+                J[at[col + k], rows, :3] = R_parent[:, :, k]
                 w = (R_parent @ Wc)[:, :, k]
-                J[col + 3 + k, rows, 3:] = w
+                J[at[col + 3 + k], rows, 3:] = w
                 if of:
-                    J[col + 3 + k, rows, :3] = np.cross(w, arm)
-        return frames, J
+                    J[at[col + 3 + k], rows, :3] = np.cross(w, arm)
+        return frames, J[:size]
 
     def _tools_for(self, tools: np.ndarray, target_idx: np.ndarray | None) -> np.ndarray:
         return tools[..., :1, :, :] if target_idx is None else tools[..., target_idx, :, :]
@@ -377,11 +381,21 @@ class ParameterSpace:
         Jc, R_e, p_e = self.jacobian_columns(deviation, q, target_idx, joints=joints)
         return np.moveaxis(Jc, 0, -1), R_e, p_e
 
+    def _rows(self, active: np.ndarray | None) -> tuple[np.ndarray, int]:
+        """Where each parameter's column goes in a Jacobian of the ``active`` ones (all: None): its
+        row, or the last row (k, a scratch row dropped at the end) where it is not active."""
+        if active is None:
+            return np.arange(self.size), self.size
+        rows = np.full(self.size, len(active))
+        rows[np.asarray(active, int)] = np.arange(len(active))
+        return rows, len(active)
+
     def jacobian_columns(self, deviation: np.ndarray, q: np.ndarray, target_idx: np.ndarray | None = None,
-                         frames: bool = True, joints: JointData | None = None):
+                         frames: bool = True, joints: JointData | None = None, active: np.ndarray | None = None):
         """As :meth:`jacobian` with J laid out (k, m, 6); ``frames=False`` leaves the base and
-        tool columns zero (cheaper when none of them is estimated).  A joint term's column is
-        the joints' θ columns (the joint-value columns) weighted by its basis."""
+        tool columns zero (cheaper when none of them is estimated); ``active``: the parameters whose
+        columns are wanted, in that order (default all; a tool nothing estimates costs nothing).  A
+        joint term's column is the joints' θ columns (the joint-value columns) weighted by its basis."""
         deviation = np.asarray(deviation, dtype=float)
         geom, base, tools = self.expand(deviation)
         tool = tools[:1] if target_idx is None else tools[target_idx]
@@ -389,18 +403,22 @@ class ParameterSpace:
         Jj, R_e, p_e, R_f = chain_twist_jacobian(self.robot.convention, geom, q, base, tool)
         m = p_e.shape[0]
         kinds = len(joint_kinds(self.robot.convention))
-        J = np.zeros((self.size, m, 6))
+        at, k = self._rows(active)
+        J = np.zeros((k + 1, m, 6))
         nj = self.n_joint_params
-        J[:nj] = Jj[:, :kinds].reshape(nj, m, 6)
+        J[at[:nj]] = Jj[:, :kinds].reshape(nj, m, 6)
         if self.n_term_params:
             cols = joint_value_columns(self.robot.convention, self.robot.geometry)
             Jq = Jj[np.arange(self.robot.n_joints), cols]
-            J[self.size - self.n_term_params:] = np.einsum("imk,mit->tmk", Jq, joints.basis)
+            J[at[self.size - self.n_term_params:]] = np.einsum("imk,mit->tmk", Jq, joints.basis)
         if frames:
             _, db, dt = self._split(deviation)
-            self._base_columns(J[nj : nj + 6], db, p_e - base[:3, 3])
-            self._tool_columns(J, dt, R_e, R_f, target_idx)
-        return J, R_e, p_e
+            if np.any(at[nj:nj + 6] < k):
+                Jb = np.zeros((6, m, 6))
+                self._base_columns(Jb, db, p_e - base[:3, 3])
+                J[at[nj:nj + 6]] = Jb
+            self._tool_columns(J, dt, R_e, R_f, target_idx, at, k)
+        return J[:k], R_e, p_e
 
     @staticmethod
     def _base_columns(Jb: np.ndarray, db: np.ndarray, r: np.ndarray) -> None:
@@ -412,9 +430,12 @@ class ParameterSpace:
             Jb[3 + k, :, :3] = np.cross(w, r)
             Jb[3 + k, :, 3:] = w
 
-    def _tool_columns(self, J, dt, R_e, R_f, target_idx) -> None:
+    def _tool_columns(self, J, dt, R_e, R_f, target_idx, at: np.ndarray, k: int) -> None:
         nj = self.n_joint_params
         for t in range(len(self.targets)):
+            c = nj + 6 + 6 * t
+            if not np.any(at[c:c + 6] < k):  # nothing estimates this tool
+                continue
             if target_idx is None:
                 if t > 0:
                     break
@@ -425,8 +446,7 @@ class ParameterSpace:
                     continue
             # R_tool° Exp(δ+ε) = R_tool° Exp(δ) Exp(J_r(δ) ε), J_r(δ) = J_l(−δ)
             Wt = R_e[rows] @ left_jacobian(-dt[t, 3:])
-            c = nj + 6 + 6 * t
             Rf = R_f[rows]
-            for k in range(3):
-                J[c + k, rows, :3] = Rf[:, :, k]
-                J[c + 3 + k, rows, 3:] = Wt[:, :, k]
+            for axis in range(3):
+                J[at[c + axis], rows, :3] = Rf[:, :, axis]
+                J[at[c + 3 + axis], rows, 3:] = Wt[:, :, axis]

@@ -102,9 +102,14 @@ class Views:
         twist Jacobian Jf (k, m, 6) (origin mm, rotation about the measuring frame's axes) at points
         p (m, 3) and frames (m, 4, 4); zeros at other rows."""
         _, Jpi, _, d = self.project(p, frames, jacobian=True)
-        R = frames[:, :3, :3]
-        moved = Jp - Jf[..., :3] + np.cross(d[None], Jf[..., 3:])  # ∂(p − t_c) + (p − t_c) × ∂ω_c
-        dpc = np.einsum("mji,kmj->kmi", R, moved)
+        # ∂e = −∂uv/∂p_c Rᵀ (∂p − ∂t_c + d × ∂ω_c), d = p − t_c: with A = ∂uv/∂p_c Rᵀ, a row a of A
+        # gives a·(d × w) = (a × d)·w, so ∂e = −A (∂p − ∂t_c) − B ∂ω_c, B's rows a × d: two (2 × 3)
+        # matrices a row, applied to every column at once
+        A = np.nan_to_num(Jpi) @ np.swapaxes(frames[:, :3, :3], 1, 2)
+        B = np.cross(A, d[:, None, :])
+        moved, turned = Jp - Jf[..., :3], Jf[..., 3:]
         out = np.zeros(Jp.shape)
-        out[..., :2] = -np.einsum("mab,kmb->kma", np.nan_to_num(Jpi), dpc)
-        return np.where(self.rows[None, :, None], out, 0.0)
+        for a in range(2):
+            out[..., a] = -(A[:, a, 0] * moved[..., 0] + A[:, a, 1] * moved[..., 1] + A[:, a, 2] * moved[..., 2]) \
+                - (B[:, a, 0] * turned[..., 0] + B[:, a, 1] * turned[..., 1] + B[:, a, 2] * turned[..., 2])
+        return out if self.only else np.where(self.rows[None, :, None], out, 0.0)
