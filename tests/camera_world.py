@@ -129,11 +129,26 @@ class Cell:
         return self.marker_in(lambda q: self.camera_pose(cam, q), q_all, name)
 
 
-def write_rows(rows, path: Path) -> Path:
-    n = len(rows[0][0])
-    lines = [",".join([f"q{i + 1}" for i in range(n)] + ["u", "v", "camera", "marker"])]
+def with_shared_bias(rows, rng: np.random.Generator, sigma: float):
+    """The rows with a detector bias (px, per image axis, σ ``sigma``) shared by every marker one camera
+    saw at one pose: what the model does not contain, and robocal must notice."""
+    bias: dict = {}
+    out = []
     for q, uv, cam, marker in rows:
-        lines.append(",".join([repr(float(x)) for x in q] + [repr(float(uv[0])), repr(float(uv[1])), cam, marker]))
+        key = (tuple(np.round(q, 9)), cam)
+        if key not in bias:
+            bias[key] = rng.normal(0.0, sigma, 2)
+        out.append((q, uv + bias[key], cam, marker))
+    return out
+
+
+def write_rows(rows, path: Path, session: str | None = None) -> Path:
+    n = len(rows[0][0])
+    lines = [",".join([f"q{i + 1}" for i in range(n)] + ["u", "v", "camera", "marker"]
+                      + (["session"] if session is not None else []))]
+    for q, uv, cam, marker in rows:
+        lines.append(",".join([repr(float(x)) for x in q] + [repr(float(uv[0])), repr(float(uv[1])), cam, marker]
+                              + ([session] if session is not None else [])))
     path.write_text("\n".join(lines) + "\n")
     return path
 

@@ -129,9 +129,10 @@ def _prior_draw(rng) -> dict:
     return out
 
 
-def _torso_cell(seed, tmp_path, n, deviations=None):
+def _torso_cell(seed, tmp_path, n, deviations=None, bias=0.0):
     """Two cameras on link 1 (a torso's), 300 mm apart, seeing 20 markers at a dodecahedron's
-    vertices (60 mm from its centre, 90 mm out from the flange) where they face the camera."""
+    vertices (60 mm from its centre, 90 mm out from the flange) where they face the camera; with
+    ``bias``, a detector bias (px) shared by the markers one camera saw at one pose."""
     rng = np.random.default_rng(seed)
     dev = _prior_draw(rng) if deviations is None else deviations
     g = independent.geometry("kr5-arc", dev)
@@ -141,6 +142,8 @@ def _torso_cell(seed, tmp_path, n, deviations=None):
     markers = cw.dodecahedron(60.0, centre=(0, 0, 90.0))
     cell = cw.Cell("kr5-arc", dev, cams, markers)
     rows = cell.observe(cw.poses("kr5-arc", n, rng, CENTRE, SPREAD_TORSO), rng, 0.5)
+    if bias:
+        rows = cw.with_shared_bias(rows, rng, bias)
     folder = tmp_path / f"torso{seed}"
     folder.mkdir()
     data = cw.write_rows(rows, folder / "rows.csv")
@@ -591,3 +594,35 @@ def test_a_camera_calibrations_export_loads_everywhere_and_reproduces_its_held_o
     program.write_text("DEF p()\n  PTP {A1 0, A2 -60, A3 90, A4 0, A5 30, A6 0}\nEND\n")
     code, _, err = run_cli("filter", export, program, "--nominal", "kr5-arc", "--out", tmp_path / "f.src", "-q")
     assert code in (0, 3), err
+
+
+def test_a_bias_a_poses_markers_share_is_found_and_counted_once(tmp_path):
+    """A detector bias of 1.5 px common to the markers one camera saw at one pose, beside 0.5 px of each
+    row's own: robocal notices and says both, and weighs the pose's rows as sharing it, so that the σ it
+    states of a new pose's marker is the spread of the truth over 30 robots drawn from the prior
+    (weighed as independent rows, the twelve markers of a pose would count their bias twelve times)."""
+    from robocal.model.parameters import ParameterSpace
+
+    zs, said = [], []
+    for draw in range(30):
+        cell, data, specs, markers, rng = _torso_cell(2000 + draw, tmp_path, 40, bias=1.5)
+        result = _calibrate("kr5-arc", data, *specs, markers=str(markers), params="all")
+        said += [n for n in result.notes if n.startswith("a pose's camera rows share an error")]
+        fresh = cw.poses("kr5-arc", 10, rng, CENTRE, SPREAD_TORSO)
+        space = ParameterSpace.of(result.robot, result.measurements.target_names)
+        index = space.index(result.names)
+        J = np.empty((30, len(index)))
+        for j, i in enumerate(index):
+            step = np.zeros(space.size)
+            step[i] = 1e-6
+            J[:, j] = ((_in_camera(space.apply(step), "left", fresh) - _in_camera(space.apply(-step), "left", fresh))
+                       / 2e-6).ravel()
+        sigma = np.sqrt(np.einsum("ij,jk,ik->i", J, result.covariance, J))
+        truth = cell.seen_from(cell.cameras[0], fresh, "m1").ravel()
+        zs.append((_in_camera(result.robot, "left", fresh).ravel() - truth) / sigma)
+    assert len(said) == 30
+    shared = [float(n.split("σ ")[1].split(" px")[0]) for n in said]
+    own = [float(n.split("pose, ")[1].split(" px")[0]) for n in said]
+    assert abs(np.mean(shared) - 1.5) < 0.15 and abs(np.mean(own) - 0.5) < 0.03, (np.mean(shared), np.mean(own))
+    z = np.concatenate(zs)
+    assert 0.8 <= np.std(z) <= 1.25, np.std(z)

@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..exceptions import Note
 from ..model.parameters import is_term
 from ..model.prior import prior_shares
 from .cameras import scale_note
@@ -49,8 +50,8 @@ class AtEstimate:
         if not self.dependent:
             return []
         pairs = "; ".join(f"{n} on {', '.join(r) or 'the others'}" for n, r in self.dependent.items())
-        if prior:
-            return [f"at the estimate the poses do not separate {pairs}: held by their prior"]
+        if prior:  # what the prior holds is said by name in the parameters table: a note, not a fault
+            return [Note(f"at the estimate the poses do not separate {pairs}: held by their prior")]
         return [f"at the estimate the poses do not separate {pairs}: the fit ended in a valley the data cannot "
                 "see, and those values are not measured (a prior would hold them: see --prior)"]
 

@@ -30,6 +30,7 @@ from .noise import NoiseEstimate
 from .problem import Setup
 from .registration import fit_frames
 from .screening import Screening, screen_outliers
+from .shared import weigh_shared
 from .subset import (
     Candidates,
     analyse_identifiability,
@@ -64,7 +65,7 @@ def register(inputs: Inputs, config: CalibrationConfig, spec: TermSpec = TermSpe
         settled = parent.estimate.problem.setup
         return Setup(ParameterSpace.of(parent.setup.space.robot, targets, spec), inputs.meas, settled.sigma_position,
                      settled.sigma_orientation, config.use_orientation, config.backend,
-                     settled.instrument).with_prior(prior)
+                     settled.instrument, shared=settled.shared).with_prior(prior)
     sigma_p, sigma_r = config.noise_model.initial()
     with stage("optimize"):
         if inputs.meas.views is not None:
@@ -181,6 +182,8 @@ def fit_parametric(inputs: Inputs, config: CalibrationConfig, spec: TermSpec,
             est, noise = reweigh(refined, config)
         est, noise, instrument = weigh_instrument(est, config, noise)
         est, noise, said = weigh_kinds(est, config, noise)
+        notes += said
+        est, noise, said = weigh_shared(est, config, noise)
         notes += said
         judged = judge(est, config, noise)
     return Fit(setup, candidates, ident, est, screening, noise, judged.goodness, judged.uncertainty,

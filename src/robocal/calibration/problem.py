@@ -36,6 +36,7 @@ from ..model.parameters import ParameterSpace, is_angle
 if TYPE_CHECKING:
     from ..model.prior import Prior
     from .instrument import InstrumentWeights
+    from .shared import SharedErrors
 
 #: default orientation weight k of the pose objective, mm²/rad², when no noise is stated: 1 rad
 #: counts as 100 mm, so 0.01° weighs like 0.017 mm, about the ratio of a laser tracker's
@@ -64,6 +65,8 @@ class Setup:
     backend: str = "auto"
     instrument: InstrumentWeights | None = None
     prior: np.ndarray | None = None
+    #: camera rows: the error a pose's rows in one camera share (:mod:`robocal.calibration.shared`)
+    shared: SharedErrors | None = None
 
     @property
     def full_pose(self) -> bool:
@@ -145,6 +148,8 @@ class Problem:
         self.views = self.meas.views
         # each camera row's camera in the space's order (the views' own follows the files)
         self._camera_index = None if self.views is None else self.views.indices(self.space.cameras)
+        # the whitening of what a pose's camera rows share (None: every row its own look)
+        self._shared = None if setup.shared is None or self.views is None else setup.shared.transform(self.meas)
         self._shapes = self._shape_pairs()
         self._frames_active = bool(np.any(self.active >= self.space.n_joint_params))
         self._backend = resolve(setup.backend)  # read once: ROBOCAL_NO_NUMBA as it is when the problem is set up
@@ -266,11 +271,21 @@ class Problem:
         """:meth:`errors` divided by each point's weight factor (the instrument's, relative):
         still mm and rad, and the same as :meth:`errors` where every point is weighed alike."""
         dp, dr = self.errors(X)
+        dp = self._decorrelated(dp)
         if self._fp is not None:
             dp = dp / self._fp
         if dr is not None and self._fr is not None:
             dr = dr / self._fr
         return dp, dr
+
+    def _decorrelated(self, values: np.ndarray) -> np.ndarray:
+        """Position-slot values (…, m, 3) with what a pose's camera rows share whitened (see
+        :mod:`robocal.calibration.shared`); as they are without it."""
+        if self._shared is None:
+            return values
+        from .shared import decorrelate
+
+        return decorrelate(self._shared, values)
 
     def objective(self, X: np.ndarray, kind: str = "sum_squares", *, backend: str | None = None) -> np.ndarray:
         """Objective of each candidate in X (P, k_active) → (P,); mm² or mm.
@@ -349,7 +364,7 @@ class Problem:
         """Whitened residual vector [δp/σp (3m), δ/σr (3m)] of one solution (k_active,): its
         squared norm is χ²."""
         dp, dr = self.errors(x)
-        out = [self._wp * dp.ravel()] + ([] if dr is None else [self._wr * dr.ravel()])
+        out = [self._wp * self._decorrelated(dp).ravel()] + ([] if dr is None else [self._wr * dr.ravel()])
         if self.n_shapes:
             out.append(self.shape_residuals(x) / self.meas.shape_sigma)
         if self.n_distances:
@@ -380,7 +395,7 @@ class Problem:
                                                          active=self.active)
             Jp = v.error_jacobian(Jc[:, :, :3], Jf, p, frames) if v.only else \
                 np.where(v.rows[None, :, None], v.error_jacobian(Jc[:, :, :3], Jf, p, frames), Jp)
-        out[:, : 3 * m] = self._wp * Jp.reshape(k, 3 * m)
+        out[:, : 3 * m] = self._wp * self._decorrelated(Jp).reshape(k, 3 * m)
         if self.n_distances:
             out[:, self.n_residuals - self.n_distances:] = c.distance_jacobian(Jc[:, :, :3], p) / c.distance_sigma
         if self.n_shapes:
