@@ -626,3 +626,48 @@ def test_a_bias_a_poses_markers_share_is_found_and_counted_once(tmp_path):
     assert abs(np.mean(shared) - 1.5) < 0.15 and abs(np.mean(own) - 0.5) < 0.03, (np.mean(shared), np.mean(own))
     z = np.concatenate(zs)
     assert 0.8 <= np.std(z) <= 1.25, np.std(z)
+
+
+def test_what_the_pixels_mean_at_the_markers_is_said_in_millimetres(tmp_path):
+    """Beside every figure in px: the error at the marker (pixel error × depth ÷ focal length, against
+    the independent cell's own depths) and the markers' predicted σ in their camera's frame (against
+    finite differences of the calibrated model through the posterior covariance)."""
+    from robocal.calibration.cameras import marker_sigma
+    from robocal.calibration.config import CalibrationConfig
+    from robocal.calibration.inputs import load_inputs
+    from robocal.calibration.parametric import fit_parametric, term_spec
+    from robocal.model.metrics import pixel_scale, pose_errors
+
+    cell, data, specs, markers, rng = _torso_cell(31, tmp_path, 40)
+    result = _calibrate("kr5-arc", data, *specs, markers=str(markers), params="all")
+    meas = result.measurements
+    left = np.flatnonzero(np.array(meas.camera) == "left")
+    depth = np.array([cell.seen_from(cell.cameras[0], meas.q[i:i + 1], meas.targets[i])[0, 2] for i in left])
+    scale = pixel_scale(result.robot, meas)[left]
+    np.testing.assert_allclose(scale, depth / 1100.5, rtol=2e-3)  # f = 1100 and 1100 × 1.002
+    after = result.metrics["after"]
+    e = np.linalg.norm(pose_errors(result.robot, meas)[0], axis=1)
+    mm = e * pixel_scale(result.robot, meas)
+    assert after.at_marker["rms"] == pytest.approx(float(np.sqrt(np.mean(mm ** 2))), rel=1e-9)
+    assert "mm at the markers" in result.headline_text()
+    # the σ in the camera's frame, analytic, against finite differences through the covariance
+    config = CalibrationConfig(cameras=specs, markers=str(markers), params="all")
+    inputs = load_inputs("kr5-arc", str(data), None, config, None)
+    fit = fit_parametric(inputs, config, term_spec((), inputs.meas, config))
+    problem = fit.estimate.problem
+    sigma = marker_sigma(problem, fit.estimate.x, fit.covariance)
+    space, at = problem.space, problem.full(fit.estimate.x)  # the covariance's own parameters: deviations
+    index = space.index(problem.names)
+    q, target = problem.meas.q[left[:8]], [problem.meas.targets[i] for i in left[:8]]
+
+    def seen(r):
+        T = r.camera_frames(["left"] * len(q), q)
+        return np.einsum("mji,mj->mi", T[:, :3, :3], r.positions(q, target) - T[:, :3, 3])
+
+    J = np.empty((8, 3, len(index)))
+    for j, i in enumerate(index):
+        step = np.zeros(space.size)
+        step[i] = 1e-6
+        J[:, :, j] = (seen(space.apply(at + step)) - seen(space.apply(at - step))) / 2e-6
+    expected = np.sqrt(np.einsum("mai,ij,maj->m", J, fit.covariance, J))
+    np.testing.assert_allclose(sigma[left[:8]], expected, rtol=1e-4)

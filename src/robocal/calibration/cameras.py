@@ -476,3 +476,25 @@ def scale_note(problem, x: np.ndarray, covariance: np.ndarray | None) -> str | N
         return (f"the pixels do not fix the scale: the lengths' common scale is held by their prior ({where}): "
                 "give markers of known offsets (--markers), or tracker rows")
     return Note(f"scale: from {' and '.join(sources)} ({where})")
+
+
+def marker_sigma(problem, x: np.ndarray, covariance: np.ndarray | None) -> np.ndarray | None:
+    """Each camera row's predicted σ (mm, rms radius) of its marker's position in its camera's frame,
+    from the posterior covariance of the estimate x: what the model knows of where the markers are
+    as the cameras see them (a joint's zero and a link camera's turn trade off, and only their sum
+    reaches the pixels: in the robot's base frame it is the prior that holds it).  None without a
+    covariance or camera rows."""
+    views = problem.views
+    if views is None or covariance is None or not np.all(np.isfinite(covariance)):
+        return None
+    full = problem.full(x)
+    meas = problem.meas
+    Jc, _, p = problem.space.jacobian_columns(full, meas.q, problem.target_idx, joints=problem.joints,
+                                              active=problem.active)
+    frames, Jf = problem.space.camera_frame_columns(full, meas.q, problem._camera_index, problem.joints,
+                                                    active=problem.active)
+    d = p - frames[:, :3, 3]
+    moved = Jc[..., :3] - Jf[..., :3] + np.cross(d[None], Jf[..., 3:])
+    dpc = np.einsum("mji,kmj->kmi", frames[:, :3, :3], moved)  # (k, m, 3) in the camera's axes
+    variance = np.einsum("kma,kl,lma->m", dpc, covariance, dpc)
+    return np.where(views.rows, np.sqrt(np.maximum(variance, 0.0)), np.nan)

@@ -9,7 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..model.measurements import Measurements
-from ..model.metrics import Metrics
+from ..model.metrics import Metrics, pixel_scale
 from .config import CalibrationConfig
 from .methods import fit_lm
 from .parametric import Fit
@@ -134,6 +134,8 @@ class CrossValidation:
     #: the rows the figures are of: every row, or those in mm where camera rows stand beside them
     keep: np.ndarray | None = None
     scheme: Scheme | None = None
+    #: camera rows: each row's mm per px at its marker with the whole data's model (None for others)
+    mm_per_px: np.ndarray | None = None
 
     @property
     def rms(self) -> float:
@@ -145,7 +147,7 @@ class CrossValidation:
         orientation = self.orientation
         if self.keep is not None:
             errors, orientation = errors[self.keep], None if orientation is None else orientation[self.keep]
-        return Metrics.from_errors(errors, orientation, self.unit)
+        return Metrics.from_errors(errors, orientation, self.unit, self.mm_per_px)
 
 
 def _pose_rows(problem, index: np.ndarray) -> np.ndarray:
@@ -223,8 +225,9 @@ def cross_validate(fit: Fit, config: CalibrationConfig, start: np.ndarray | None
             orientation[test] = dr
         estimates.append(x)
     mixed = meas.unit == "mm" and meas.camera is not None
+    scale = pixel_scale(fit.robot, meas) if meas.unit == "px" else None
     return CrossValidation(errors, index_sets, estimates, orientation, meas.unit, meas.length_rows if mixed else None,
-                           scheme(meas))
+                           scheme(meas), scale)
 
 
 def predict(fit: Fit, config: CalibrationConfig) -> tuple[CrossValidation, Metrics]:

@@ -39,6 +39,7 @@ from ..model.region import Region
 from ..model.robot import Robot
 from ..model.uncertainty import known_targets, predicted_sigma
 from ..optimize.result import Progress
+from . import cameras
 from .config import CalibrationConfig
 from .guard import guard
 from .inputs import load_inputs
@@ -142,7 +143,8 @@ def geometry_for_receivers(calibrated: Robot, geometric: Robot | None) -> Robot:
 
 
 def export_figures(calibrated: Robot, receiver: Robot, metrics: dict, meas: Measurements,
-                   validation: Measurements | None, geometry: Metrics | None, held_out: str) -> ExportFigures:
+                   validation: Measurements | None, geometry: Metrics | None, held_out: str,
+                   seen_sigma: float | None = None) -> ExportFigures:
     """The figures of the whole model and of what a URDF or a kinematics YAML carries of it
     (``receiver``, :func:`geometry_for_receivers`), on the validation poses when given, else
     predicted by cross-validation (``geometry``: the held-out figures of the receiver's part),
@@ -158,10 +160,14 @@ def export_figures(calibrated: Robot, receiver: Robot, metrics: dict, meas: Meas
         part = Metrics.of(receiver, meas)
     if geometric:
         part = whole
+    tool_sigma = None
+    if meas.unit == "px" and calibrated.region is not None and calibrated.region.sigma_mm is not None:
+        tool_sigma = calibrated.region.sigma_mm
     return ExportFigures(key, whole.position["rms"], whole.position["max"], part.position["rms"],
                          part.position["max"], geometric, held_out,
                          "the model's own" if receiver.geometry is calibrated.geometry or geometric
-                         else "the geometric calibration's", meas.unit)
+                         else "the geometric calibration's", meas.unit,
+                         None if whole.at_marker is None else whole.at_marker["rms"], tool_sigma, seen_sigma)
 
 
 def _validated(table, chosen: str, metrics) -> list:
@@ -209,8 +215,10 @@ def _calibrate(robot, data, validate, cfg: CalibrationConfig, columns, progress,
     receiver = geometry_for_receivers(calibrated, geometric)
     scheme = chosen.scheme
     held_out = "new poses" if scheme is None else f"{scheme.new} ({scheme.phrase})"
+    markers = None if est.problem.views is None else cameras.marker_sigma(est.problem, est.x, fit.covariance)
     exports = export_figures(calibrated, receiver, metrics, est.problem.meas, inputs.validation,
-                             chosen.geometric_prediction, held_out)
+                             chosen.geometric_prediction, held_out,
+                             None if markers is None else float(np.nanmedian(markers)))
     contact, seen = {}, {}
     for key, robot, data in (("before", initial, est.problem.meas), ("after", calibrated, est.problem.meas),
                              ("validation_before", initial, inputs.validation),

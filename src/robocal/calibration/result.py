@@ -119,6 +119,24 @@ class ExportFigures:
     geometry_of: str = "the model's own"
     #: the unit of the figures: mm, or px where every row is a camera's (the fields keep their names)
     unit: str = "mm"
+    #: camera rows: what the whole model's figure means at the tool: its reprojection RMS at the
+    #: markers (mm), and the markers' predicted position σ in the robot's frame (mm, the median over
+    #: the calibration poses)
+    at_marker_rms_mm: float | None = None
+    tool_sigma_mm: float | None = None
+    #: camera rows: the markers' predicted position σ in their camera's frame (mm, median over the rows)
+    seen_sigma_mm: float | None = None
+
+    @property
+    def at_tool(self) -> str:
+        """" (1.21 mm at the markers; their position known to σ 0.05 mm in the cameras' frame, 5.4 mm in the
+        robot's)", or "" where the figures are mm."""
+        said = [] if self.at_marker_rms_mm is None else [f"{self.at_marker_rms_mm:.3g} mm at the markers"]
+        known = ([] if self.seen_sigma_mm is None else [f"{self.seen_sigma_mm:.3g} mm in the cameras' frames"]) + \
+            ([] if self.tool_sigma_mm is None else [f"{self.tool_sigma_mm:.3g} mm in the robot's"])
+        if known:
+            said.append(f"their position known to σ {', '.join(known)}")
+        return f" ({'; '.join(said)})" if said else ""
 
     @property
     def where(self) -> str:
@@ -129,7 +147,7 @@ class ExportFigures:
     def sentence(self, path, sidecar=None) -> str:
         """What the file at ``path`` holds, and how accurate that is: "PATH: …", one line."""
         suffix = Path(path).suffix.lower()
-        whole = f"{self.whole_rms_mm:.4f} {self.unit} RMS {self.where}"
+        whole = f"{self.whole_rms_mm:.4f} {self.unit} RMS{self.at_tool} {self.where}"
         if suffix not in (".urdf", ".yaml", ".yml"):
             return f"{path}: the whole model, {whole}"
         whose = "" if self.geometry_of == "the model's own" else "the geometric calibration's "
@@ -151,7 +169,10 @@ class ExportFigures:
                                         "geometry_of": self.geometry_of,
                                         "held_by": ["URDF", "kinematics YAML (geometry only)"]},
                 "reaches_the_robot": "the whole model through robocal filter and compensate; a URDF or YAML "
-                                     "alone carries geometry and frames"}
+                                     "alone carries geometry and frames",
+                **({} if self.at_marker_rms_mm is None else {"at_marker_rms_mm": self.at_marker_rms_mm}),
+                **({} if self.tool_sigma_mm is None else {"marker_position_sigma_mm": self.tool_sigma_mm}),
+                **({} if self.seen_sigma_mm is None else {"marker_sigma_in_camera_mm": self.seen_sigma_mm})}
 
 
 @dataclass
@@ -292,6 +313,9 @@ class CalibrationResult:
         if unit == "px":
             what = "reprojection RMS"
         text = f"{what} {m.position['rms']:.4f} {unit}, max {m.position['max']:.4f} {unit} {label}"
+        if m.at_marker is not None:  # what the pixels mean at the tool
+            text = (f"{what} {m.position['rms']:.4f} {unit} ({m.at_marker['rms']:.3g} mm at the markers), max "
+                    f"{m.position['max']:.4f} {unit} {label}")
         if key != "after":
             text += f"; the fit itself {fit['rms']:.4f} {unit} (in-sample)"
         if not self.physical.physical:  # the figure is not the model: a controller loads the model
@@ -303,6 +327,8 @@ class CalibrationResult:
         ``position_max_mm`` too where it is a length)."""
         key, _, m = self.headline()
         out = {"figure": key, "unit": self.unit, "rms": m.position["rms"], "max": m.position["max"]}
+        if m.at_marker is not None:
+            out["at_marker_rms_mm"] = m.at_marker["rms"]
         if self.unit == "mm":
             out.update(position_rms_mm=m.position["rms"], position_max_mm=m.position["max"])
         return out

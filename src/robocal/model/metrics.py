@@ -40,6 +40,22 @@ def camera_frames(robot: Robot, meas: Measurements) -> np.ndarray:
     return out
 
 
+def pixel_scale(robot: Robot, meas: Measurements) -> np.ndarray:
+    """Each camera row's millimetres per pixel at its marker (m,): the marker's depth along its
+    camera's optical axis (mm, with ``robot``'s model) over the camera's focal length (px, the
+    mean of fx and fy); NaN at other rows.  A pixel error times it is the error at the marker,
+    across the camera's view."""
+    out = np.full(meas.n_poses, np.nan)
+    views = meas.views
+    if views is None:
+        return out
+    frames = camera_frames(robot, meas)
+    p = robot.positions(meas.q, meas.targets, meas.inputs)
+    depth = np.einsum("mj,mj->m", frames[:, :3, 2], p - frames[:, :3, 3])
+    focal = np.array([(c.fx + c.fy) / 2.0 for c in views.cameras] + [np.nan])[views.index]
+    return np.where(views.rows, depth / focal, np.nan)
+
+
 def camera_figures(robot: Robot, meas: Measurements) -> dict[str, float]:
     """The camera rows' reprojection RMS (px), over all of them and per camera (``…[NAME]``)."""
     dp, _ = pose_errors(robot, meas)
@@ -76,9 +92,15 @@ class Metrics:
     #: the unit of the position figures: mm, or px where every row is a camera's (the
     #: reprojection error: ``axis_max`` then holds u, v and a zero)
     unit: str = "mm"
+    #: camera rows: the reprojection error at the marker, mm (rms, mean, max: each row's pixel error
+    #: times its mm per px, :func:`pixel_scale`), None for other figures
+    at_marker: dict[str, float] | None = None
 
     @classmethod
-    def from_errors(cls, dp: np.ndarray, drot: np.ndarray | None = None, unit: str = "mm") -> Metrics:
+    def from_errors(cls, dp: np.ndarray, drot: np.ndarray | None = None, unit: str = "mm",
+                    mm_per_px: np.ndarray | None = None) -> Metrics:
+        """The figures of errors dp (m, 3) (and orientations (m, 3) rad); ``mm_per_px`` (m,): camera
+        rows' scale at their marker, which adds :attr:`at_marker`."""
         norm = np.linalg.norm(dp, axis=1)
         position = {"rms": float(np.sqrt(np.mean(norm**2))), **_stats(norm)}
         axis_max = {ax: float(np.abs(dp[:, k]).max()) for k, ax in enumerate("xyz")}
@@ -86,7 +108,12 @@ class Metrics:
         if drot is not None:
             deg = np.degrees(np.abs(drot))
             orientation = {ax: _stats(deg[:, k]) for k, ax in enumerate("xyz")}
-        return cls(len(dp), position, axis_max, orientation, unit)
+        at_marker = None
+        if mm_per_px is not None and unit == "px" and np.all(np.isfinite(mm_per_px)):
+            mm = norm * mm_per_px
+            at_marker = {"rms": float(np.sqrt(np.mean(mm ** 2))), "mean": float(np.mean(mm)),
+                         "max": float(np.max(mm))}
+        return cls(len(dp), position, axis_max, orientation, unit, at_marker)
 
     @classmethod
     def of(cls, robot: Robot, meas: Measurements) -> Metrics:
@@ -96,13 +123,17 @@ class Metrics:
         if meas.unit == "mm" and meas.camera is not None:
             keep = meas.length_rows
             dp, dr = dp[keep], None if dr is None else dr[keep]
-        return cls.from_errors(dp, dr, unit=meas.unit)
+        return cls.from_errors(dp, dr, unit=meas.unit,
+                               mm_per_px=pixel_scale(robot, meas) if meas.unit == "px" else None)
 
     def rows(self) -> list[tuple[str, float]]:
         """(label, value) pairs in the order tables show them (mm, deg)."""
         if self.unit == "px":
             out = [(f"reprojection {k} (px)", self.position[k]) for k in ("rms", "mean", "std", "max")]
-            return out + [(f"max |δ{ax}| (px)", self.axis_max[k]) for k, ax in zip("xy", "uv")]
+            out += [(f"max |δ{ax}| (px)", self.axis_max[k]) for k, ax in zip("xy", "uv")]
+            if self.at_marker is not None:  # what the pixels mean where the markers were
+                out += [(f"at the markers {k} (mm)", self.at_marker[k]) for k in ("rms", "max")]
+            return out
         out = [(f"position {k} (mm)", self.position[k]) for k in ("rms", "mean", "std", "max")]
         out += [(f"max |δp{ax}| (mm)", self.axis_max[ax]) for ax in "xyz"]
         if self.orientation is not None:
@@ -114,6 +145,8 @@ class Metrics:
         out = {"n": self.n, "position": dict(self.position), "axis_max": dict(self.axis_max)}
         if self.unit != "mm":
             out["unit"] = self.unit
+        if self.at_marker is not None:
+            out["at_marker_mm"] = dict(self.at_marker)
         if self.orientation is not None:
             out["orientation"] = {k: dict(v) for k, v in self.orientation.items()}
         return out
