@@ -59,7 +59,8 @@ def test_camera_rows_jacobian_is_its_finite_difference(rng, tmp_path):
     true, meas = _cell(rng, tmp_path)
     from dataclasses import replace
 
-    meas = replace(meas, shapes=(("m1", "m2", 70.0),))  # a known distance between the two markers' offsets
+    # a body of known shape: the two markers' offsets 70 mm apart (a rod: its placement takes 5 of their 6 values)
+    meas = replace(meas, shapes=((("m1", "m2"), np.array([[0.0, 0, 0], [70.0, 0, 0]])),))
     space = ParameterSpace.of(true, ("m1", "m2"))
     cameras = ("wall", "rider", "partner")
     assert {n for n in space.names if n.startswith("camera[")} == {f"camera[{c}]_{a}" for c in cameras
@@ -79,7 +80,9 @@ def test_camera_rows_jacobian_is_its_finite_difference(rng, tmp_path):
     rows = np.repeat(rider, 3)
     for name in ("base_x", "base_rz", "d1", "theta1"):
         assert np.abs(J[:len(rows)][rows, space.names.index(name)]).max() < 1e-9
-    # pixels: two values a row, and the known distance one
-    assert problem.n_shapes == 1 and problem.n_values == 2 * meas.n_poses + 1
+    # pixels: two values a row, and the rod's length one (its six residual rows less its placement's five)
+    assert problem.n_shapes == 6 and problem.n_values == 2 * meas.n_poses + 1
     d = np.linalg.norm(true.targets["m1"][:3, 3] - true.targets["m2"][:3, 3])
-    assert problem.residuals(np.zeros(space.size))[-1] == pytest.approx((d - 70.0) / meas.shape_sigma)
+    # each end is off the rod placed on them by half the length missed
+    assert np.linalg.norm(problem.residuals(np.zeros(space.size))[-6:]) == pytest.approx(
+        abs(d - 70.0) / np.sqrt(2) / meas.shape_sigma)

@@ -42,11 +42,16 @@ SQUARE_CORNERS = np.array([[-0.5, 0.5, 0.0], [0.5, 0.5, 0.0], [0.5, -0.5, 0.0], 
 @dataclass(frozen=True)
 class MarkerFile:
     """What a markers file says: the markers whose offsets are known (name → 4 × 4 on the flange) and
-    the known distances (mm) between markers whose offsets are not (a square of known size whose
-    place is unknown: its corners' sides and diagonals)."""
+    the bodies of known shape whose place is not (a square of known size, a board: their markers'
+    names and places (N, 3) mm in the body's own frame, :mod:`robocal.model.shapes`)."""
 
     points: dict
-    shapes: tuple[tuple[str, str, float], ...] = ()
+    shapes: tuple[tuple[tuple[str, ...], np.ndarray], ...] = ()
+
+    @property
+    def shaped(self) -> set[str]:
+        """The markers of the bodies whose place is unknown."""
+        return {n for names, _ in self.shapes for n in names}
 
 
 def load_markers(path: str) -> MarkerFile:
@@ -71,7 +76,7 @@ def load_markers(path: str) -> MarkerFile:
                          "(mm) for square markers, then body for markers of a body whose place is unknown",
                          source=path)
     out: dict[str, np.ndarray] = {}
-    shapes: list[tuple[str, str, float]] = []
+    shapes: list[tuple[tuple[str, ...], np.ndarray]] = []
     bodies: dict[str, dict[str, np.ndarray]] = {}
     named: set[str] = set()
     for line, row in enumerate(rows[1:], start=2):
@@ -101,9 +106,8 @@ def load_markers(path: str) -> MarkerFile:
             raise InputError(f"a marker's size must be > 0 mm, got {side:g}", source=path,
                              where=f"row {line}, column 'size'")
         corners = [f"{name}:{k}" for k in range(4)]
-        if free:  # its corners identified; their sides and diagonals known
-            shapes += [(corners[i], corners[j], float(side * np.linalg.norm(SQUARE_CORNERS[i] - SQUARE_CORNERS[j])))
-                       for i in range(4) for j in range(i + 1, 4)]
+        if free:  # its corners identified, held to the square of its size
+            shapes.append((tuple(corners), SQUARE_CORNERS * side))
             continue
         T = frame_from_values([*values[:3], *np.radians(values[3:6])])
         points = {name: T[:3, 3]}
@@ -114,9 +118,7 @@ def load_markers(path: str) -> MarkerFile:
         else:
             out.update({k: homogeneous(np.eye(3), v) for k, v in points.items()})
     for points in bodies.values():
-        names = list(points)
-        shapes += [(a, b, float(np.linalg.norm(points[a] - points[b]))) for i, a in enumerate(names)
-                   for b in names[i + 1:]]
+        shapes.append((tuple(points), np.array(list(points.values()))))
     if not named:
         raise InputError("names no marker", source=path)
     return MarkerFile(out, tuple(shapes))
@@ -182,7 +184,7 @@ def attach(nominal: Robot, meas: Measurements, config: CalibrationConfig) -> tup
     robot = nominal
     if config.markers is not None:
         markers = load_markers(config.markers)
-        named = set(markers.points) | {n for pair in markers.shapes for n in pair[:2]}
+        named = set(markers.points) | markers.shaped
         check_markers(meas, named | set(nominal.targets), f"no markers file ({config.markers})")
         robot = nominal.replace(targets={**nominal.targets, **markers.points})
         meas = replace(meas, shapes=markers.shapes)
@@ -253,7 +255,7 @@ def check_parts(parts: list[Measurements], config: CalibrationConfig, nominal: R
     named = set(nominal.targets)
     if config.markers is not None:
         markers = load_markers(config.markers)
-        named |= set(markers.points) | {n for pair in markers.shapes for n in pair[:2]}
+        named |= set(markers.points) | markers.shaped
     for part in seen:
         check_pixels(part, intrinsics)
         if config.markers is not None:

@@ -35,8 +35,8 @@ from ..model.parameters import ParameterSpace, is_angle
 
 if TYPE_CHECKING:
     from ..model.prior import Prior
+    from ..model.shared import SharedErrors
     from .instrument import InstrumentWeights
-    from .shared import SharedErrors
 
 #: default orientation weight k of the pose objective, mm²/rad², when no noise is stated: 1 rad
 #: counts as 100 mm, so 0.01° weighs like 0.017 mm, about the ratio of a laser tracker's
@@ -65,7 +65,7 @@ class Setup:
     backend: str = "auto"
     instrument: InstrumentWeights | None = None
     prior: np.ndarray | None = None
-    #: camera rows: the error a pose's rows in one camera share (:mod:`robocal.calibration.shared`)
+    #: camera rows: the error a pose's rows in one camera share (:mod:`robocal.model.shared`)
     shared: SharedErrors | None = None
 
     @property
@@ -150,7 +150,7 @@ class Problem:
         self._camera_index = None if self.views is None else self.views.indices(self.space.cameras)
         # the whitening of what a pose's camera rows share (None: every row its own look)
         self._shared = None if setup.shared is None or self.views is None else setup.shared.transform(self.meas)
-        self._shapes = self._shape_pairs()
+        self._shapes = self._shape_bodies()
         self._frames_active = bool(np.any(self.active >= self.space.n_joint_params))
         self._backend = resolve(setup.backend)  # read once: ROBOCAL_NO_NUMBA as it is when the problem is set up
         # 1/σ of each estimated parameter's prior (0 where free): one pseudo-observation x_i/σ_i each
@@ -191,43 +191,30 @@ class Problem:
         distance; the eliminated points and planes are counted apart (:attr:`n_nuisance`)."""
         planes = 0 if self.constraints is None else int(self.constraints.rows_of("plane").sum())
         pixels = 0 if self.views is None else int(self.views.rows.sum())  # u, v: two values
-        return self.n_residuals - 2 * planes - pixels
+        placed = 0 if self._shapes is None else self._shapes.n_placements  # a body's place: what it fits
+        return self.n_residuals - 2 * planes - pixels - placed
 
     @property
     def n_shapes(self) -> int:
-        """Known distances between two markers' identified offsets (:attr:`Measurements.shapes`)."""
-        return 0 if self._shapes is None else len(self._shapes[2])
+        """Rows that hold markers of known shape to it (:mod:`robocal.model.shapes`): three per marker."""
+        return 0 if self._shapes is None else self._shapes.n_values
 
-    def _shape_pairs(self):
-        """For each known distance between markers a and b: the positions in x of a's and b's offset
-        (x, y, z; −1 where not estimated), their nominal offsets (mm, flange frame) and the distance."""
-        shapes = [(a, b, d) for a, b, d in self.meas.shapes if a in self.space.targets and b in self.space.targets]
-        if not shapes:
+    def _shape_bodies(self):
+        """The bodies of markers of known shape among this problem's targets (None: none)."""
+        if not self.meas.shapes:
             return None
+        from ..model.parameters import tool_prefix
+        from ..model.shapes import Shapes
+
         where = {n: i for i, n in enumerate(self.active)}
         lookup = {n: i for i, n in enumerate(self.space.names)}
-        nominal = self.space.nominal_tools()[:, :3, 3]
-        from ..model.parameters import tool_prefix
-
-        def columns(t):
-            return [where.get(lookup.get(f"{tool_prefix(t)}_{ax}"), -1) for ax in "xyz"]
-
-        ia = np.array([columns(a) for a, _, _ in shapes])
-        ib = np.array([columns(b) for _, b, _ in shapes])
-        base = np.array([nominal[self.space.targets.index(a)] - nominal[self.space.targets.index(b)]
-                         for a, b, _ in shapes])
-        return ia, ib, np.array([d for _, _, d in shapes]), base
-
-    def _shape_offsets(self, X: np.ndarray) -> np.ndarray:
-        """(…, S, 3): each pair's offset difference a − b (mm, flange frame) at estimates X (…, k)."""
-        ia, ib, _, base = self._shapes
-        X = np.asarray(X, float)
-        take = np.concatenate([X, np.zeros(X.shape[:-1] + (1,))], axis=-1)  # index −1: not estimated, 0
-        return base + take[..., ia] - take[..., ib]
+        return Shapes.of(self.meas.shapes, self.space.targets, self.space.nominal_tools()[:, :3, 3],
+                         lambda t: [where.get(lookup.get(f"{tool_prefix(t)}_{ax}"), -1) for ax in "xyz"],
+                         self.meas.shape_sigma)
 
     def shape_residuals(self, X: np.ndarray) -> np.ndarray:
-        """(…, S) mm: each known distance between markers' offsets missed, |t_a − t_b| − D."""
-        return np.linalg.norm(self._shape_offsets(X), axis=-1) - self._shapes[2]
+        """(…, S) mm: each marker of a known shape off that shape placed where it fits them best."""
+        return self._shapes.residuals(X)
 
     @property
     def n_distances(self) -> int:
@@ -280,10 +267,10 @@ class Problem:
 
     def _decorrelated(self, values: np.ndarray) -> np.ndarray:
         """Position-slot values (…, m, 3) with what a pose's camera rows share whitened (see
-        :mod:`robocal.calibration.shared`); as they are without it."""
+        :mod:`robocal.model.shared`); as they are without it."""
         if self._shared is None:
             return values
-        from .shared import decorrelate
+        from ..model.shared import decorrelate
 
         return decorrelate(self._shared, values)
 
@@ -399,16 +386,8 @@ class Problem:
         if self.n_distances:
             out[:, self.n_residuals - self.n_distances:] = c.distance_jacobian(Jc[:, :, :3], p) / c.distance_sigma
         if self.n_shapes:
-            ia, ib, _, _ = self._shapes
-            d = self._shape_offsets(x)
-            u = d / np.maximum(np.linalg.norm(d, axis=-1, keepdims=True), 1e-300) / self.meas.shape_sigma
             first = self.n_residuals - self.n_distances - self.n_shapes
-            block = np.zeros((k + 1, self.n_shapes))  # row k: offsets not estimated
-            rows = np.arange(self.n_shapes)
-            for axis in range(3):
-                np.add.at(block, (ia[:, axis], rows), u[:, axis])
-                np.add.at(block, (ib[:, axis], rows), -u[:, axis])
-            out[:, first:first + self.n_shapes] = block[:k]
+            out[:, first:first + self.n_shapes] = self._shapes.jacobian(x, k)
         if self._Rm is not None:
             dr = orientation_error(self._Rm, R)
             w = np.ascontiguousarray(Jc[:, :, 3:])

@@ -57,9 +57,11 @@ class Measurements:
     pixels: np.ndarray | None = None
     camera: tuple[str, ...] | None = None
     intrinsics: Mapping[str, Camera] = field(default_factory=dict)
-    #: known distances (mm) between two markers whose offsets are identified: the sides and
-    #: diagonals of a square marker of known size whose place is unknown; shape_sigma their σ
-    shapes: tuple[tuple[str, str, float], ...] = ()
+    #: bodies of markers whose offsets are identified, each of a known shape: (its markers' names,
+    #: their places (N, 3) mm in the body's own frame); a square marker of known size, a board, a
+    #: marker cube whose place on the flange is unknown (:mod:`robocal.model.shapes`); shape_sigma:
+    #: how closely the markers keep it (mm)
+    shapes: tuple[tuple[tuple[str, ...], np.ndarray], ...] = ()
     shape_sigma: float = 0.05
     #: each row's session (any label), or None: one session.  Between sessions the instrument, the
     #: markers or the cameras may have moved: cross-validation holds out whole sessions
