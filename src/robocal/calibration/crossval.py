@@ -94,6 +94,32 @@ def scheme(meas: Measurements) -> Scheme:
     return Scheme("poses", k)
 
 
+#: a held-out session missed by more than this many times the fit's own RMS: the sessions disagree
+SESSIONS_DISAGREE = 1.5
+
+
+def sessions_disagree(meas: Measurements, held: np.ndarray, fitted: np.ndarray) -> str | None:
+    """A warning where whole sessions held out are predicted far worse than the fit leaves its rows
+    (:data:`SESSIONS_DISAGREE`): something the model shares between sessions moved between them (the
+    instrument, a camera, the markers), naming the sessions missed most; None otherwise.  held,
+    fitted: each row's held-out and in-sample errors (m, 3)."""
+    if len(meas.sessions) < 2:
+        return None
+    index = held_groups(meas)
+    rows = meas.length_rows if meas.unit == "mm" and meas.camera is not None else np.ones(meas.n_poses, bool)
+    out, inside = rms(held[rows]), rms(fitted[rows])
+    if not out > SESSIONS_DISAGREE * inside:
+        return None
+    labels = np.unique(np.asarray(meas.session, dtype=str))
+    per = sorted(((rms(held[rows & (index == g)]), labels[g]) for g in np.unique(index[rows])), reverse=True)
+    worst = ", ".join(f"{label} {value:.4g}" for value, label in per[:3])
+    unit = meas.unit
+    return (f"the sessions disagree: a session held out is missed by {out:.4g} {unit} RMS where the fit leaves "
+            f"{inside:.4g} {unit} (worst: {worst} {unit}): something the model takes as one for every session "
+            "moved between them (the instrument, a camera, the markers); calibrate the sessions apart, or "
+            "re-register the frames of each")
+
+
 def held_groups(meas: Measurements) -> np.ndarray:
     """The units a paired test of held-out errors pairs: sessions where the rows hold several
     (the poses of one session share its mounting: they are not independent looks), else poses."""

@@ -41,6 +41,7 @@ from ..model.uncertainty import known_targets, predicted_sigma
 from ..optimize.result import Progress
 from . import cameras
 from .config import CalibrationConfig
+from .crossval import sessions_disagree
 from .guard import guard
 from .inputs import load_inputs
 from .problem import warm_up
@@ -193,6 +194,10 @@ def _calibrate(robot, data, validate, cfg: CalibrationConfig, columns, progress,
     with blas_threads(min(inputs.meas.n_poses, MAX_POINTS)):
         chosen = guard(fit_model(inputs, cfg, progress, stages))
     notes = list(inputs.notes) + order_notes(chosen.fit, inputs.meas)
+    if chosen.held_errors is not None and chosen.scheme is not None and chosen.scheme.kind == "sessions":
+        est = chosen.fit.estimate
+        said = sessions_disagree(est.problem.meas, chosen.held_errors, est.problem.errors(est.x)[0])
+        notes += [] if said is None else [said]
     fit = chosen.fit
     notes += fit.notes + chosen.notes
     est, setup = fit.estimate, fit.setup

@@ -103,8 +103,10 @@ class Chosen:
     #: the geometric fit for the guard to fall back on; None for a model returned unchanged
     prediction: Metrics | None = None
     geometric_prediction: Metrics | None = None
-    #: how the held-out errors were made (:class:`~robocal.calibration.crossval.Scheme`)
+    #: how the held-out errors were made (:class:`~robocal.calibration.crossval.Scheme`), and the
+    #: chosen model's held-out errors of each row (m, 3)
     scheme: Scheme | None = None
+    held_errors: np.ndarray | None = None
 
     def budget(self, calibrated: Robot, validation: Measurements | None) -> list[BudgetRow]:
         """What each part of the model removes on the validation poses: position RMS (mm) of the
@@ -218,7 +220,7 @@ def fit_model(inputs: Inputs, config: CalibrationConfig, progress=None, stages=N
         return Chosen(model_name(terms), fit, residual, [] if choice is None else choice.rows,
                       notes=([] if choice is None else choice.notes) + said + spent_dof(fit, residual),
                       geometric=geometric, prediction=prediction, geometric_prediction=geometric_prediction,
-                      scheme=cv.scheme)
+                      scheme=cv.scheme, held_errors=cv.errors if not learned else candidate.errors)
     groups, poses = held_groups(meas), pose_groups(meas)
     # a learned correction corrects measured positions: rows that touched points or planes, and
     # camera rows (pixels), have none
@@ -371,6 +373,6 @@ def fit_model(inputs: Inputs, config: CalibrationConfig, progress=None, stages=N
         rows, notes = choice.rows + rows[1:], choice.notes + notes
     return Chosen(chosen.name, chosen.fit, residual, rows, notes + spent_dof(chosen.fit, residual),
                   geometric=candidates[0].fit, prediction=chosen_cv.metrics(chosen.errors),
-                  geometric_prediction=geometric_cv.metrics(), scheme=chosen_cv.scheme)
+                  geometric_prediction=geometric_cv.metrics(), scheme=chosen_cv.scheme, held_errors=chosen.errors)
 
 

@@ -54,10 +54,18 @@ def detect_cmd(
     if found.empty:
         print_warnings([f"no marker of {aruco} found in {len(found.empty)} of the {found.n_images} images: "
                         + ", ".join(found.empty[:10]) + (" …" if len(found.empty) > 10 else "")])
+    if found.degenerate:
+        print_warnings([f"{found.degenerate} detection(s) left out: their corners lie on one line (no square seen)"])
     if not quiet:
-        console().print(f"wrote {found.n_rows} rows ({len(found.markers)} markers' "
-                        f"{'centres' if centres else 'corners'} in {found.n_images - len(found.empty)} images) "
-                        f"to {out}", markup=False)
+        seen = found.n_images - len(found.empty)
+        if board is not None:
+            what = f"{len(found.markers)} of the board's corners"
+        else:
+            many = len(found.found) != 1
+            what = (f"{'the centres' if centres else 'the corners'} of {len(found.found)} marker{'s' * many} "
+                    f"({', '.join(map(str, found.found[:12]))}{' …' if len(found.found) > 12 else ''})")
+        console().print(f"wrote {found.n_rows} rows ({what}, in {seen} image{'s' * (seen != 1)}) to {out}",
+                        markup=False)
 
 
 def register(app: typer.Typer) -> None:

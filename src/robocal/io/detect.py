@@ -196,11 +196,15 @@ def find_markers(path: str | Path, found_by) -> dict[int, np.ndarray]:
     return {int(i): np.asarray(c, float).reshape(4, 2) + APRILTAG_SHIFT for i, c in zip(ids.ravel(), corners)}
 
 
-def centre(corners: np.ndarray) -> np.ndarray:
-    """The crossing of a square's projected diagonals: where its centre is seen (exact for a pinhole)."""
+def centre(corners: np.ndarray) -> np.ndarray | None:
+    """The crossing of a square's projected diagonals: where its centre is seen (exact for a pinhole);
+    None where they do not cross (a degenerate detection: its corners on one line)."""
     p0, p1, p2, p3 = corners
     d1, d2 = p2 - p0, p3 - p1
-    t = np.linalg.solve(np.column_stack([d1, -d2]), p1 - p0)[0]
+    A = np.column_stack([d1, -d2])
+    if not abs(np.linalg.det(A)) > 1e-9 * max(float(np.sum(d1 * d1) + np.sum(d2 * d2)), 1e-300):
+        return None
+    t = np.linalg.solve(A, p1 - p0)[0]
     return p0 + t * d1
 
 
@@ -212,7 +216,11 @@ class Detection:
     n_rows: int
     n_images: int
     empty: tuple[str, ...]
+    #: the rows' names (``ID:k`` corners, ``ID`` centres, ``C:k`` a board's corners)
     markers: tuple[str, ...]
+    #: the markers (ids) or board found, and the detections left out as degenerate
+    found: tuple[int, ...] = ()
+    degenerate: int = 0
 
 
 def detect_campaign(folder: str | Path, log: JointLog, camera: str, dictionary_name: str, *,
@@ -230,7 +238,7 @@ def detect_campaign(folder: str | Path, log: JointLog, camera: str, dictionary_n
     out = io.StringIO()
     w = csv.writer(out, lineterminator="\n")
     w.writerow(["pose_id", *(f"q{i + 1}" for i in range(n)), "u", "v", "camera", "marker"])
-    rows, empty, names = 0, [], set()
+    rows, empty, names, ids_found, degenerate = 0, [], set(), set(), 0
     for image, q, line in zip(log.images, log.q, log.rows):
         path = folder / image
         if not path.is_file():
@@ -246,8 +254,13 @@ def detect_campaign(folder: str | Path, log: JointLog, camera: str, dictionary_n
             if board is not None:
                 points = [(f"C:{marker_id}", corners)]
             else:
-                points = [(str(marker_id), centre(corners))] if centres else \
+                middle = centre(corners)
+                if middle is None:  # its corners on a line: no square was seen
+                    degenerate += 1
+                    continue
+                points = [(str(marker_id), middle)] if centres else \
                     [(f"{marker_id}:{k}", corners[k]) for k in range(4)]
+                ids_found.add(marker_id)
             for name, (u, v) in points:
                 w.writerow([pose, *(repr(float(x)) for x in q), repr(float(u)), repr(float(v)), camera, name])
                 names.add(name)
@@ -255,4 +268,5 @@ def detect_campaign(folder: str | Path, log: JointLog, camera: str, dictionary_n
     if not rows:
         raise InputError(f"no marker of dictionary {dictionary_name} found in any of its {len(log.images)} images",
                          source=log.source)
-    return Detection(out.getvalue(), rows, len(log.images), tuple(empty), tuple(sorted(names)))
+    return Detection(out.getvalue(), rows, len(log.images), tuple(empty), tuple(sorted(names)),
+                     tuple(sorted(ids_found)), degenerate)
