@@ -500,3 +500,17 @@ def marker_sigma(problem, x: np.ndarray, covariance: np.ndarray | None) -> np.nd
     dpc = np.einsum("mji,kmj->kmi", frames[:, :3, :3], moved)  # (k, m, 3) in the camera's axes
     variance = np.einsum("kma,kl,lma->m", dpc, covariance, dpc)
     return np.where(views.rows, np.sqrt(np.maximum(variance, 0.0)), np.nan)
+
+
+def coverage_note(meas: Measurements) -> Note | None:
+    """What part of each camera's image the rows covered (:meth:`robocal.model.views.Views.coverage`):
+    the lens model is the user's calibration, and these rows test it only where markers fell."""
+    found = meas.views.coverage() if meas.views is not None else {}
+    if not found:
+        return None
+    from ..model.views import COVERAGE_GRID
+
+    parts = ", ".join(f"{c!r} {100 * share:.0f} %" for c, (share, _) in found.items())
+    return Note(f"the markers fell in {parts} of the image{'s' * (len(found) > 1)} (cells of a "
+                f"{COVERAGE_GRID[0]} × {COVERAGE_GRID[1]} grid): the lens is untested where none fell, and the model "
+                "knows it only from its calibration file there")

@@ -81,6 +81,8 @@ def load_inputs(robot, data, validate, config: CalibrationConfig, columns=None) 
             val = val.with_distances(config.point_distance, config.distance_sigma)
     nominal, meas, said = cameras.attach(nominal, meas, config)
     notes += said
+    covered = cameras.coverage_note(meas)
+    notes += [] if covered is None else [covered]
     if val is not None and val.camera is not None and any(val.camera):  # the same cameras and markers, seen again
         val = replace(val, intrinsics=meas.intrinsics)
         cameras.check_pixels(val, meas.intrinsics)

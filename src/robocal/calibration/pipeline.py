@@ -168,7 +168,8 @@ def export_figures(calibrated: Robot, receiver: Robot, metrics: dict, meas: Meas
                          part.position["max"], geometric, held_out,
                          "the model's own" if receiver.geometry is calibrated.geometry or geometric
                          else "the geometric calibration's", meas.unit,
-                         None if whole.at_marker is None else whole.at_marker["rms"], tool_sigma, seen_sigma)
+                         None if whole.at_marker is None else whole.at_marker["rms"], tool_sigma, seen_sigma,
+                         bool(calibrated.cameras))
 
 
 def _validated(table, chosen: str, metrics) -> list:

@@ -126,6 +126,8 @@ class ExportFigures:
     tool_sigma_mm: float | None = None
     #: camera rows: the markers' predicted position σ in their camera's frame (mm, median over the rows)
     seen_sigma_mm: float | None = None
+    #: the model holds cameras' poses: a URDF or YAML has them not (a robot TOML beside a URDF has)
+    cameras: bool = False
 
     @property
     def at_tool(self) -> str:
@@ -153,6 +155,10 @@ class ExportFigures:
         whose = "" if self.geometry_of == "the model's own" else "the geometric calibration's "
         frames = f"{whose}joint geometry (its frames are in" if suffix != ".urdf" else \
             f"{whose}geometry and frames (the whole model is in"
+        if self.geometric and self.cameras:
+            beside = f"; the cameras' poses are in {sidecar}" if sidecar else \
+                "; the cameras' poses are in a robot TOML (export one too)"
+            return f"{path}: the geometry and frames, {whole}{beside}"
         if self.geometric:
             return f"{path}: the whole model (geometry and frames), {whole}"
         held = f"{frames} {sidecar or 'the robot TOML beside it'})"
@@ -521,7 +527,8 @@ class CalibrationResult:
         from ..io.urdf import urdf_text
 
         written, whole = [], None
-        if not self.robot.geometric:  # the sidecar first: the URDF alone would be an incomplete model
+        if not self.robot.geometric or self.robot.cameras:  # the sidecar first: the URDF alone would be an
+            # incomplete model (its joint terms, its cameras' poses)
             whole = path.with_name(f"{path.stem}.robocal.toml")
             written = save_robot(self.robot, whole, comment)
         probe = bool(self.contact)  # the tip link itself touched the points or planes: it is the tool

@@ -27,6 +27,8 @@ from .camera import Camera
 PIXEL = "px"
 #: the pixel a marker behind its camera is given (px): far off any image, finite
 BEHIND = 1.0e6
+#: the grid (columns, rows) an image is cut into to say what part of it the rows covered
+COVERAGE_GRID = (8, 6)
 
 
 @dataclass(frozen=True, eq=False)
@@ -47,6 +49,23 @@ class Views:
         lookup = {n: i for i, n in enumerate(names)}
         return cls(names, tuple(cameras[n] for n in names), np.array([lookup.get(c, -1) for c in labels], int),
                    np.asarray(pixels, float))
+
+    def coverage(self) -> dict[str, tuple[float, np.ndarray]]:
+        """Per camera (whose image size is stated), the share of its image the rows fell in and the
+        cells (rows × columns of :data:`COVERAGE_GRID`, True where a row fell): the lens is tested
+        only where markers were seen."""
+        columns, rows = COVERAGE_GRID
+        out = {}
+        for c, (name, camera) in enumerate(zip(self.names, self.cameras)):
+            uv = self.pixels[self.index == c]
+            if camera.width is None or camera.height is None or not len(uv):
+                continue
+            i = np.clip(((uv[:, 0] + 0.5) / camera.width * columns).astype(int), 0, columns - 1)
+            j = np.clip(((uv[:, 1] + 0.5) / camera.height * rows).astype(int), 0, rows - 1)
+            cells = np.zeros((rows, columns), bool)
+            cells[j, i] = True
+            out[name] = (float(cells.mean()), cells)
+        return out
 
     def indices(self, order: Sequence[str]) -> np.ndarray:
         """Each row's camera as an index into ``order`` (a parameter space's cameras; −1: not a

@@ -198,12 +198,19 @@ def residual_vs_joints(q: np.ndarray, errors: np.ndarray, title: str, bins: int 
     return fig
 
 
+def _round_down(value: float) -> float:
+    """The largest of 1, 2, 5 × a power of ten at most ``value`` (> 0)."""
+    power = 10 ** np.floor(np.log10(value))
+    return float(power * max(f for f in (1, 2, 5) if f * power <= value * (1 + 1e-12)))
+
+
 def image_planes(views: list[dict], title: str):
     """What each camera saw, on its image (px; y down as the image has it): each row's measured pixel
     coloured by the calibrated model's reprojection error, and that error drawn as an arrow from it,
-    magnified to be seen (the factor in each title).  views: per camera ``name``, ``width``,
-    ``height`` (None: not stated), ``uv`` (m, 2), ``before`` and ``after`` (m, 2) measured less
-    predicted pixels."""
+    magnified to be seen (a legend arrow says by how much); the image's cells no row fell in shaded
+    (the lens untested there).  views: per camera ``name``, ``width``, ``height`` (None: not stated),
+    ``uv`` (m, 2), ``before`` and ``after`` (m, 2) measured less predicted pixels, ``cells`` (the grid
+    of :meth:`robocal.model.views.Views.coverage`, or None)."""
     from matplotlib.figure import Figure
 
     n = len(views)
@@ -214,19 +221,33 @@ def image_planes(views: list[dict], title: str):
         norm = np.linalg.norm(after, axis=1)
         width = v["width"] or float(np.nanmax(uv[:, 0])) * 1.05
         height = v["height"] or float(np.nanmax(uv[:, 1])) * 1.05
+        cells = v.get("cells")
+        if cells is not None:  # the image's cells no marker fell in: the lens is untested there
+            rows_, columns = cells.shape
+            ax.imshow(~cells, extent=(-0.5, width - 0.5, height - 0.5, -0.5), cmap="Greys", vmin=0, vmax=4,
+                      interpolation="nearest", aspect="auto", zorder=0)
         typical = float(np.median(norm)) if norm.size else 0.0
-        gain = 10 ** np.floor(np.log10(0.03 * width / typical)) if typical > 0 else 1.0
+        # arrows a typical error long are about 5 % of the image wide: seen above the dots
+        gain = _round_down(0.07 * width / typical) if typical > 0 else 1.0
         vmax = robust_limit(norm)
-        sc = ax.scatter(uv[:, 0], uv[:, 1], c=np.minimum(norm, vmax), s=8, cmap="viridis", vmin=0.0, vmax=vmax)
-        ax.quiver(uv[:, 0], uv[:, 1], gain * after[:, 0], gain * after[:, 1], angles="xy", scale_units="xy", scale=1,
-                  width=0.002, color="tab:red", alpha=0.7)
+        sc = ax.scatter(uv[:, 0], uv[:, 1], c=np.minimum(norm, vmax), s=4, cmap="viridis", vmin=0.0, vmax=vmax,
+                        zorder=2)
+        shown = np.arange(len(uv)) if len(uv) <= 600 else np.random.default_rng(0).choice(len(uv), 600, False)
+        # (a sample of 600 where there are more: arrows on arrows hide what they show)
+        arrows = ax.quiver(uv[shown, 0], uv[shown, 1], gain * after[shown, 0], gain * after[shown, 1], angles="xy",
+                           scale_units="xy", scale=1, width=0.004, headwidth=3, color="tab:red", alpha=0.85, zorder=3)
+        if typical > 0:  # a legend arrow of a round length near the typical error
+            key = _round_down(typical)
+            ax.quiverkey(arrows, 0.80, 1.015, gain * key, f"{key:g} px error (drawn ×{gain:g})", labelpos="W",
+                         coordinates="axes", fontproperties={"size": 7})
         ax.plot([0, width, width, 0, 0], [0, 0, height, height, 0], color="black", lw=0.8)
         ax.set_xlim(-0.02 * width, 1.02 * width)
         ax.set_ylim(1.02 * height, -0.02 * height)
         ax.set_aspect("equal")
         rms = lambda e: float(np.sqrt(np.mean(np.sum(e * e, axis=1))))  # noqa: E731
-        ax.set_title(f"camera {v['name']}: {len(uv)} rows, RMS {rms(before):.3g} → {rms(after):.3g} px "
-                     f"(arrows ×{gain:g})", fontsize=9)
+        covered = "" if cells is None else f", {100 * cells.mean():.0f} % of the image covered"
+        ax.set_title(f"camera {v['name']}: {len(uv)} rows, RMS {rms(before):.3g} → {rms(after):.3g} px{covered}",
+                     fontsize=9, pad=14)
         ax.set_xlabel("u (px)")
         ax.set_ylabel("v (px)")
         fig.colorbar(sc, ax=ax, label="reprojection error after (px)", shrink=0.8)

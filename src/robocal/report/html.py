@@ -84,9 +84,11 @@ def _lead(result: CalibrationResult) -> str:
 
 
 def _summary(result: CalibrationResult, d: dict) -> str:
+    rows = f"{result.n_poses} camera rows" if result.unit == "px" else \
+        f"{result.n_poses} poses ({'full pose' if result.full_pose else 'position only'})"
     return (f"<p>Method <b>{html.escape(result.method)}</b> (objective {html.escape(d['objective'])}, seed "
-            f"{result.seed}), frames <code>{html.escape(result.frames)}</code>, {result.n_poses} poses "
-            f"({'full pose' if result.full_pose else 'position only'}) from <code>{html.escape(result.data)}</code>. "
+            f"{result.seed}), frames <code>{html.escape(result.frames)}</code>, {rows} "
+            f"from <code>{html.escape(result.data)}</code>. "
             f"Status: {html.escape(d['status'])} after {d['iterations']} iterations, {d['evaluations']} evaluations, "
             f"{d['time_s']:.2f} s.</p>")
 
@@ -202,9 +204,12 @@ def _exports(result: CalibrationResult) -> list[str]:
     e = result.exports
     if e is None:
         return []
+    cameras = (" The cameras' poses are in the robot TOML (<code>[cameras.NAME]</code>; beside a URDF, in the TOML "
+               "written with it), which <code>robocal evaluate --camera</code> reads." if result.robot.cameras else "")
     if e.geometric:
         return [f"<h2>What the exports hold</h2><p>The model is geometry and frames alone: a robot TOML, a URDF and "
-                f"a kinematics YAML carry all of it ({e.whole_rms_mm:.4f} {e.unit} RMS {html.escape(e.where)}).</p>"]
+                f"a kinematics YAML carry all of it ({e.whole_rms_mm:.4f} {e.unit} RMS{html.escape(e.at_tool)} "
+                f"{html.escape(e.where)}).{cameras}</p>"]
     own = e.geometry_of == "the model's own"
     return ["<h2>What the exports hold</h2><p>A robot TOML holds the whole model; a URDF or a kinematics YAML only "
             "geometry and frames" + ("" if own else ": the geometric calibration's, since the model's own geometry was "
@@ -475,13 +480,19 @@ def _camera_figures(result: CalibrationResult, where, label: str, after: np.ndar
     views = where.views
     before, _ = pose_errors(result.initial, where)
     now, _ = pose_errors(result.robot, where)
+    covered = views.coverage()
     drawn = [{"name": name, "width": camera.width, "height": camera.height, "uv": where.pixels[views.index == c],
-              "before": before[views.index == c, :2], "after": now[views.index == c, :2]}
-             for c, (name, camera) in enumerate(zip(views.names, views.cameras))]
+              "before": before[views.index == c, :2], "after": now[views.index == c, :2],
+              "cells": covered.get(name, (None, None))[1]}
+             for c, (name, camera) in enumerate(zip(views.names, views.cameras)) if np.any(views.index == c)]
+    shares = ", ".join(f"camera {html.escape(c)} {100 * share:.0f} %" for c, (share, _) in covered.items())
     parts = [f"<h2>What each camera saw</h2><p>Every {label} row on its camera's image: the measured pixel, coloured "
-             "by the calibrated model's reprojection error, and that error as an arrow (magnified, by the factor in "
-             "each title). Arrows that line up over a region are what the model leaves there (a lens the intrinsics do "
-             "not describe, a marker off its place); scattered arrows are the detection's noise.</p>",
+             "by the calibrated model's reprojection error, and that error as an arrow, magnified so that it can be "
+             "seen (the arrow above each image says how long an error it draws, and by how much). Arrows that line up "
+             "over a region are what the model leaves there (a lens the intrinsics do not describe, a marker off its "
+             "place); scattered arrows are the detection's noise."
+             + (f" The markers fell in {shares} of the image: the grey cells saw none, and there the lens is "
+                "untested — the model knows it only from its calibration file." if covered else "") + "</p>",
              _img(figures.image_planes(drawn, f"{label} rows after calibration"))]
     parts.append("<h2>Error against each joint angle</h2><p>The calibrated model's reprojection error against each "
                  "joint: a trend or a wave here is a joint effect geometry cannot take.</p>")
