@@ -286,3 +286,66 @@ def render_board(cell: Cell, cam: CellCamera, q: np.ndarray, pose: np.ndarray, b
     image = (alpha * warped + (1 - alpha) * image).round().astype(np.uint8)
     inside = np.all((uv[4:] > 5) & (uv[4:] < np.array(cam.size) - 5), axis=1)
     return image, [(np.degrees(q), uv[4 + k], cam.name, f"C:{k}") for k in np.flatnonzero(inside)]
+
+
+def prior_draw(robot: str, rng: np.random.Generator, limit: float = 2.0) -> dict:
+    """Deviations drawn from robocal's default prior (lengths 1 mm, twists 0.1°, zeros 1°, β 0.1° on parallel
+    axes), each within ±``limit`` of its σ (a truth the prior deems plausible)."""
+    def draw(sigma):
+        return float(np.clip(rng.normal(0.0, sigma), -limit * sigma, limit * sigma))
+
+    t = independent.TABLES[robot]
+    out = {f"beta{i + 1}": draw(np.radians(0.1)) for i in range(len(t) - 1) if abs(np.sin(np.radians(t[i][1]))) < 1e-9}
+    for i in range(1, len(t) + 1):
+        out[f"a{i}"], out[f"d{i}"] = draw(1.0), draw(1.0)
+        out[f"alpha{i}"], out[f"theta{i}"] = draw(np.radians(0.1)), draw(np.radians(1.0))
+    return out
+
+
+@dataclass
+class Sessions:
+    """A camera campaign over sessions (:func:`sessions`): the truth, the cameras as the files describe
+    them, the markers file's markers, each session's rows, and each session's true cell."""
+
+    deviations: dict
+    cameras: list[CellCamera]
+    markers: dict
+    rows: list[list]
+    cells: list[Cell]
+
+
+def sessions(robot: str, cameras: list[CellCamera], markers: dict, n_sessions: int, per_session: int,
+             rng: np.random.Generator, centre_deg, spread_deg, *, noise: float = 0.5, bias: float = 0.0,
+             remount_mm: float = 0.0, lens_px: float = 0.0) -> Sessions:
+    """Sessions of a camera campaign with what a model does not contain: the marker body remounted
+    between sessions (a rigid move of ``remount_mm`` mm RMS and 0.1° on the flange), a detector bias
+    (px) shared by the markers one camera saw at one pose, and each lens off its file's intrinsics
+    by ``lens_px`` px at the image's corners (its k1).  The truth is drawn from the prior."""
+    deviations = prior_draw(robot, rng)
+    true_cameras = []
+    for c in cameras:
+        corner = np.hypot(c.size[0] / 2, c.size[1] / 2) / c.K[0, 0]
+        dk1 = lens_px / (c.K[0, 0] * corner ** 3)
+        true_cameras.append(CellCamera(c.name, c.K, c.dist + np.array([dk1, 0, 0, 0, 0]), c.size, c.pose, c.link))
+    rows, cells = [], []
+    for _ in range(n_sessions):
+        from scipy.spatial.transform import Rotation
+
+        R = Rotation.from_rotvec(rng.normal(0.0, np.radians(0.1) / np.sqrt(3), 3)).as_matrix()
+        t = rng.normal(0.0, remount_mm / np.sqrt(3), 3)
+        moved = {k: (R @ p + t, None if n is None else R @ n) for k, (p, n) in markers.items()}
+        cell = Cell(robot, deviations, true_cameras, moved)
+        seen = cell.observe(poses(robot, per_session, rng, centre_deg, spread_deg), rng, noise)
+        rows.append(with_shared_bias(seen, rng, bias) if bias else seen)
+        cells.append(cell)
+    return Sessions(deviations, cameras, markers, rows, cells)
+
+
+def write_sessions(campaign: Sessions, which, path: Path) -> Path:
+    """The rows of sessions ``which`` in one file with a session column."""
+    lines = []
+    for s in which:
+        text = write_rows(campaign.rows[s], path, session=f"s{s}").read_text().splitlines()
+        lines += text[1:] if lines else text
+    path.write_text("\n".join(lines) + "\n")
+    return path
