@@ -671,3 +671,38 @@ def test_what_the_pixels_mean_at_the_markers_is_said_in_millimetres(tmp_path):
         J[:, :, j] = (seen(space.apply(at + step)) - seen(space.apply(at - step))) / 2e-6
     expected = np.sqrt(np.einsum("mai,ij,maj->m", J, fit.covariance, J))
     np.testing.assert_allclose(sigma[left[:8]], expected, rtol=1e-4)
+
+
+def test_the_image_example_detects_and_calibrates_to_the_pixels_it_was_drawn_from(tmp_path, run_cli):
+    """examples/cameras/render.py draws a planted cell's images through the wall camera's lens; detect and
+    calibrate as the guide shows, and the model from the images predicts the exact pixels the images
+    were drawn from within the detection's own noise."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    from robocal.io.measurements import load_measurements
+
+    root = Path(__file__).parents[2] / "examples" / "cameras"
+    cell = tmp_path / "cell"
+    done = subprocess.run([sys.executable, str(root / "render.py"), "--out", str(cell), "--poses", "40"],
+                          capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    code, out, err = run_cli("detect", cell / "images", "--joints", cell / "joints.csv", "--camera", "wall",
+                             "--aruco", "4X4_50", "--out", cell / "detected.csv")
+    assert code == 0, err
+    assert "the corners of 5 markers (1, 2, 3, 4, 5), in 40 images" in out
+    spec, markers = f"wall={root / 'wall.yaml'}", root / "markers.csv"
+    code, _, err = run_cli("calibrate", "kr5-arc", cell / "detected.csv", "--camera", spec, "--markers", markers,
+                           "--export", cell / "calibrated.toml", "-q")
+    assert code == 0, err
+    # the detection's noise: the detected corners against the exact ones
+    found, exact = (load_measurements(cell / f, n_joints=6) for f in ("detected.csv", "exact.csv"))
+    drawn = {(p, m): uv for p, m, uv in zip(exact.pose_ids, exact.targets, exact.pixels)}
+    miss = np.array([uv - drawn[(p, m)] for p, m, uv in zip(found.pose_ids, found.targets, found.pixels)])
+    noise = float(np.sqrt(np.mean(np.sum(miss ** 2, axis=1))))
+    code, stdout, err = run_cli("evaluate", cell / "calibrated.toml", cell / "exact.csv", "--camera", spec, "--json")
+    assert code == 0, err
+    figures = json.loads(stdout)
+    assert figures["position"]["rms"] < noise < 0.6, (figures["position"]["rms"], noise)
+    assert figures["at_marker_mm"]["rms"] < 0.5

@@ -169,7 +169,7 @@ def export_figures(calibrated: Robot, receiver: Robot, metrics: dict, meas: Meas
                          "the model's own" if receiver.geometry is calibrated.geometry or geometric
                          else "the geometric calibration's", meas.unit,
                          None if whole.at_marker is None else whole.at_marker["rms"], tool_sigma, seen_sigma,
-                         bool(calibrated.cameras))
+                         bool(calibrated.cameras), cameras.gauge(calibrated, meas) is not None)
 
 
 def _validated(table, chosen: str, metrics) -> list:

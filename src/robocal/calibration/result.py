@@ -128,6 +128,8 @@ class ExportFigures:
     seen_sigma_mm: float | None = None
     #: the model holds cameras' poses: a URDF or YAML has them not (a robot TOML beside a URDF has)
     cameras: bool = False
+    #: the measuring frame is a fixed camera's: the robot's frame is found in it, one σ says both
+    measured_in_camera: bool = False
 
     @property
     def at_tool(self) -> str:
@@ -135,7 +137,8 @@ class ExportFigures:
         robot's)", or "" where the figures are mm."""
         said = [] if self.at_marker_rms_mm is None else [f"{self.at_marker_rms_mm:.3g} mm at the markers"]
         known = ([] if self.seen_sigma_mm is None else [f"{self.seen_sigma_mm:.3g} mm in the cameras' frames"]) + \
-            ([] if self.tool_sigma_mm is None else [f"{self.tool_sigma_mm:.3g} mm in the robot's"])
+            ([] if self.tool_sigma_mm is None or self.measured_in_camera else [f"{self.tool_sigma_mm:.3g} mm in the "
+                                                                               "robot's"])
         if known:
             said.append(f"their position known to σ {', '.join(known)}")
         return f" ({'; '.join(said)})" if said else ""

@@ -225,6 +225,11 @@ def analyse_identifiability(setup: Setup, candidates: Candidates) -> tuple[Ident
     gauge = gauge_names(setup)
     probe = setup.problem(gauge + names)
     J = probe.residual_jacobian(np.zeros(probe.n_params))
+    if not np.all(np.isfinite(J)):  # a row the start cannot place (no analysis of NaN is an answer)
+        row = int(np.argmax(~np.all(np.isfinite(J), axis=1))) // 3
+        where = setup.meas.label(min(row, setup.meas.n_poses - 1))
+        raise InputError(f"the rows give no derivative at the nominal robot ({where}): check its joints, the "
+                         "robot file and, for camera rows, the camera's link and file", source=setup.meas.source)
     ident = analyse(J, gauge + names, probe.angle_mask, setup.meas.n_poses, setup.space.robot.reach(), prefer=gauge)
     ident, still = _still_reasons(setup, ident, gauge + names)
     if setup.meas.views is not None:  # on the Jacobian the analysis ended on: with still joints held still

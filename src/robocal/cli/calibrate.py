@@ -112,7 +112,9 @@ def calibrate_cmd(
                                "needed; tcp: the tool point alone, for rows that touched points or planes)"),
     seed: int = typer.Option(0, "--seed"),
     params: str | None = typer.Option(
-        None, "--params", help="candidate joint parameters: comma list, or wen2019 | kou2022 (default: all)"
+        None, "--params", help="candidate joint parameters: auto (every one; for camera rows chosen among frames, "
+        "zeros and all by held-out data), all, zeros (each joint's zero), frames (none), wen2019 | kou2022, or a "
+        "comma list (default: auto)"
     ),
     objective: str | None = typer.Option(None, "--objective", help="sum_squares | sum_norms (default: method's)"),
     noise: float | None = typer.Option(None, "--noise", help="measuring noise σ per axis, mm (default: estimated)"),
