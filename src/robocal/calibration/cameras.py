@@ -341,10 +341,15 @@ def gauge(robot: Robot, meas: Measurements | None = None) -> str | None:
 
 def register(robot: Robot, meas: Measurements) -> Robot:
     """Where each camera starts, with the nominal joints and the markers as the robot has them
-    (the flange point for an unknown one): from its rows' points and pixels
-    (:meth:`robocal.model.camera.Camera.pose_of`).  The first fixed camera's frame becomes the
-    measuring frame: the base is its pose's inverse; the other fixed cameras are placed in it."""
+    (the flange point for an unknown one, a body of known shape laid out as it about that point):
+    from its rows' points and pixels (:meth:`robocal.model.camera.Camera.pose_of`).  The first fixed
+    camera's frame becomes the measuring frame: the base is its pose's inverse; the other fixed
+    cameras are placed in it."""
     unknown = {t: robot.tool.copy() for t in meas.target_names if t and t not in robot.targets}
+    for names, template in meas.shapes:  # a body of known shape starts as its shape, about the tool point
+        for name, place in zip(names, np.asarray(template, float) - np.mean(template, axis=0)):
+            if name in unknown:
+                unknown[name] = robot.tool @ homogeneous(np.eye(3), place)
     robot = robot.replace(targets={**robot.targets, **unknown})
     tools = robot.tool_frames(meas.targets)
     views = meas.views

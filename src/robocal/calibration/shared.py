@@ -22,6 +22,24 @@ MAX_ROUNDS = 4
 NEGLIGIBLE = 1e-2
 
 
+def _refit(problem, x: np.ndarray, config: CalibrationConfig):
+    """The fit under new weights from x: the Gauss–Newton step where the problem is linear there (the
+    χ² it reaches is the χ² it predicts, within :data:`~robocal.calibration.noise.LINEAR_CHI2`: LM would
+    only confirm it), else LM."""
+    from ..optimize.result import OptimizeResult
+    from .noise import LINEAR_CHI2
+
+    r, J = problem.map_residuals(x), problem.map_jacobian(x)
+    step = np.linalg.lstsq(J, -r, rcond=None)[0]
+    predicted = float(np.sum((r + J @ step) ** 2))
+    reached = problem.map_residuals(x + step)
+    chi2 = float(reached @ reached)
+    if config.loss == "linear" and abs(chi2 - predicted) <= LINEAR_CHI2:
+        return OptimizeResult("gauss-newton", x + step, chi2, np.array([chi2]), 1, 1, "converged",
+                              "one Gauss–Newton step", 0.0)
+    return fit_lm(problem, x, config)
+
+
 def weigh_shared(est: Estimate, config: CalibrationConfig, noise: NoiseEstimate
                  ) -> tuple[Estimate, NoiseEstimate, list[str]]:
     """Camera rows: the share of their error a pose's rows in one camera have in common (ρ),
@@ -34,19 +52,23 @@ def weigh_shared(est: Estimate, config: CalibrationConfig, noise: NoiseEstimate
     found = estimate_ratio(problem.errors(est.x)[0], problem.meas)
     if found is None or found[0] < NEGLIGIBLE:
         return est, noise, []
-    ratio = found[0]
+    ratio, own = found[0], found[1]
+    stated = config.noise_model.position is not None
     for _ in range(MAX_ROUNDS):
-        setup = replace(problem.setup, shared=SharedErrors(ratio))
+        # the rows' own σ with the ratio (the whitened rows' scale, unless stated): the prior weighs
+        # against it; the σ is settled with the degrees of freedom the fit uses once ρ has settled
+        setup = replace(problem.setup, shared=SharedErrors(ratio),
+                        sigma_position=problem.setup.sigma_position if stated else own)
         problem = setup.problem(problem.names)
-        lm = fit_lm(problem, est.x, config)
+        lm = _refit(problem, est.x, config)
         est = Estimate(problem, est.optimization.then(lm, method=est.optimization.method, message=(
             f"{est.optimization.message}; a pose's camera rows weighed as sharing an error (ρ {ratio:.3g}): "
             f"{lm.message}"), history=est.optimization.history), lm.x, est.reexpression_gap_mm)
-        est, noise = reweigh(est, config)
         found = estimate_ratio(problem.errors(est.x)[0], problem.meas)
         if lm.status != "converged" or found is None or abs(found[0] / ratio - 1.0) <= SETTLED:
             break
-        ratio = max(found[0], NEGLIGIBLE)
+        ratio, own = max(found[0], NEGLIGIBLE), found[1]
+    est, noise = reweigh(est, config)
     _, own, common = found if found is not None else (ratio, float("nan"), float("nan"))
     n = np.bincount(groups_of(problem.meas)[groups_of(problem.meas) >= 0])
     return est, noise, [Note(f"a pose's camera rows share an error: σ {common:.3g} px common to the markers one camera "

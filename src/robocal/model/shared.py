@@ -25,18 +25,42 @@ from .measurements import Measurements
 
 def groups_of(meas: Measurements) -> np.ndarray:
     """Each row's group: the camera rows of one pose (its joints, or its pose_id) and one camera;
-    −1 for other rows."""
-    if meas.views is None:
-        return np.full(meas.n_poses, -1)
-    labels = np.array(meas.pose_ids, dtype=str) if meas.pose_ids is not None else \
-        np.unique(np.round(meas.q, 9), axis=0, return_inverse=True)[1].ravel().astype(str)
-    pose = np.unique(labels, return_inverse=True)[1].ravel()
-    camera = meas.views.index
-    key = np.where(camera >= 0, pose * (len(meas.views.names) + 1) + camera, -1)
+    −1 for other rows (worked out once a set of rows)."""
+    cached = meas.__dict__.get("_shared_groups")
+    if cached is not None:
+        return cached
     out = np.full(meas.n_poses, -1)
-    seen = key >= 0
-    out[seen] = np.unique(key[seen], return_inverse=True)[1].ravel()
+    if meas.views is not None:
+        labels = np.array(meas.pose_ids, dtype=str) if meas.pose_ids is not None else \
+            np.unique(np.round(meas.q, 9), axis=0, return_inverse=True)[1].ravel()
+        pose = np.unique(labels, return_inverse=True)[1].ravel()
+        camera = meas.views.index
+        key = np.where(camera >= 0, pose * (len(meas.views.names) + 1) + camera, -1)
+        seen = key >= 0
+        out[seen] = np.unique(key[seen], return_inverse=True)[1].ravel()
+    object.__setattr__(meas, "_shared_groups", out)
     return out
+
+
+@dataclass(frozen=True)
+class Whitening:
+    """W_g of :mod:`robocal.model.shared` for a set of rows: each group's rows in ``order``
+    (contiguous from ``starts``), and each row's c_g/n_g (0 for rows in no group)."""
+
+    order: np.ndarray
+    starts: np.ndarray
+    group: np.ndarray
+    shrink: np.ndarray
+
+    def apply(self, values: np.ndarray) -> np.ndarray:
+        """``values`` (…, m, d) less each row's c_g/n_g times its group's sum (along the rows' axis)."""
+        v = np.moveaxis(np.asarray(values, float), -2, 0)  # (m, …)
+        flat = v.reshape(v.shape[0], -1)
+        sums = np.add.reduceat(flat[self.order], self.starts[:-1], axis=0)  # (G, …)
+        rows = self.group >= 0
+        out = flat.copy()
+        out[rows] -= self.shrink[rows, None] * sums[self.group[rows]]
+        return np.moveaxis(out.reshape(v.shape), 0, -2)
 
 
 @dataclass(frozen=True)
@@ -45,36 +69,24 @@ class SharedErrors:
 
     ratio: float
 
-    def transform(self, meas: Measurements):
-        """The sparse (m, m) matrix I − S that whitens the rows' shared error (up to 1/σ_ε), S
-        holding c_g/n_g within each group (:mod:`robocal.calibration.shared`)."""
-        from scipy import sparse
-
+    def transform(self, meas: Measurements) -> Whitening | None:
+        """The whitening I − S of the rows' shared error (up to 1/σ_ε), S holding c_g/n_g within each
+        group (:mod:`robocal.model.shared`); None where no row is in a group."""
         g = groups_of(meas)
         rows = np.flatnonzero(g >= 0)
+        if not rows.size:
+            return None
         n = np.bincount(g[rows])
         c = 1.0 - 1.0 / np.sqrt(1.0 + n * self.ratio)
         order = rows[np.argsort(g[rows], kind="stable")]
-        starts = np.concatenate([[0], np.cumsum(n)])
-        i, j = [], []
-        for k in range(len(n)):  # a group's rows, every pair
-            members = order[starts[k]:starts[k + 1]]
-            i.append(np.repeat(members, len(members)))
-            j.append(np.tile(members, len(members)))
-        i, j = np.concatenate(i), np.concatenate(j)
-        values = -(c / n)[g[i]]
-        m = meas.n_poses
-        return sparse.identity(m, format="csr") + sparse.csr_matrix((values, (i, j)), shape=(m, m))
+        shrink = np.zeros(meas.n_poses)
+        shrink[rows] = (c / n)[g[rows]]
+        return Whitening(order, np.concatenate([[0], np.cumsum(n)]), g, shrink)
 
 
-def decorrelate(M, values: np.ndarray) -> np.ndarray:
-    """``values`` (…, m, d) with M (m, m) applied along the rows' axis."""
-    if M is None:
-        return values
-    v = np.asarray(values)
-    moved = np.moveaxis(v, -2, 0)
-    out = M @ moved.reshape(moved.shape[0], -1)
-    return np.moveaxis(np.asarray(out).reshape(moved.shape), 0, -2)
+def decorrelate(M: Whitening | None, values: np.ndarray) -> np.ndarray:
+    """``values`` (…, m, d) whitened by M along the rows' axis (as they are without one)."""
+    return values if M is None else M.apply(values)
 
 
 def estimate_ratio(errors: np.ndarray, meas: Measurements) -> tuple[float, float, float] | None:
