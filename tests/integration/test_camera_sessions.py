@@ -54,6 +54,10 @@ def test_the_defaults_stay_physical_and_predict_held_out_sessions_as_the_truth_d
                                    validate=str(held))
     said = " ".join(result.notes + result.warnings)
     assert result.physical.physical and "not physical" not in said
+    # the torso never moves: what its cameras cannot tell from joint 2's zero and offset is held by their
+    # prior, the cameras' own frames kept (dropping them would hand their share to d2 and θ2)
+    assert not [n for n in result.identifiability.dropped if n.startswith("camera[")]
+    assert {"theta2", "d2"} <= set(result.held)
     assert result.cross_validation.kind == "sessions" and result.cross_validation.k == 8
     assert "predicted on a new session (leave-one-session-out, 8 sessions)" in result.headline_text() or \
         "validation" in result.headline()[0]
