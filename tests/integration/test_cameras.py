@@ -193,12 +193,29 @@ def test_two_cameras_on_a_link_seeing_a_dodecahedron_predict_new_poses_in_millim
     assert np.sqrt(np.mean(np.sum(ours ** 2, axis=1))) < 0.5
 
 
+def _z_scores(cell, result, fresh) -> np.ndarray:
+    """The calibrated model's marker m1 in the left camera's frame at joints ``fresh``, less the truth,
+    over its σ from the posterior covariance (by finite differences here, through the calibrated model's
+    own parameter space)."""
+    from robocal.model.parameters import ParameterSpace
+
+    space = ParameterSpace.of(result.robot, result.measurements.target_names)
+    index = space.index(result.names)
+    J = np.empty((3 * len(fresh), len(index)))
+    for j, i in enumerate(index):
+        step = np.zeros(space.size)
+        step[i] = 1e-6
+        J[:, j] = ((_in_camera(space.apply(step), "left", fresh) - _in_camera(space.apply(-step), "left", fresh))
+                   / 2e-6).ravel()
+    sigma = np.sqrt(np.einsum("ij,jk,ik->i", J, result.covariance, J))
+    truth = cell.seen_from(cell.cameras[0], fresh, "m1").ravel()
+    return (_in_camera(result.robot, "left", fresh).ravel() - truth) / sigma
+
+
 def test_the_sigma_of_a_camera_calibration_is_the_spread_over_50_draws(tmp_path):
     """Robots drawn from the prior, pixels with 0.5 px noise: the predicted marker in the left camera's
     frame at new poses, less the truth, over its σ from the posterior covariance (by finite
     differences here, through the calibrated model's own parameter space)."""
-    from robocal.model.parameters import ParameterSpace
-
     zs = []
     for draw in range(50):
         cell, data, specs, markers, rng = _torso_cell(1000 + draw, tmp_path, 40)
@@ -208,18 +225,7 @@ def test_the_sigma_of_a_camera_calibration_is_the_spread_over_50_draws(tmp_path)
         if draw == 0:
             default = _calibrate("kr5-arc", data, *specs, markers=str(markers))
             assert any(n.startswith("parameters auto: all,") for n in default.notes) and default.names == result.names
-        fresh = cw.poses("kr5-arc", 10, rng, CENTRE, SPREAD_TORSO)
-        space = ParameterSpace.of(result.robot, result.measurements.target_names)
-        index = space.index(result.names)
-        J = np.empty((30, len(index)))
-        for j, i in enumerate(index):
-            step = np.zeros(space.size)
-            step[i] = 1e-6
-            J[:, j] = ((_in_camera(space.apply(step), "left", fresh) - _in_camera(space.apply(-step), "left", fresh))
-                       / 2e-6).ravel()
-        sigma = np.sqrt(np.einsum("ij,jk,ik->i", J, result.covariance, J))
-        truth = cell.seen_from(cell.cameras[0], fresh, "m1").ravel()
-        zs.append((_in_camera(result.robot, "left", fresh).ravel() - truth) / sigma)
+        zs.append(_z_scores(cell, result, cw.poses("kr5-arc", 10, rng, CENTRE, SPREAD_TORSO)))
     z = np.concatenate(zs)
     assert 0.8 <= np.std(z) <= 1.25, np.std(z)
 
@@ -606,25 +612,12 @@ def test_a_bias_a_poses_markers_share_is_found_and_counted_once(tmp_path):
     row's own: robocal notices and says both, and weighs the pose's rows as sharing it, so that the σ it
     states of a new pose's marker is the spread of the truth over 30 robots drawn from the prior
     (weighed as independent rows, the twelve markers of a pose would count their bias twelve times)."""
-    from robocal.model.parameters import ParameterSpace
-
     zs, said = [], []
     for draw in range(30):
         cell, data, specs, markers, rng = _torso_cell(2000 + draw, tmp_path, 40, bias=1.5)
         result = _calibrate("kr5-arc", data, *specs, markers=str(markers), params="all")
         said += [n for n in result.notes if n.startswith("a pose's camera rows share an error")]
-        fresh = cw.poses("kr5-arc", 10, rng, CENTRE, SPREAD_TORSO)
-        space = ParameterSpace.of(result.robot, result.measurements.target_names)
-        index = space.index(result.names)
-        J = np.empty((30, len(index)))
-        for j, i in enumerate(index):
-            step = np.zeros(space.size)
-            step[i] = 1e-6
-            J[:, j] = ((_in_camera(space.apply(step), "left", fresh) - _in_camera(space.apply(-step), "left", fresh))
-                       / 2e-6).ravel()
-        sigma = np.sqrt(np.einsum("ij,jk,ik->i", J, result.covariance, J))
-        truth = cell.seen_from(cell.cameras[0], fresh, "m1").ravel()
-        zs.append((_in_camera(result.robot, "left", fresh).ravel() - truth) / sigma)
+        zs.append(_z_scores(cell, result, cw.poses("kr5-arc", 10, rng, CENTRE, SPREAD_TORSO)))
     assert len(said) == 30
     shared = [float(n.split("σ ")[1].split(" px")[0]) for n in said]
     own = [float(n.split("pose, ")[1].split(" px")[0]) for n in said]
