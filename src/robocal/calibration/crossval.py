@@ -76,6 +76,11 @@ class Scheme:
                 "blocks": f"{self.k}-fold cross-validation by blocks of the rows' order",
                 "poses": f"{self.k}-fold cross-validation of the calibration poses"}[self.kind]
 
+    @property
+    def held_out(self) -> str:
+        """What a held-out figure predicts, and how: "a new session (leave-one-session-out, 10 sessions)"."""
+        return f"{self.new} ({self.phrase})"
+
     def to_dict(self) -> dict:
         return {"kind": self.kind, "folds": self.k, "predicts": self.new, "description": self.phrase}
 

@@ -220,7 +220,7 @@ def _calibrate(robot, data, validate, cfg: CalibrationConfig, columns, progress,
     geometric = None if chosen.geometric is None or chosen.geometric is fit else chosen.geometric.robot
     receiver = geometry_for_receivers(calibrated, geometric)
     scheme = chosen.scheme
-    held_out = "new poses" if scheme is None else f"{scheme.new} ({scheme.phrase})"
+    held_out = "new poses" if scheme is None else scheme.held_out
     markers = None if est.problem.views is None else cameras.marker_sigma(est.problem, est.x, fit.covariance)
     exports = export_figures(calibrated, receiver, metrics, est.problem.meas, inputs.validation,
                              chosen.geometric_prediction, held_out,

@@ -259,8 +259,7 @@ class CalibrationResult:
         """What the cross-validated figure predicts, and how: "a new session (leave-one-session-out,
         10 sessions)"."""
         s = self.cross_validation
-        return "new poses (5-fold cross-validation of the calibration poses)" if s is None else \
-            f"{s.new} ({s.phrase})"
+        return "new poses (5-fold cross-validation of the calibration poses)" if s is None else s.held_out
 
     @property
     def selection_title(self) -> str:
