@@ -203,3 +203,33 @@ def test_widths_from_the_robot_file_and_the_command_line(tmp_path, run_cli):
     typo.write_text(ind.robot_toml("ur5", {}) + "[prior]\nlenght = 1.0\n")
     code, _, err = run_cli("calibrate", typo, data)
     assert code == 2 and "[prior]" in err and "lenght" in err
+
+
+def test_a_stated_noise_too_small_never_widens_a_parameter_beyond_its_prior(tmp_path, run_cli):
+    """The UR5 wrist measured with 0.02 mm noise, stated as 0.005 (4× too small): the data's information
+    is scaled by the reduced χ² it shows, the prior's counted once, so no posterior σ is wider than its
+    prior width (the old s·(JᵀJ + P)⁻¹ put a5 at ±3.5 mm against its 1 mm prior); χ²'s p-value is printed
+    only where σ was stated, and a width no computer can weigh is refused on one line."""
+    truth = _prior_truth(np.random.default_rng(8))
+    meas = _wrist_campaign(300, 9, truth)
+    res, said = _fit(_ur5(), meas, noise=0.005)
+    assert res.goodness_of_fit.reduced_chi2 > 10  # the misfit is said, and the σ scaled
+    assert any(s.startswith("model misfit") for s in said)
+    prior = res.prior_sigma
+    held = np.isfinite(prior)
+    assert np.all(res.uncertainty[held] <= prior[held] * (1 + 1e-9)), \
+        {n: (u, p) for n, u, p in zip(res.names, res.uncertainty, prior) if u > p}
+    assert "p_value" in res.to_dict()["goodness_of_fit"]
+    estimated, _ = _fit(_ur5(), meas)
+    assert "p_value" not in estimated.to_dict()["goodness_of_fit"]
+    from robocal.report.tables import noise_line
+
+    assert ", p " in noise_line(res) and ", p " not in noise_line(estimated)
+    data = tmp_path / "wrist.csv"
+    from robocal.io.measurements import save_measurements
+
+    save_measurements(meas, data)
+    robot = tmp_path / "ur5.toml"
+    robot.write_text(ind.robot_toml("ur5", {}))
+    code, _, err = run_cli("calibrate", robot, data, "--joint-unit", "rad", "--prior", "a5=1e-160")
+    assert code == 2 and len(err.strip().splitlines()) == 1 and "below 1e-06" in err and "Traceback" not in err

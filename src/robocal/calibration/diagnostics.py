@@ -48,8 +48,10 @@ class GoodnessOfFit(ChiSquared):
         return self.noise_source == "stated" and self.dof > 0 and self.chi2 > chi2_quantile(MISFIT_QUANTILE, self.dof)
 
     def to_dict(self) -> dict:
-        return {"chi2": self.chi2, "dof": self.dof, "reduced_chi2": self.reduced_chi2, "p_value": self.p_value,
-                "noise_source": self.noise_source}
+        """χ², its degrees of freedom and reduced value; its p-value only where σ was stated (where σ
+        is estimated from the same fit, χ² equals its dof by construction and tests nothing)."""
+        out = {"chi2": self.chi2, "dof": self.dof, "reduced_chi2": self.reduced_chi2, "noise_source": self.noise_source}
+        return {**out, "p_value": self.p_value} if self.noise_source == "stated" else out
 
 
 def goodness_of_fit(problem: Problem, x: np.ndarray, noise_source: str,

@@ -87,8 +87,10 @@ def judge(est: Estimate, config: CalibrationConfig, noise: NoiseEstimate) -> Jud
     The covariance is the posterior's, (JᵀJ + P)⁻¹ from the whitened Jacobian at the solution and
     the prior's information P (zero where free); the parameters' effective number tr H =
     k − Σ h_i (h_i the prior's share of parameter i) is what the data's degrees of freedom lose.
-    With stated noise and a fit worse than it (reduced χ² > 1) uncertainties are scaled by the
-    reduced χ², which is then said; with estimated noise the reduced χ² is 1 by construction.
+    With stated noise and a fit worse than it (reduced χ² = s > 1) the data's σ is taken as √s
+    times the stated one: their information is JᵀJ/s, the prior's stays P, and the posterior is
+    (JᵀJ/s + P)⁻¹ (never wider than the prior), which is then said; with estimated noise s is 1
+    by construction.
     """
     problem, x = est.problem, est.x
     inverse = shares = None
@@ -103,7 +105,13 @@ def judge(est: Estimate, config: CalibrationConfig, noise: NoiseEstimate) -> Jud
     cov = None
     if config.least_squares and gof.dof > 0:
         scale = gof.reduced_chi2 if noise.source == "estimated" else max(1.0, gof.reduced_chi2)
-        cov = scale * inverse
+        if problem.has_prior:  # the data's information scaled, the prior's counted once
+            J = problem.residual_jacobian(x)
+            # (the prior's share stays the leverage its pseudo-observations had in the fit, as weighed there:
+            # the degrees of freedom χ² is judged on are those of that fit)
+            cov = covariance(information=J.T @ J / scale + problem.prior_information())
+        else:
+            cov = scale * inverse
     if gof.misfit():
         notes.append(misfit_message(gof, joint_patterns(problem, x))
                      + (f"; uncertainties scaled by √χ²ᵣ = {np.sqrt(gof.reduced_chi2):.3g}" if cov is not None else ""))

@@ -233,6 +233,12 @@ def unknown_names(prior: Prior, geometry_names, n_joints: int) -> list[str]:
     return out
 
 
+#: the narrowest width a prior may state (mm or deg): a thousandth of a micrometre or of a degree's
+#: millionth is below anything a calibration can weigh, and its inverse square (the information it
+#: adds) would swamp the data's by more digits than a double holds
+MIN_WIDTH = 1e-6
+
+
 def _width(value, key: str) -> float:
     if isinstance(value, str) and value.strip().lower() in ("free", "inf", "none"):
         return math.inf
@@ -242,6 +248,10 @@ def _width(value, key: str) -> float:
         raise ValueError(f"{key}: expected a width > 0 or 'free', got {value!r}") from None
     if math.isnan(width) or width <= 0:
         raise ValueError(f"{key}: expected a width > 0 or 'free', got {value!r}")
+    if width < MIN_WIDTH:
+        raise ValueError(f"{key}: a width of {value!r} is below {MIN_WIDTH:g} (mm or deg): it holds the parameter "
+                         "fixed where a computer cannot weigh it against the data; leave the parameter out (--params) "
+                         "instead")
     return width
 
 

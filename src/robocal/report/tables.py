@@ -138,7 +138,7 @@ def noise_line(result) -> str:
     text += "" if n.orientation is None else f", {math.degrees(n.orientation):.3g}°"
     text += " (stated)" if n.source == "stated" else " (estimated from the fit: the instrument's noise plus what the " \
         "model leaves out)"
-    if g is not None and g.dof > 0:
+    if g is not None and g.dof > 0 and n.source == "stated":  # a test of the model against the stated noise
         text += f"; χ² {g.chi2:.4g} on {g.dof:.0f} degrees of freedom (reduced {g.reduced_chi2:.3g}, p {g.p_value:.3g})"
     if result.robot.residual is not None:
         text += " — of the parametric fit; its residual correction is judged by cross-validation"
