@@ -233,3 +233,33 @@ def test_a_stated_noise_too_small_never_widens_a_parameter_beyond_its_prior(tmp_
     robot.write_text(ind.robot_toml("ur5", {}))
     code, _, err = run_cli("calibrate", robot, data, "--joint-unit", "rad", "--prior", "a5=1e-160")
     assert code == 2 and len(err.strip().splitlines()) == 1 and "below 1e-06" in err and "Traceback" not in err
+
+
+def test_a_loosely_built_arm_has_its_length_width_sized_by_the_data():
+    """An arm whose lengths are off by 8 mm (σ), not the 1 mm of a machined one: the data widen the
+    length prior to what they show (said as a note), the model predicts new poses as the free fit does,
+    and it is judged physical against the width used; a stated width wins and is not sized."""
+    rng = np.random.default_rng(2)
+    truth = {}
+    for i in range(1, 7):
+        truth[f"a{i}"], truth[f"d{i}"] = rng.normal(0.0, 8.0, 2)
+        truth[f"alpha{i}"], truth[f"theta{i}"] = rng.normal(0.0, ANGLE), rng.normal(0.0, ZERO)
+
+    def campaign(n, seed):
+        c = ind.campaign("kr5-arc", truth, n, np.random.default_rng(seed), noise=0.05, measure="position",
+                         base=ind._trans(1500.0, 200.0, 0.0), tool=ind._trans(0.0, 0.0, 80.0))
+        return Measurements(q=c["q"], position=c["position"])
+
+    robot = parse_robot(ind.robot_toml("kr5-arc", {}), source="kr5-arc (planted)")
+    data, fresh = campaign(60, 1), campaign(300, 2)
+    sized, said = _fit(robot, data, validate=fresh)
+    width = [n for n in sized.notes if n.startswith("prior widths from the data: length")]
+    assert width and 4.0 < float(width[0].split("length ")[1].split(" mm")[0]) < 12.0, width
+    assert sized.physical.physical and not any(s.startswith("implausible") for s in said)
+    free, said = _fit(robot, data, validate=fresh, prior="length=free")
+    held, _ = _fit(robot, data, validate=fresh, prior="length=1")
+    assert not free.physical.physical  # the fixed 10 mm bound alone would call the real arm not physical
+    assert not [n for n in held.notes if n.startswith("prior widths from the data")]
+    rms = {k: r.metrics["validation_after"].position["rms"] for k, r in (("sized", sized), ("free", free),
+                                                                          ("held", held))}
+    assert rms["sized"] <= 1.01 * rms["free"] and rms["sized"] < rms["held"], rms

@@ -56,6 +56,8 @@ class Scheme:
 
     kind: str
     k: int
+    #: a held-out session's frames were registered on its own rows (sessions with frames of their own)
+    registered: bool = False
 
     @property
     def new(self) -> str:
@@ -71,7 +73,8 @@ class Scheme:
     @property
     def phrase(self) -> str:
         """The scheme in a sentence: "leave-one-session-out, 10 sessions"."""
-        return {"sessions": f"leave-one-session-out, {self.k} sessions",
+        return {"sessions": f"leave-one-session-out, {self.k} sessions"
+                            + (", each with its frames registered on its own rows" if self.registered else ""),
                 "setups": f"{self.k}-fold cross-validation by setup: their points are new unknowns",
                 "blocks": f"{self.k}-fold cross-validation by blocks of the rows' order",
                 "poses": f"{self.k}-fold cross-validation of the calibration poses"}[self.kind]
@@ -82,7 +85,8 @@ class Scheme:
         return f"{self.new} ({self.phrase})"
 
     def to_dict(self) -> dict:
-        return {"kind": self.kind, "folds": self.k, "predicts": self.new, "description": self.phrase}
+        return {"kind": self.kind, "folds": self.k, "predicts": self.new, "description": self.phrase,
+                **({"frames_registered": True} if self.registered else {})}
 
 
 def scheme(meas: Measurements) -> Scheme:
@@ -110,7 +114,7 @@ def sessions_disagree(meas: Measurements, held: np.ndarray, fitted: np.ndarray) 
     fitted: each row's held-out and in-sample errors (m, 3)."""
     if len(meas.sessions) < 2:
         return None
-    index = held_groups(meas)
+    index = np.unique(np.asarray(meas.session, dtype=str), return_inverse=True)[1].ravel()
     rows = meas.length_rows if meas.unit == "mm" and meas.camera is not None else np.ones(meas.n_poses, bool)
     out, inside = rms(held[rows]), rms(fitted[rows])
     if not out > SESSIONS_DISAGREE * inside:
@@ -125,10 +129,15 @@ def sessions_disagree(meas: Measurements, held: np.ndarray, fitted: np.ndarray) 
             "re-register the frames of each")
 
 
+#: fewest sessions a paired test pairs by session (with two, a t-test has one degree of freedom)
+MIN_PAIRED_SESSIONS = 3
+
+
 def held_groups(meas: Measurements) -> np.ndarray:
-    """The units a paired test of held-out errors pairs: sessions where the rows hold several
-    (the poses of one session share its mounting: they are not independent looks), else poses."""
-    if len(meas.sessions) >= 2:
+    """The units a paired test of held-out errors pairs: sessions where the rows hold enough of them
+    (:data:`MIN_PAIRED_SESSIONS`; the poses of one session share its mounting: they are not independent
+    looks), else poses (each held out with its session)."""
+    if len(meas.sessions) >= MIN_PAIRED_SESSIONS:
         return np.unique(np.asarray(meas.session, dtype=str), return_inverse=True)[1].ravel()
     return pose_groups(meas)
 
@@ -139,7 +148,7 @@ def folds(meas: Measurements, k: int, seed: int | None) -> list[np.ndarray]:
     reflectors), or a camera's rows at one pose, stay together."""
     how = scheme(meas)
     if how.kind == "sessions":
-        index = held_groups(meas)
+        index = np.unique(np.asarray(meas.session, dtype=str), return_inverse=True)[1].ravel()
         first = np.unique(index, return_index=True)[1]
         return [np.flatnonzero(index == g) for g in index[np.sort(first)]]
     groups = pose_groups(meas)
@@ -218,6 +227,9 @@ def cross_validate(fit: Fit, config: CalibrationConfig, start: np.ndarray | None
     errors = np.zeros((meas.n_poses, 3))
     orientation = np.zeros((meas.n_poses, 3)) if problem.uses_orientation else None
     index_sets = folds(meas, K_FOLDS, config.seed)
+    # sessions with frames of their own: a held-out session is predicted as a new one is used, its frames
+    # registered on its own rows with the geometry the others gave
+    registered = bool(problem.space.sessions) and scheme(meas).kind == "sessions"
     # the data with the prior: a fold's training poses keep every prior pseudo-observation
     J, r = problem.map_jacobian(x0), problem.map_residuals(x0)
     # the training poses' normal equations are the whole data's less the fold's: one pass over
@@ -250,15 +262,38 @@ def cross_validate(fit: Fit, config: CalibrationConfig, start: np.ndarray | None
                 x = x + step
             else:
                 x = fit_lm(part, x, plain, max_nfev=FOLD_EVALUATIONS, timed_as="model").x
-        dp, dr = problem.setup.with_measurements(meas.subset(test)).problem(problem.names).errors(x)
+        held = problem.setup.with_measurements(meas.subset(test)).problem(problem.names)
+        dp, dr = held.errors(x) if not registered else _registered(problem, meas.subset(test), x, plain)
         errors[test] = dp
         if orientation is not None and dr is not None:
             orientation[test] = dr
         estimates.append(x)
     mixed = meas.unit == "mm" and meas.camera is not None
     scale = pixel_scale(fit.robot, meas) if meas.unit == "px" else None
+    how = scheme(meas)
     return CrossValidation(errors, index_sets, estimates, orientation, meas.unit, meas.length_rows if mixed else None,
-                           scheme(meas), scale)
+                           Scheme(how.kind, how.k, registered), scale)
+
+
+def session_frames_of(names: list[str], label: str, first: str) -> list[str]:
+    """The parameters of ``names`` that are session ``label``'s own frames: the first session's base
+    and tools (``base_…``, the targets' own names), a later one's ``base[LABEL]_…`` and ``tool[…@LABEL]_…``."""
+    if label == first:
+        return [n for n in names if n.startswith("base_") or (n.startswith("tool") and "@" not in n)]
+    return [n for n in names if n.startswith(f"base[{label}]_") or (n.startswith("tool[") and f"@{label}]_" in n)]
+
+
+def _registered(problem, held: Measurements, x: np.ndarray, config: CalibrationConfig):
+    """The errors of a held-out session's rows with the fold's estimate x, its own frames registered on
+    them first (LM on those frames alone, the rest as x has it)."""
+    label = held.session[0]
+    own = session_frames_of(problem.names, label, problem.meas.sessions[0])
+    setup = problem.setup.around(problem.space.apply(problem.full(x)))
+    part = setup.with_measurements(held).problem(own) if own else None
+    if part is None:
+        return setup.with_measurements(held).problem(problem.names).errors(np.zeros(problem.n_params))
+    step = fit_lm(part, np.zeros(part.n_params), config, max_nfev=FOLD_EVALUATIONS, timed_as="model").x
+    return part.errors(step)
 
 
 def predict(fit: Fit, config: CalibrationConfig) -> tuple[CrossValidation, Metrics]:

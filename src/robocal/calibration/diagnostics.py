@@ -134,7 +134,8 @@ class Physicality:
     def sentence(self) -> str:
         """The warning: what is not physical, why, and that the model needs checking."""
         return (f"implausible deviations (beyond {PLAUSIBLE_LENGTH_MM:g} mm or {PLAUSIBLE_ANGLE_RAD:g} rad of the "
-                f"geometry, or a joint term turning its joint by more than {math.degrees(PLAUSIBLE_TERM_RAD):g}°): "
+                f"geometry, or a joint term turning its joint by more than {math.degrees(PLAUSIBLE_TERM_RAD):g}°, "
+                "or 4 of its prior widths where that is more): "
                 f"{self.listed()}; likely cause: {self.cause}. The calibrated model is not physical; check before "
                 "using it")
 
@@ -144,14 +145,18 @@ class Physicality:
 
 
 def physicality(names: list[str], x: np.ndarray, uncertainty: np.ndarray | None, correlation: np.ndarray | None,
-                turns: dict[str, float] | None = None) -> Physicality:
+                turns: dict[str, float] | None = None, limits: np.ndarray | None = None) -> Physicality:
     """The verdict: joint deviations beyond PLAUSIBLE_* and joint terms whose largest turn of their
     joint at a measured pose (``turns``: parameter → rad) exceeds PLAUSIBLE_TERM_RAD, with the
-    likely cause.  Frame parameters are left out: a base frame metres from the tracker is normal."""
+    likely cause; ``limits`` (per parameter, its own units, a term's in rad of turn) replaces those
+    bounds where the prior width the fit took is wider.  Frame parameters are left out: a base
+    frame metres from the tracker is normal."""
     turns = turns or {}
+    if limits is None:
+        limits = np.array([PLAUSIBLE_TERM_RAD if n in turns else PLAUSIBLE_ANGLE_RAD if is_angle(n) else
+                           PLAUSIBLE_LENGTH_MM for n in names])
     bad = [i for i, n in enumerate(names) if not is_frame(n) and (
-        abs(turns[n]) > PLAUSIBLE_TERM_RAD if n in turns else
-        abs(x[i]) > (PLAUSIBLE_ANGLE_RAD if is_angle(n) else PLAUSIBLE_LENGTH_MM) if not is_term(n) else False)]
+        abs(turns[n]) > limits[i] if n in turns else abs(x[i]) > limits[i] if not is_term(n) else False)]
     if not bad:
         return Physicality()
     shown = tuple((names[i], float(np.degrees(turns[names[i]])), "° of turn") if names[i] in turns else

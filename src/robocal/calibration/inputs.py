@@ -32,6 +32,9 @@ class Inputs:
     validation: Measurements | None
     frames: str
     notes: tuple[str, ...] = ()
+    #: the sessions' tracker rows each have a measuring frame (and tools) of their own: the frames
+    #: are registered per session, the geometry shared (:func:`session_frames`)
+    session_frames: bool = False
 
 
 
@@ -44,8 +47,9 @@ def _measurements(data, nominal: Robot, config: CalibrationConfig, columns) -> M
             raise InputError("no data file given")
         if len(parts) == 1:
             return parts[0]
-        stems = [Path(p.source).stem for p in parts]
-        labels = stems if len(set(stems)) == len(stems) else [p.source for p in parts]
+        stems, sources = [Path(p.source).stem for p in parts], [p.source for p in parts]
+        labels = stems if len(set(stems)) == len(stems) else sources if len(set(sources)) == len(sources) else \
+            [f"session {i + 1}" for i in range(len(parts))]
         parts = [p if p.session is not None else p.in_session(label) for p, label in zip(parts, labels)]
         cameras.check_parts(parts, config, nominal)
         return concatenate(parts)
@@ -103,6 +107,9 @@ def load_inputs(robot, data, validate, config: CalibrationConfig, columns=None) 
     elif meas.constraints is not None:
         frames, said = _contact_frames(frames, meas)
         notes += said
+    elif frames in ("auto", "none") and len(tracker.sessions) >= 2:  # each session's own frames judged
+        frames, said = _session_frames_choice(frames, nominal, tracker)
+        notes += said
     elif frames in ("auto", "none"):
         choice = choose_frames(nominal, tracker)
         if frames == "auto" and choice.mode != "none":  # it changed what is calibrated: say so
@@ -118,7 +125,55 @@ def load_inputs(robot, data, validate, config: CalibrationConfig, columns=None) 
         checks.check_validation_targets(nominal, tracker, val)
         if config.length_unit is None:  # a stated unit overrides the spread check
             checks.check_units(nominal, tracker, frames)
-    return Inputs(nominal, meas, val, frames, tuple(notes + checks.degeneracy_warnings(nominal, meas)))
+    apart = frames in ("base", "base+tool") and len(meas.sessions) >= 2 and meas.views is None \
+        and meas.constraints is None
+    if apart:
+        meas, said = session_frames(meas, frames)
+        notes += said
+    return Inputs(nominal, meas, val, frames, tuple(notes + checks.degeneracy_warnings(nominal, meas)), apart)
+
+
+def _session_frames_choice(frames: str, nominal: Robot, tracker: Measurements) -> tuple[str, list[str]]:
+    """``auto`` (or ``none``) for tracker rows of several sessions: each session's frames judged on its
+    own rows (one measuring frame across sessions whose instrument moved would be no answer), the
+    richest mode any session needs taken for all."""
+    modes = ("none", "base", "base+tool")
+    labels = np.asarray(tracker.session, dtype=object)
+    choices = {s: choose_frames(nominal, tracker.subset(labels == s)) for s in tracker.sessions}
+    needed = max((c.mode for c in choices.values()), key=lambda m: modes.index(m) if m in modes else 0)
+    if frames == "none":
+        if needed == "none":
+            return "none", []
+        return "none", [f"frames none, but session {next(s for s, c in choices.items() if c.mode != 'none')}: "
+                        f"{next(c for c in choices.values() if c.mode != 'none').sentence()}: calibrate with frames "
+                        f"auto or {needed}"]
+    if needed == "none":
+        return "none", []
+    worst = max(choices, key=lambda s: modes.index(choices[s].mode) if choices[s].mode in modes else 0)
+    return needed, [Note(f"frames auto: session {worst}: {choices[worst].sentence()}; each session's frames are "
+                         f"registered (frames {needed})")]
+
+
+def session_label(target: str, session: str) -> str:
+    """The name a target takes in a session whose frames are its own (``m1@monday``)."""
+    return f"{target}@{session}"
+
+
+def session_frames(meas: Measurements, frames: str) -> tuple[Measurements, list[str]]:
+    """Tracker rows of several sessions: each session's measuring frame (the instrument may have
+    moved) and, with ``base+tool``, its tools (a reflector remounted) are its own, the geometry and
+    joint terms shared.  The first session's frames keep their names (``base``, ``tool[m1]``); a later
+    session's tool of target m1 is ``m1@LABEL`` (:func:`session_label`) and its base ``base[LABEL]``."""
+    first = meas.sessions[0]
+    if frames == "base+tool":
+        targets = meas.targets or ("",) * meas.n_poses
+        meas = replace(meas, targets=tuple(t if s == first else session_label(t, s)
+                                           for t, s in zip(targets, meas.session)))
+    others = ", ".join(meas.sessions[1:])
+    what = "measuring frame and tools" if frames == "base+tool" else "measuring frame"
+    return meas, [Note(f"sessions: each of the {len(meas.sessions)} sessions has its own {what} (the instrument "
+                       f"{'and the reflectors ' if frames == 'base+tool' else ''}may have moved between them), the "
+                       f"geometry is shared; {first}'s are the robot's, {others}'s are named with the session")]
 
 
 def _check_prior(nominal: Robot, config: CalibrationConfig) -> None:

@@ -68,6 +68,11 @@ def recheck(problem: Problem, x: np.ndarray) -> AtEstimate:
 
 def turns(problem: Problem, x: np.ndarray) -> dict[str, float]:
     """Each joint-term parameter's largest turn of its joint over the poses (rad): max |B_t x_t|."""
+    return {n: reach * abs(float(x[i])) for n, (i, reach) in _term_reach(problem).items()}
+
+
+def _term_reach(problem: Problem) -> dict[str, tuple[int, float]]:
+    """Each joint-term parameter's index and its largest turn of its joint per unit (max |B_t|)."""
     joints = problem.joints
     names = problem.names
     if joints is None or not any(is_term(n) for n in names):
@@ -77,7 +82,33 @@ def turns(problem: Problem, x: np.ndarray) -> dict[str, float]:
     for i, n in enumerate(names):
         if is_term(n):
             column = joints.basis[:, :, order.index(n)]
-            out[n] = float(np.max(np.abs(column * x[i]))) if column.size else 0.0
+            out[n] = (i, float(np.max(np.abs(column))) if column.size else 0.0)
+    return out
+
+
+#: a deviation this many prior widths off is implausible, where that is beyond the fixed bounds
+PLAUSIBLE_WIDTHS = 4.0
+
+
+def plausible_limits(problem: Problem, x: np.ndarray, inverse: np.ndarray | None) -> np.ndarray:
+    """Each parameter's bound of plausibility, in its own units (a term's in rad of turn): the fixed
+    bounds of :mod:`robocal.calibration.diagnostics`, or :data:`PLAUSIBLE_WIDTHS` of the prior width the
+    fit took where that is wider (a width stated, or one the data sized: then as the kind's other
+    parameters show it, :func:`~robocal.calibration.widths.others_width`)."""
+    from ..model.parameters import is_angle
+    from .diagnostics import PLAUSIBLE_ANGLE_RAD, PLAUSIBLE_LENGTH_MM, PLAUSIBLE_TERM_RAD
+    from .widths import others_width
+
+    sized = inverse is not None and bool(problem.setup.sized)
+    sigma = others_width(problem, x, inverse) if sized else problem.prior_sigma
+    reach = _term_reach(problem)
+    out = np.empty(problem.n_params)
+    for i, n in enumerate(problem.names):
+        if n in reach:
+            fixed, width = PLAUSIBLE_TERM_RAD, sigma[i] * reach[n][1]
+        else:
+            fixed, width = (PLAUSIBLE_ANGLE_RAD if is_angle(n) else PLAUSIBLE_LENGTH_MM), sigma[i]
+        out[i] = max(fixed, PLAUSIBLE_WIDTHS * width) if np.isfinite(width) else fixed
     return out
 
 
@@ -105,11 +136,13 @@ def judge(est: Estimate, config: CalibrationConfig, noise: NoiseEstimate) -> Jud
     cov = None
     if config.least_squares and gof.dof > 0:
         scale = gof.reduced_chi2 if noise.source == "estimated" else max(1.0, gof.reduced_chi2)
-        if problem.has_prior:  # the data's information scaled, the prior's counted once
-            J = problem.residual_jacobian(x)
+        if problem.has_prior and scale > 1e-12:  # the data's information scaled, the prior's counted once
+            # (noise-free data: s → 0, the data's information swamps the prior's, and s·(JᵀJ + P)⁻¹ is the limit)
+            J = problem.map_jacobian(x)  # the data's rows, then the prior's: only the data's are scaled
             # (the prior's share stays the leverage its pseudo-observations had in the fit, as weighed there:
             # the degrees of freedom χ² is judged on are those of that fit)
-            cov = covariance(information=J.T @ J / scale + problem.prior_information())
+            data = J.shape[0] - problem.n_prior
+            cov = covariance(np.vstack([J[:data] / np.sqrt(scale), J[data:]]))
         else:
             cov = scale * inverse
     if gof.misfit():
@@ -125,7 +158,7 @@ def judge(est: Estimate, config: CalibrationConfig, noise: NoiseEstimate) -> Jud
     said = scale_note(problem, x, cov)
     if said is not None:
         notes.append(said)
-    verdict = physicality(problem.names, x, unc, corr, turns(problem, x))
+    verdict = physicality(problem.names, x, unc, corr, turns(problem, x), plausible_limits(problem, x, inverse))
     if not verdict.physical:
         notes.append(verdict.sentence())
     if config.least_squares and gof.dof <= 0:

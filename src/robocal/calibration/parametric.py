@@ -40,6 +40,7 @@ from .subset import (
 )
 from .timing import stage
 from .weighting import reweigh, weigh_instrument, weigh_kinds
+from .widths import size_widths
 
 
 def complete_model(robot: Robot, config: CalibrationConfig) -> Robot:
@@ -74,10 +75,33 @@ def register(inputs: Inputs, config: CalibrationConfig, spec: TermSpec = TermSpe
                 seen = np.array([bool(c) for c in inputs.meas.camera])
                 initial = fit_frames(initial, inputs.meas.subset(~seen), inputs.frames, sigma_p, sigma_r)
             initial = cameras.register(initial, inputs.meas)
+        elif inputs.session_frames:
+            initial = register_sessions(complete_model(inputs.nominal, config), inputs.meas, inputs.frames, sigma_p,
+                                        sigma_r)
         else:
             initial = fit_frames(complete_model(inputs.nominal, config), inputs.meas, inputs.frames, sigma_p, sigma_r)
     space = ParameterSpace.of(initial, targets, spec)
     return Setup(space, inputs.meas, sigma_p, sigma_r, config.use_orientation, config.backend).with_prior(prior)
+
+
+def register_sessions(robot: Robot, meas: Measurements, frames: str, sigma_p: float, sigma_r: float) -> Robot:
+    """Each session's frames fitted to its own rows with the nominal joints (as :func:`fit_frames`
+    registers one campaign's): the first session's base is the robot's, each later one's a base of
+    its own (:attr:`Robot.session_bases`), every session's tools its targets'."""
+    labels = np.asarray(meas.session, dtype=object)
+    first, bases, targets = None, {}, dict(robot.targets)
+    for label in meas.sessions:
+        own = fit_frames(robot, meas.subset(labels == label), frames, sigma_p, sigma_r)
+        if first is None:
+            first = own
+        else:
+            bases[label] = own.base
+        named = {t: own.targets[t] for t in set(meas.subset(labels == label).target_names) if t in own.targets}
+        targets.update(named)
+        if "" in meas.subset(labels == label).target_names:
+            targets[""] = own.tool
+    tool = targets.pop("", first.tool)
+    return first.replace(targets=targets, tool=tool, session_bases=bases)
 
 
 def prior_of(nominal: Robot, config: CalibrationConfig) -> Prior | None:
@@ -184,6 +208,8 @@ def fit_parametric(inputs: Inputs, config: CalibrationConfig, spec: TermSpec,
         est, noise, said = weigh_kinds(est, config, noise)
         notes += said
         est, noise, said = weigh_shared(est, config, noise)
+        notes += said
+        est, noise, said = size_widths(est, config, noise, prior_of(inputs.nominal, config))
         notes += said
         judged = judge(est, config, noise)
     return Fit(setup, candidates, ident, est, screening, noise, judged.goodness, judged.uncertainty,

@@ -109,14 +109,27 @@ def order_notes(fit, meas: Measurements) -> list[str]:
 
 
 def evaluate(initial: Robot, calibrated: Robot, meas: Measurements, all_rows: Measurements,
-             validation: Measurements | None, screening: Screening) -> tuple[dict[str, Metrics], list[str]]:
+             validation: Measurements | None, screening: Screening,
+             frames: str = "none") -> tuple[dict[str, Metrics], list[str]]:
     """Step 10: before/after metrics on the calibration data and, when given, on validation data;
-    with outliers left out, validation of the plain fit that kept them too."""
+    with outliers left out, validation of the plain fit that kept them too.  Where the sessions'
+    frames are their own, validation data are a session of their own: their frames (``frames``)
+    are registered on them, for each model, as they would be on a new session."""
     notes: list[str] = []
     metrics = {"before": Metrics.of(initial, meas), "after": Metrics.of(calibrated, meas)}
     if all_rows is not meas:
         metrics["after_all_rows"] = Metrics.of(calibrated, all_rows)
     if validation is not None:
+        def seen(robot: Robot) -> Robot:
+            if not robot.session_bases:
+                return robot
+            from .registration import fit_frames
+
+            return fit_frames(robot.without_sessions(), validation, frames)
+
+        if calibrated.session_bases:
+            notes.append(Note("validation: a session of its own, its frames registered on its rows for each model"))
+        initial, calibrated = seen(initial), seen(calibrated)
         metrics["validation_before"] = Metrics.of(initial, validation)
         metrics["validation_after"] = Metrics.of(calibrated, validation)
         if screening.with_outliers is not None:
@@ -212,7 +225,7 @@ def _calibrate(robot, data, validate, cfg: CalibrationConfig, columns, progress,
         calibrated = calibrated.replace(region=region.with_sigma(float(np.median(sigma))))
     with stage("evaluate"):
         metrics, said = evaluate(initial, calibrated, est.problem.meas, inputs.meas, inputs.validation,
-                                 fit.screening)
+                                 fit.screening, inputs.frames)
         budget = chosen.budget(calibrated, inputs.validation)
     notes += said
     if chosen.prediction is not None:  # what the held-out poses said: the headline without validation poses

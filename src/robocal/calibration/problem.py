@@ -19,8 +19,8 @@ Swarm objectives (MODEL §2), all evaluated for a whole swarm (P, k) in one batc
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 from typing import TYPE_CHECKING
 
@@ -67,6 +67,9 @@ class Setup:
     prior: np.ndarray | None = None
     #: camera rows: the error a pose's rows in one camera share (:mod:`robocal.model.shared`)
     shared: SharedErrors | None = None
+    #: the prior kinds whose width the data sized, and that width (file units: mm, deg;
+    #: :mod:`robocal.calibration.widths`)
+    sized: Mapping[str, float] = field(default_factory=dict)
 
     @property
     def full_pose(self) -> bool:
@@ -148,6 +151,8 @@ class Problem:
         self.views = self.meas.views
         # each camera row's camera in the space's order (the views' own follows the files)
         self._camera_index = None if self.views is None else self.views.indices(self.space.cameras)
+        # each row's session where sessions have measuring frames of their own (None: one frame)
+        self._session = self.space.session_index(self.meas.session)
         # the whitening of what a pose's camera rows share (None: every row its own look)
         self._shared = None if setup.shared is None or self.views is None else setup.shared.transform(self.meas)
         self._shapes = self._shape_bodies()
@@ -236,9 +241,9 @@ class Problem:
     def errors(self, X: np.ndarray):
         """Position errors (…, m, 3) mm and orientation errors (…, m, 3) rad (or None)."""
         if self._Rm is None:
-            p = self.space.points(self.full(X), self.meas.q, self.target_idx, self.joints)
+            p = self.space.points(self.full(X), self.meas.q, self.target_idx, self.joints, self._session)
             return self._position_errors(p, X), None
-        R, p = self.space.pose(self.full(X), self.meas.q, self.target_idx, self.joints)
+        R, p = self.space.pose(self.full(X), self.meas.q, self.target_idx, self.joints, self._session)
         return self._position_errors(p, X), orientation_error(self._Rm, R)
 
     def _position_errors(self, p: np.ndarray, X: np.ndarray) -> np.ndarray:
@@ -284,7 +289,7 @@ class Problem:
         X = np.asarray(X, dtype=float)
         compiled = (self._backend if backend is None else resolve(backend)) == "numba"
         if X.ndim == 2 and compiled and self.joints is None and self._kernels_apply and self._fp is None \
-                and self._fr is None and self.constraints is None and self.views is None:
+                and self._fr is None and self.constraints is None and self.views is None and self._session is None:
             # the kernels move no joints, weigh every point alike and know measured points only
             return self._compiled_objective(X, kind)
         dp, dr = self.scaled_errors(X)
@@ -297,7 +302,7 @@ class Problem:
             ds = self.shape_residuals(X) * (self.setup.sigma_position / self.meas.shape_sigma)
             f = f + np.sum(ds * ds, axis=-1)
         if self.n_distances:  # in the objective's mm², weighed as χ² weighs them against σp
-            p = self.space.points(self.full(X), self.meas.q, self.target_idx, self.joints)
+            p = self.space.points(self.full(X), self.meas.q, self.target_idx, self.joints, self._session)
             dd = self.constraints.distance_residuals(p) * (self.setup.sigma_position / self.constraints.distance_sigma)
             f = f + np.sum(dd * dd, axis=-1)
         return f
@@ -355,7 +360,7 @@ class Problem:
         if self.n_shapes:
             out.append(self.shape_residuals(x) / self.meas.shape_sigma)
         if self.n_distances:
-            p = self.space.points(self.full(x), self.meas.q, self.target_idx, self.joints)
+            p = self.space.points(self.full(x), self.meas.q, self.target_idx, self.joints, self._session)
             out.append(self.constraints.distance_residuals(p) / self.constraints.distance_sigma)
         return out[0] if len(out) == 1 else np.concatenate(out)
 
@@ -370,7 +375,8 @@ class Problem:
     def residual_jacobian(self, x: np.ndarray) -> np.ndarray:
         """Exact ∂(whitened residuals)/∂x, (n_residuals, k_active), Fortran-ordered as MINPACK wants."""
         Jc, R, p = self.space.jacobian_columns(self.full(x), self.meas.q, self.target_idx, frames=self._frames_active,
-                                               joints=self.joints, active=self.active)  # (k, m, 6)
+                                               joints=self.joints, active=self.active,
+                                               session=self._session)  # (k, m, 6)
         k, m = Jc.shape[0], Jc.shape[1]
         out = np.empty((k, self.n_residuals))
         c = self.constraints

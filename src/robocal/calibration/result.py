@@ -525,17 +525,18 @@ class CalibrationResult:
         if path.suffix.lower() in (".yaml", ".yml"):
             return self._export_ur(path, comment)
         if path.suffix.lower() != ".urdf":
-            return save_robot(self.robot, path, comment)
+            return save_robot(self.robot.without_sessions(), path, comment)
         from ..io.urdf import urdf_text
 
         written, whole = [], None
         if not self.robot.geometric or self.robot.cameras:  # the sidecar first: the URDF alone would be an
             # incomplete model (its joint terms, its cameras' poses)
             whole = path.with_name(f"{path.stem}.robocal.toml")
-            written = save_robot(self.robot, whole, comment)
+            written = save_robot(self.robot.without_sessions(), whole, comment)
         probe = bool(self.contact)  # the tip link itself touched the points or planes: it is the tool
         where = "the tip link is the identified tool point" if probe else "target the tool"
-        atomic_write(path, urdf_text(self.receiver or self.robot, comment + self._receiver_comment() +
+        receiver = (self.receiver or self.robot).without_sessions()
+        atomic_write(path, urdf_text(receiver, comment + self._receiver_comment() +
                                      "\nLengths in m, angles in rad; measuring_frame carries the identified base "
                                      f"frame, {where}.", whole_model=None if whole is None else whole.name,
                                      tool_at_tip=probe))
@@ -560,9 +561,9 @@ class CalibrationResult:
         from ..io.robotfile import save_robot
         from ..io.ur import ur_kinematics_yaml
 
-        text, notes = ur_kinematics_yaml(self.receiver or self.robot)
+        text, notes = ur_kinematics_yaml((self.receiver or self.robot).without_sessions())
         whole = path.with_name(f"{path.stem}.robocal.toml")
-        written = save_robot(self.robot, whole, comment)
+        written = save_robot(self.robot.without_sessions(), whole, comment)
         head = "".join(f"# {line}\n" for line in (comment + self._receiver_comment() + "\nLengths in m, angles in "
                                                    f"rad. The measuring frame and the tool are in {whole.name}.")
                        .splitlines())

@@ -65,6 +65,10 @@ def choose_candidates(setup: Setup, config: CalibrationConfig, frames_mode: str)
                          f"(known: {', '.join(setup.space.names[:8])}, …)", option="params")
     frames = frame_candidates(frames_mode, setup.meas.target_names, setup.full_pose) + \
         cameras.frame_names(robot, setup.meas)
+    if frames_mode in ("base", "base+tool"):  # the sessions' own measuring frames
+        from ..model.parameters import FRAME_AXES, session_prefix
+
+        frames += [f"{session_prefix(label)}_{ax}" for label in setup.space.sessions for ax in FRAME_AXES]
     terms = setup.space.terms.names(robot.n_joints)
     # a named set (zeros, frames) is a choice of kind, not of parameters: what it offers that the data
     # cannot see is dropped as any default's would be
@@ -72,7 +76,8 @@ def choose_candidates(setup: Setup, config: CalibrationConfig, frames_mode: str)
     return Candidates(joints, joints + [n for n in frames + terms if n not in joints], explicit)
 
 
-def _still_reasons(setup: Setup, ident: Identifiability, names: list[str]) -> tuple[Identifiability, np.ndarray | None]:
+def _still_reasons(setup: Setup, ident: Identifiability, names: list[str],
+                   prefer: list[str] = ()) -> tuple[Identifiability, np.ndarray | None]:
     """With joints that never moved, identifiability is judged with each held at its mean: a
     joint's read-back jitter of a few thousandths of a degree must not make its geometry look
     separable from the frames that absorb it (it would be fitted to the jitter).  Parameters
@@ -82,7 +87,7 @@ def _still_reasons(setup: Setup, ident: Identifiability, names: list[str]) -> tu
         return ident, None
     probe = setup.with_measurements(checks.held_still(setup.meas)).problem(names)
     J = probe.residual_jacobian(np.zeros(probe.n_params))
-    held = analyse(J, names, probe.angle_mask, setup.meas.n_poses, setup.space.robot.reach())
+    held = analyse(J, names, probe.angle_mask, setup.meas.n_poses, setup.space.robot.reach(), prefer=prefer)
     newly = [n for n in held.dropped if n in ident.kept]
     if not newly:
         return ident, J
@@ -230,8 +235,11 @@ def analyse_identifiability(setup: Setup, candidates: Candidates) -> tuple[Ident
         where = setup.meas.label(min(row, setup.meas.n_poses - 1))
         raise InputError(f"the rows give no derivative at the nominal robot ({where}): check its joints, the "
                          "robot file and, for camera rows, the camera's link and file", source=setup.meas.source)
-    ident = analyse(J, gauge + names, probe.angle_mask, setup.meas.n_poses, setup.space.robot.reach(), prefer=gauge)
-    ident, still = _still_reasons(setup, ident, gauge + names)
+    # sessions with measuring frames of their own keep each frame whole (a held-out session is registered
+    # by all six of its frame's values): the shared joint offsets they trade with go instead
+    first = gauge + ([n for n in names if n.startswith(("base_", "base["))] if setup.space.sessions else [])
+    ident = analyse(J, gauge + names, probe.angle_mask, setup.meas.n_poses, setup.space.robot.reach(), prefer=first)
+    ident, still = _still_reasons(setup, ident, gauge + names, first)
     if setup.meas.views is not None:  # on the Jacobian the analysis ended on: with still joints held still
         ident = _prior_held(setup, ident, J if still is None else still, gauge + names)
     ident = _without_gauge(setup, _still_warning(ident), gauge, candidates.names)

@@ -18,7 +18,7 @@ def pose_errors(robot: Robot, meas: Measurements) -> tuple[np.ndarray, np.ndarra
     pixel (px) in the first two slots (:mod:`robocal.model.views`).  Rows that touched an unknown point or plane
     (:mod:`robocal.model.constraints`) have the offset of their predicted point from that
     point's (plane's) best fit."""
-    T = robot.fk(meas.q, meas.targets, meas.inputs)
+    T = robot.in_sessions(robot.fk(meas.q, meas.targets, meas.inputs), meas.session)
     dp = meas.position - T[:, :3, 3]
     c = meas.constraints
     if c is not None:  # rows that touched an unknown point or plane: the offset from its best fit

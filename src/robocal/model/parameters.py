@@ -51,8 +51,13 @@ def camera_prefix(camera: str) -> str:
     return f"camera[{camera}]"
 
 
+def session_prefix(label: str) -> str:
+    """Parameter-name prefix of a session's own measuring frame: ``base[LABEL]``."""
+    return f"base[{label}]"
+
+
 def is_frame(name: str) -> bool:
-    return name.startswith(("base_", "tool", "camera["))
+    return name.startswith(("base_", "base[", "tool", "camera["))
 
 
 def is_term(name: str) -> bool:
@@ -108,6 +113,9 @@ class ParameterSpace:
     terms: TermSpec = TermSpec()
     #: the cameras whose frames the space holds (the robot's, :attr:`Robot.cameras`)
     cameras: tuple[str, ...] = ()
+    #: the sessions whose measuring frame is their own (the robot's :attr:`Robot.session_bases`):
+    #: a row of session s is seen through its base ``base@s``, rows of no such session through the base
+    sessions: tuple[str, ...] = ()
 
     @classmethod
     def of(cls, robot: Robot, targets: Sequence[str] | None = None, terms: TermSpec | None = None) -> ParameterSpace:
@@ -122,8 +130,11 @@ class ParameterSpace:
         cameras = tuple(robot.cameras)
         for c in cameras:
             names += [f"{camera_prefix(c)}_{ax}" for ax in FRAME_AXES]
+        sessions = tuple(robot.session_bases)
+        for label in sessions:
+            names += [f"{session_prefix(label)}_{ax}" for ax in FRAME_AXES]
         names += terms.names(robot.n_joints)
-        return cls(robot, tuple(names), targets, terms, cameras)
+        return cls(robot, tuple(names), targets, terms, cameras, sessions)
 
     @property
     def n_term_params(self) -> int:
@@ -228,6 +239,9 @@ class ParameterSpace:
         default = tools[self.targets.index("")] if "" in self.targets else self.robot.tool
         extra = {t: v for t, v in self.robot.targets.items() if t not in named}
         changes = {"geometry": geom, "base": base, "tool": default, "targets": {**extra, **named}}
+        if self.sessions:
+            bases = self.session_bases(deviation)
+            changes["session_bases"] = {label: bases[i] for i, label in enumerate(self.sessions)}
         if self.cameras:
             poses = self.camera_poses(deviation, composed=False)
             changes["cameras"] = {**self.robot.cameras, **{c: self.robot.cameras[c].moved(poses[i])
@@ -242,6 +256,36 @@ class ParameterSpace:
     def _camera_slice(self) -> slice:
         start = self.n_joint_params + 6 + 6 * len(self.targets)
         return slice(start, start + 6 * len(self.cameras))
+
+    # --- sessions -------------------------------------------------------------------
+    def _session_slice(self) -> slice:
+        start = self._camera_slice().stop
+        return slice(start, start + 6 * len(self.sessions))
+
+    def session_index(self, labels: Sequence[str] | None) -> np.ndarray | None:
+        """Each row's session as an index into :attr:`sessions` (−1: a row of no session with a base
+        of its own), or None where the space has no such sessions."""
+        if not self.sessions or labels is None:
+            return None
+        lookup = {s: i for i, s in enumerate(self.sessions)}
+        return np.array([lookup.get(s, -1) for s in labels], int)
+
+    def session_bases(self, deviation: np.ndarray) -> np.ndarray:
+        """Each session's base (…, S, 4, 4) with its deviation (as the base's: R = Exp(δ)R°, t = t° + δt)."""
+        d = np.asarray(deviation, float)[..., self._session_slice()]
+        d = d.reshape(d.shape[:-1] + (len(self.sessions), 6))
+        nominal = np.stack([self.robot.session_bases[s] for s in self.sessions])
+        return homogeneous(exp_so3(d[..., 3:]) @ nominal[:, :3, :3], nominal[:, :3, 3] + d[..., :3])
+
+    def _through_sessions(self, deviation, session: np.ndarray | None, base: np.ndarray):
+        """(…, m, 4, 4) for each row: the move from the base the chain was computed with to the row's
+        session's own (identity for a row of no session), or None."""
+        if session is None or not self.sessions:
+            return None
+        B = self.session_bases(deviation)  # (…, S, 4, 4)
+        D = B @ np.linalg.inv(base)[..., None, :, :]
+        eye = np.broadcast_to(np.eye(4), D.shape[:-3] + (1, 4, 4))
+        return np.concatenate([D, eye], axis=-3)[..., np.where(session >= 0, session, len(self.sessions)), :, :]
 
     def camera_link(self, camera: str) -> int:
         """The link a camera rides on (that of the camera it is fixed to, for one of a rig)."""
@@ -353,22 +397,29 @@ class ParameterSpace:
         return tools[..., :1, :, :] if target_idx is None else tools[..., target_idx, :, :]
 
     def pose(self, deviation: np.ndarray, q: np.ndarray, target_idx: np.ndarray | None = None,
-             joints: JointData | None = None):
+             joints: JointData | None = None, session: np.ndarray | None = None):
         """End rotation (…, m, 3, 3) and position (…, m, 3) mm for deviation vectors (…, k) at
-        commanded joints q (m, n) rad.
+        commanded joints q (m, n) rad; ``session`` (m,): each row's session, seen through its own
+        base (:meth:`session_index`).
 
         One batched call over all leading axes of ``deviation`` and all poses of ``q``.
         """
         geom, base, tools = self.expand(deviation)
         q = self.effective_joints(deviation, q, joints)
-        return chain_pose(self.robot.convention, geom, q, base, self._tools_for(tools, target_idx))
+        R, p = chain_pose(self.robot.convention, geom, q, base, self._tools_for(tools, target_idx))
+        D = self._through_sessions(deviation, session, base)
+        if D is None:
+            return R, p
+        return D[..., :3, :3] @ R, np.einsum("...ij,...j->...i", D[..., :3, :3], p) + D[..., :3, 3]
 
     def points(self, deviation: np.ndarray, q: np.ndarray, target_idx: np.ndarray | None = None,
-               joints: JointData | None = None) -> np.ndarray:
+               joints: JointData | None = None, session: np.ndarray | None = None) -> np.ndarray:
         """Measured-point positions (…, m, 3) mm only: the cheap path of position-only objectives."""
         geom, base, tools = self.expand(deviation)
         q = self.effective_joints(deviation, q, joints)
-        return chain_points(self.robot.convention, geom, q, base, self._tools_for(tools, target_idx))
+        p = chain_points(self.robot.convention, geom, q, base, self._tools_for(tools, target_idx))
+        D = self._through_sessions(deviation, session, base)
+        return p if D is None else np.einsum("...ij,...j->...i", D[..., :3, :3], p) + D[..., :3, 3]
 
     def jacobian(self, deviation: np.ndarray, q: np.ndarray, target_idx: np.ndarray | None = None,
                  joints: JointData | None = None):
@@ -391,7 +442,8 @@ class ParameterSpace:
         return rows, len(active)
 
     def jacobian_columns(self, deviation: np.ndarray, q: np.ndarray, target_idx: np.ndarray | None = None,
-                         frames: bool = True, joints: JointData | None = None, active: np.ndarray | None = None):
+                         frames: bool = True, joints: JointData | None = None, active: np.ndarray | None = None,
+                         session: np.ndarray | None = None):
         """As :meth:`jacobian` with J laid out (k, m, 6); ``frames=False`` leaves the base and
         tool columns zero (cheaper when none of them is estimated); ``active``: the parameters whose
         columns are wanted, in that order (default all; a tool nothing estimates costs nothing).  A
@@ -418,6 +470,25 @@ class ParameterSpace:
                 self._base_columns(Jb, db, p_e - base[:3, 3])
                 J[at[nj:nj + 6]] = Jb
             self._tool_columns(J, dt, R_e, R_f, target_idx, at, k)
+        D = self._through_sessions(deviation, session, base)
+        if D is not None:  # a session's rows through its own base: their twists turned with it
+            own = session >= 0
+            J[:, own, :3] = np.einsum("mij,kmj->kmi", D[own, :3, :3], J[:, own, :3])
+            J[:, own, 3:] = np.einsum("mij,kmj->kmi", D[own, :3, :3], J[:, own, 3:])
+            R_e = np.where(own[:, None, None], D[:, :3, :3] @ R_e, R_e)
+            p_e = np.where(own[:, None], np.einsum("mij,mj->mi", D[:, :3, :3], p_e) + D[:, :3, 3], p_e)
+            J[at[nj:nj + 6, None], np.flatnonzero(own)] = 0.0  # the base does not reach them
+            if frames:
+                bases = self.session_bases(deviation)
+                d = deviation[self._session_slice()].reshape(len(self.sessions), 6)
+                first = self._session_slice().start
+                for i in range(len(self.sessions)):
+                    rows = session == i
+                    if not rows.any() or not np.any(at[first + 6 * i:first + 6 * i + 6] < k):
+                        continue
+                    Jb = np.zeros((6, int(rows.sum()), 6))
+                    self._base_columns(Jb, d[i], p_e[rows] - bases[i, :3, 3])
+                    J[at[first + 6 * i:first + 6 * i + 6, None], np.flatnonzero(rows)] = Jb
         return J[:k], R_e, p_e
 
     @staticmethod

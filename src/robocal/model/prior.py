@@ -77,7 +77,7 @@ HELD = 0.5
 
 def kind_of(name: str, prismatic: np.ndarray | None = None) -> str:
     """The prior kind of a parameter name (``prismatic``: the joints that slide, 0-based)."""
-    if name.startswith("base_"):
+    if name.startswith(("base_", "base[")):
         return "base"
     if name.startswith("tool"):
         return "tool"

@@ -63,6 +63,9 @@ class Robot:
     #: the cell's cameras by name: where each is (fixed in the measuring frame or on a link) and
     #: its pose there (:class:`robocal.model.camera.CameraMount`); a camera calibration finds them
     cameras: Mapping[str, CameraMount] = field(default_factory=dict)
+    #: the measuring frame of each session where the instrument moved between them (label → the
+    #: base, 4 × 4 mm, as :attr:`base` is in its own session); empty: one measuring frame
+    session_bases: Mapping[str, np.ndarray] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         check_convention(self.convention)
@@ -185,6 +188,36 @@ class Robot:
         for joint, plus, factor in reversed(self.coupling):
             J[..., joint] -= factor * J[..., plus]
         return J
+
+    def in_sessions(self, poses: np.ndarray, sessions) -> np.ndarray:
+        """Poses (m, 4, 4) computed through :attr:`base`, each row of a session with a measuring frame
+        of its own (:attr:`session_bases`) moved into that frame."""
+        if not self.session_bases or sessions is None:
+            return poses
+        out = np.array(poses, float)
+        back = np.linalg.inv(self.base)
+        labels = np.asarray(sessions, dtype=object)
+        for label, base in self.session_bases.items():
+            rows = labels == label
+            if rows.any():
+                out[rows] = (base @ back) @ out[rows]
+        return out
+
+    def without_sessions(self) -> Robot:
+        """The robot as a file carries it: without the measuring frames and tools of a calibration's later
+        sessions (:attr:`session_bases`, targets named ``NAME@SESSION``) and their rows of the covariance
+        (its marginal: what it says of the rest is unchanged)."""
+        if not self.session_bases:
+            return self
+        labels = tuple(self.session_bases)
+        own = {t: T for t, T in self.targets.items() if not t.endswith(tuple(f"@{s}" for s in labels))}
+        uncertainty = self.uncertainty
+        if uncertainty is not None:
+            keep = [i for i, n in enumerate(uncertainty.names) if not n.startswith("base[")
+                    and not any(n.startswith("tool[") and f"@{s}]" in n for s in labels)]
+            uncertainty = type(uncertainty)(tuple(uncertainty.names[i] for i in keep),
+                                            uncertainty.matrix[np.ix_(keep, keep)])
+        return replace(self, session_bases={}, targets=own, uncertainty=uncertainty)
 
     def replace(self, **changes) -> Robot:
         return replace(self, **changes)
