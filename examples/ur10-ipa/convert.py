@@ -5,7 +5,8 @@ The export (christianlandgraf/ipa-robot-accuracy, MIT license, LICENSE.md here) 
 table; the T-Mac pose is x, y, z in mm and rx, ry, rz in degrees as intrinsic X-Y-Z Euler
 angles (scipy ``Rotation.from_euler("XYZ", …)``).  robocal's files give joints in degrees
 and orientations as rpy with R = Rz(rz) Ry(ry) Rx(rx), so the rotation is converted, not
-relabelled.  Each row is one pose; ``pose_id`` numbers them from 1 in file order.
+relabelled.  Each row is one pose; ``pose_id`` numbers them from 1 in file order, named by the
+series (``C0001`` for series C, ``D0001`` for D).
 
 The export's own standard deviations come along as robocal's σ columns: ``sx, sy, sz`` (mm,
 unchanged) and ``srx, sry, srz``, the σ of the orientation as a rotation vector about the
@@ -22,6 +23,7 @@ from __future__ import annotations
 
 import csv
 import sys
+from pathlib import Path
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -52,8 +54,11 @@ def convert(source: str, out: str) -> int:
         w = csv.writer(fh, lineterminator="\n")
         w.writerow(["pose_id", "q1", "q2", "q3", "q4", "q5", "q6", "x", "y", "z", "rx", "ry", "rz", "sx", "sy", "sz",
                     "srx", "sry", "srz", *(f"dir{j}" for j in range(1, 7)), "temperature"])
+        # pose ids name their series: series_c_… → C0001, series_d_… → D0001
+        series = Path(source).name.split("_")
+        prefix = series[1][:1].upper() if len(series) > 1 and series[0] == "series" else "P"
         for i in range(len(rows)):
-            w.writerow([f"C{i + 1:04d}", *(f"{v:.6f}" for v in q[i]), *(f"{v:.5f}" for v in xyz[i]),
+            w.writerow([f"{prefix}{i + 1:04d}", *(f"{v:.6f}" for v in q[i]), *(f"{v:.5f}" for v in xyz[i]),
                         *(f"{v:.6f}" for v in rpy[i]), *(f"{v:.6g}" for v in s_xyz[i]),
                         *(f"{v:.6g}" for v in s_rot[i]), *(f"{v:+.0f}" for v in directions[i]),
                         f"{temperature[i]:.4f}"])

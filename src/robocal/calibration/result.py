@@ -400,9 +400,10 @@ class CalibrationResult:
         out: dict[str, dict[str, Metrics]] = {}
         val = {} if self.validation is None else self.validation.by_target()
         for t, m in self.measurements.by_target().items():
-            name = t or "(tool)"
+            name, _, session = t.rpartition("@") if self.robot.session_bases and "@" in t else (t, "", "")
+            name = (name or "(tool)") + (f" (session {session})" if session else "")
             out[name] = {"before": Metrics.of(self.initial, m), "after": Metrics.of(self.robot, m)}
-            if t in val:
+            if t in val and not self.robot.session_bases:  # (a session of its own: registered as a whole)
                 out[name]["validation_before"] = Metrics.of(self.initial, val[t])
                 out[name]["validation_after"] = Metrics.of(self.robot, val[t])
         return out

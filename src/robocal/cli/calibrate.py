@@ -71,7 +71,7 @@ def _print_summary(result, robot_name: str, data: str) -> None:
                       + ", ".join(f"{k.replace('_', ' ')} {v:.4f}" for k, v in figures.items()), markup=False)
     per_target = result.per_target_metrics()
     if per_target:
-        keys = [k for k in ("before", "after", "validation_after") if k in next(iter(per_target.values()))]
+        keys = [k for k in ("before", "after", "validation_after") if all(k in m for m in per_target.values())]
         rows = [(t, str(m["after"].n), *(f"{m[k].position['rms']:.4f}" for k in keys)) for t, m in per_target.items()]
         title = "per marker: reprojection RMS (px)" if result.unit == "px" else "per reflector: position RMS (mm)"
         out.print(table(title, ("marker" if result.unit == "px" else "reflector", "points", *keys), rows,

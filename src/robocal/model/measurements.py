@@ -172,7 +172,18 @@ class Measurements:
 
     def describe(self) -> str:
         """How many poses and reflectors: "500 poses × 3 reflectors (1500 measured points)"; of camera
-        rows, "2246 camera rows: 18 markers seen by 2 cameras at 150 poses"."""
+        rows, "2246 camera rows: 18 markers seen by 2 cameras at 150 poses"; over several sessions,
+        ", over 2 sessions" after it (a reflector of a session with tools of its own counted once)."""
+        text = self._describe()
+        return text if len(self.sessions) < 2 else f"{text}, over {len(self.sessions)} sessions"
+
+    def _describe(self) -> str:
+        if self.session is not None and self.targets is not None and len(self.sessions) >= 2:
+            # a session's own tool of target m1 is m1@SESSION: the same reflector
+            own = tuple(t.rsplit("@", 1)[0] if "@" in t and t.rsplit("@", 1)[1] == s else t
+                        for t, s in zip(self.targets, self.session))
+            if own != self.targets:
+                return replace(self, targets=own, session=None)._describe()
         if self.camera is not None and all(self.camera):
             configs = len(np.unique(np.round(self.q, 9), axis=0))
             cams = len(set(self.camera))

@@ -256,8 +256,8 @@ def _per_target(result: CalibrationResult) -> list[str]:
     per_target = result.per_target_metrics()
     if not per_target:
         return []
-    first = next(iter(per_target.values()))
-    keys = [k for k in ("before", "after", "validation_before", "validation_after") if k in first]
+    keys = [k for k in ("before", "after", "validation_before", "validation_after")
+            if all(k in m for m in per_target.values())]
     rows = [(t, str(m["after"].n), *(f"{m[k].position['rms']:.4f}" for k in keys)) for t, m in per_target.items()]
     what = "marker" if result.unit == "px" else "reflector"
     return [f"<h2>Per {what}</h2>",
@@ -301,7 +301,8 @@ def _parameter_tables(result: CalibrationResult, d: dict) -> list[str]:
 def _run_header(result: CalibrationResult, command: str | None) -> str:
     """Who made the report, when, from what: version, date, command, input files with SHA-256,
     robot, poses and the campaign's temperature range."""
-    files = [("data", result.data)] + ([("validation", result.validation.source)] if result.validation else [])
+    files = [("data", part) for part in result.data.split(" + ")] + \
+        ([("validation", result.validation.source)] if result.validation else [])
     rows = [("robot", f"{result.nominal.name} ({result.nominal.source or 'given as a Robot'})"),
             ("poses", result.measurements.describe() if result.measurements else str(result.n_poses))]
     meas = result.all_rows or result.measurements
