@@ -122,7 +122,7 @@ def evaluate(robot: str | Path | Robot, data: str | Path | Measurements, *, colu
 
     notes: list[str] = [w for w in (missing_torques(r.terms, meas.torques, meas.source),
                                     drift_note(r.terms, meas.inputs, meas.source),
-                                    region_note(r, meas.q, known_targets(r, meas), meas.inputs)) if w]
+                                    region_note(r, meas.q, known_targets(r, meas), meas.inputs, meas.chain)) if w]
     mode = frames
     missing = [t for t in meas.target_names if t and t not in r.targets]
     if missing and frames == "none" and not seen:
@@ -152,14 +152,14 @@ def evaluate(robot: str | Path | Robot, data: str | Path | Measurements, *, colu
                   for t in meas.target_names} if meas.targets is not None else {}
     sigma = None
     if uncertainty:
-        sigma = predicted_sigma(r, meas.q, known_targets(r, meas), meas.inputs)
+        sigma = predicted_sigma(r, meas.q, known_targets(r, meas), meas.inputs, meas.chain)
     from .model.metrics import per_pose
 
     rows = per_pose(r, meas, "evaluated")
     if sigma is not None:
         for row, s in zip(rows, sigma):
             row["sigma_mm"] = float(s)
-    figures = {} if contact is None else contact.figures(r.positions(meas.q, meas.targets, meas.inputs))
+    figures = {} if contact is None else contact.figures(r.positions(meas.q, meas.targets, meas.inputs, meas.chain))
     per_camera = {c: Metrics.of(r, meas.subset([i for i, x in enumerate(meas.camera) if x == c]))
                   for c in dict.fromkeys(meas.camera)} if seen else {}
     return Evaluation(Metrics.of(r, meas), mode, notes, {} if seen else per_target, sigma,

@@ -391,7 +391,7 @@ def check_in_front(robot: Robot, meas: Measurements, where: str = "the nominal r
         return
     from ..model.metrics import camera_frames
 
-    p = robot.positions(meas.q, meas.targets, meas.inputs)
+    p = robot.positions(meas.q, meas.targets, meas.inputs, meas.chain)
     behind = views.behind(p, camera_frames(robot, meas))
     if behind.any():
         i = int(np.argmax(behind))

@@ -27,7 +27,8 @@ def check_units(robot: Robot, meas: Measurements, frames: str) -> None:
     """Catch metres-for-millimetres and similar: compare the spread of the measured points with
     the spread the nominal model predicts for the same joints."""
     known = meas.targets is not None and all(t == "" or t in robot.targets for t in meas.target_names)
-    model = robot.positions(meas.q, meas.targets if known and frames == "none" else None, meas.inputs)
+    model = robot.positions(meas.q, meas.targets if known and frames == "none" else None, meas.inputs,
+                             meas.chain)
     spread_m = np.linalg.norm(meas.position - meas.position.mean(0), axis=1).max()
     spread_n = np.linalg.norm(model - model.mean(0), axis=1).max()
     robot_file = robot.source or robot.name

@@ -72,8 +72,8 @@ def load_inputs(robot, data, validate, config: CalibrationConfig, columns=None) 
     if nominal.region is not None:  # a new calibration finds its own
         nominal = nominal.replace(region=None)
     _check_prior(nominal, config)
-    meas = _measurements(data, nominal, config, columns)
-    val = None if validate is None else _measurements(validate, nominal, config, columns)
+    meas = _tree_rows(_measurements(data, nominal, config, columns), nominal)
+    val = None if validate is None else _tree_rows(_measurements(validate, nominal, config, columns), nominal)
     if val is not None and meas.session is not None and val.session is None:  # one more session
         val = val.in_session("validation")
     if not (meas.full_pose and config.use_orientation):
@@ -152,6 +152,26 @@ def _session_frames_choice(frames: str, nominal: Robot, tracker: Measurements) -
     worst = max(choices, key=lambda s: modes.index(choices[s].mode) if choices[s].mode in modes else 0)
     return needed, [Note(f"frames auto: session {worst}: {choices[worst].sentence()}; each session's frames are "
                          f"registered (frames {needed})")]
+
+
+def _tree_rows(meas: Measurements, robot: Robot) -> Measurements:
+    """A tree robot's rows: each names its chain (a ``chain`` column, one of the tree's), and a row
+    without a target measured its chain's own tool (the target named after the chain)."""
+    tree = robot.tree
+    if tree is None:
+        if meas.chain is not None:
+            raise InputError(f"has a chain column, but {robot.source or robot.name} is a serial robot (a tree names "
+                             "its chains: a URDF with several tips, or [chains] in a robot file)", source=meas.source)
+        return meas
+    if meas.chain is None:
+        raise InputError(f"{robot.source or robot.name} is a tree of chains {', '.join(tree.chains)}: each row names "
+                         "its chain (a chain column)", source=meas.source)
+    for i, c in enumerate(meas.chain):
+        if c not in tree.chains:
+            raise InputError(f"chain {c!r} is not one of {', '.join(tree.chains)}", source=meas.source,
+                             where=f"row {int(meas.rows[i])}")
+    targets = meas.targets or ("",) * meas.n_poses
+    return replace(meas, targets=tuple(t or c for t, c in zip(targets, meas.chain)))
 
 
 def session_label(target: str, session: str) -> str:

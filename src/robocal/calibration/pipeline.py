@@ -139,7 +139,8 @@ def evaluate(initial: Robot, calibrated: Robot, meas: Measurements, all_rows: Me
                          f"{metrics['validation_after'].position['rms']:.4g} mm")
         from ..model.uncertainty import known_targets, region_note
 
-        said = region_note(calibrated, validation.q, known_targets(calibrated, validation), validation.inputs)
+        said = region_note(calibrated, validation.q, known_targets(calibrated, validation), validation.inputs,
+                           validation.chain)
         if said:
             notes.append(f"validation: {said}")
     return metrics, notes
@@ -221,7 +222,8 @@ def _calibrate(robot, data, validate, cfg: CalibrationConfig, columns, progress,
                                    uncertainty=None if fit.covariance is None else
                                    ParameterCovariance(tuple(est.problem.names), fit.covariance))
     if calibrated.uncertainty is not None:  # how well it knows its TCP where its data were
-        sigma = predicted_sigma(calibrated, inputs.meas.q, known_targets(calibrated, inputs.meas), inputs.meas.inputs)
+        sigma = predicted_sigma(calibrated, inputs.meas.q, known_targets(calibrated, inputs.meas), inputs.meas.inputs,
+                                inputs.meas.chain)
         calibrated = calibrated.replace(region=region.with_sigma(float(np.median(sigma))))
     with stage("evaluate"):
         metrics, said = evaluate(initial, calibrated, est.problem.meas, inputs.meas, inputs.validation,
@@ -243,7 +245,7 @@ def _calibrate(robot, data, validate, cfg: CalibrationConfig, columns, progress,
                              ("validation_before", initial, inputs.validation),
                              ("validation_after", calibrated, inputs.validation)):
         if data is not None and data.constraints is not None:
-            contact[key] = data.constraints.figures(robot.positions(data.q, data.targets, data.inputs))
+            contact[key] = data.constraints.figures(robot.positions(data.q, data.targets, data.inputs, data.chain))
         if data is not None and data.camera is not None and any(data.camera):
             seen[key] = camera_figures(robot, data)
     return CalibrationResult(

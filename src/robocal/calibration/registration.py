@@ -69,7 +69,7 @@ def register_frames(robot: Robot, meas: Measurements, mode: str, iterations: int
 
 
 def _rms(robot: Robot, meas: Measurements, targets) -> float:
-    dp = meas.position - robot.positions(meas.q, targets, meas.inputs)
+    dp = meas.position - robot.positions(meas.q, targets, meas.inputs, meas.chain)
     return float(np.sqrt(np.mean(np.sum(dp * dp, axis=1))))
 
 
@@ -153,7 +153,7 @@ def _turned_tool(base_only: Robot, both: Robot, meas: Measurements, targets) -> 
     from ..math.so3 import orientation_error
 
     def mean_deg(robot, tg):
-        R = robot.fk(meas.q, tg, meas.inputs)[:, :3, :3]
+        R = robot.fk(meas.q, tg, meas.inputs, meas.chain)[:, :3, :3]
         return float(np.degrees(np.linalg.norm(orientation_error(meas.rotation, R), axis=1).mean()))
 
     return mean_deg(base_only, targets) > mean_deg(both, meas.targets) + TURNED_TOOL_DEG
@@ -186,7 +186,7 @@ def _fit_frames_whole(robot: Robot, meas: Measurements, mode: str, sigma_positio
 
     def residuals(x):
         r = frames(x)
-        T = r.fk(meas.q, meas.targets, meas.inputs)
+        T = r.fk(meas.q, meas.targets, meas.inputs, meas.chain)
         out = [((meas.position - T[:, :3, 3]) / sigma_position).ravel()]
         if meas.rotation is not None:
             out.append((orientation_error(meas.rotation, T[:, :3, :3]) / sigma_r).ravel())

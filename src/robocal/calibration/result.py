@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..exceptions import InputError
 from ..io.atomic import atomic_write
 from ..math.se3 import transform_to_xyz_rpy
 from ..model.kinematics import joint_parameter_names
@@ -360,7 +361,8 @@ class CalibrationResult:
         for m, label, outliers in sets:
             part = per_pose(self.robot, m, label, outliers)
             if self.robot.uncertainty is not None:
-                for row, s in zip(part, predicted_sigma(self.robot, m.q, known_targets(self.robot, m), m.inputs)):
+                sigma = predicted_sigma(self.robot, m.q, known_targets(self.robot, m), m.inputs, m.chain)
+                for row, s in zip(part, sigma):
                     row["sigma_mm"] = float(s)
             rows += part
         return rows
@@ -523,10 +525,14 @@ class CalibrationResult:
         if self.model != "geometric":
             comment += f"\nModel {self.model}: every robocal command uses its joint terms and residual model."
         path = Path(path)
+        if self.robot.tree is not None and path.suffix.lower() in (".yaml", ".yml"):
+            raise InputError("a UR kinematics file holds one arm: export a tree as .toml or .urdf (each chain gets "
+                             "its own robot file beside it)", source=path)
+        chains = self._export_chains(path, comment)
         if path.suffix.lower() in (".yaml", ".yml"):
             return self._export_ur(path, comment)
         if path.suffix.lower() != ".urdf":
-            return save_robot(self.robot.without_sessions(), path, comment)
+            return save_robot(self.robot.without_sessions(), path, comment) + chains
         from ..io.urdf import urdf_text
 
         written, whole = [], None
@@ -541,7 +547,27 @@ class CalibrationResult:
                                      "\nLengths in m, angles in rad; measuring_frame carries the identified base "
                                      f"frame, {where}.", whole_model=None if whole is None else whole.name,
                                      tool_at_tip=probe))
-        return [path, *written]
+        return [path, *written, *chains]
+
+    def _export_chains(self, path: Path, comment: str) -> list[Path]:
+        """Each chain of a tree as a serial robot file beside ``path`` (``NAME.CHAIN.toml``), for the
+        commands that drive one arm (filter, compensate); none for a serial robot."""
+        from ..io.robotfile import save_robot
+
+        tree = self.robot.tree
+        if tree is None:
+            return []
+        robot = (self.receiver or self.robot).without_sessions()
+        written = []
+        for name in tree.names:
+            try:
+                arm = robot.chain(name)
+            except ValueError as exc:
+                raise InputError(str(exc), source=path) from None
+            written += save_robot(arm, path.with_name(f"{path.stem}.{name}.toml"),
+                                  f"{comment}\nChain {name} of the tree: its joints q1..q{arm.n_joints} are the tree's "
+                                  + ", ".join(arm.joint_names or ()) + ".")
+        return written
 
 
     def _receiver_comment(self) -> str:

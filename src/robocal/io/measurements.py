@@ -31,7 +31,7 @@ from .table import DECIMALS, DELIMITERS, CsvTable, numbers, read_csv, strings
 
 POSITION = ("x", "y", "z")
 ORIENTATION = ("rx", "ry", "rz")
-OPTIONAL = ("pose_id", "target", "payload", "cycle", "time", "temperature", "session")
+OPTIONAL = ("pose_id", "target", "payload", "cycle", "time", "temperature", "session", "chain")
 #: rows without a measured position: the tool point touched an unknown point or plane, one of a setup's
 CONSTRAINT = ("point", "plane", "setup")
 #: rows a camera saw: the pixel (px) where the camera named saw the marker named (a target on the tool)
@@ -79,6 +79,7 @@ class PoseTable:
     camera: list[str] | None = None
     pixels: np.ndarray | None = None
     session: list[str] | None = None
+    chain: list[str] | None = None
 
 
 def _per_joint_columns(table: CsvTable, n_joints: int, pattern: re.Pattern, what: str) -> list[str] | None:
@@ -247,7 +248,8 @@ def read_pose_table(text: str, *, source: str, options: ReadOptions = ReadOption
     for h in table.header:
         if h not in known and not any(p.match(h) for p in (_JOINT, _TORQUE, _DIRECTION)):
             raise InputError(f"unknown column '{h}' (expected q1..qn, x, y, z, optional rx, ry, rz, pose_id, "
-                             "target, cycle, session, tau1..taun, payload, dir1..dirn, time, temperature, sx, sy, sz, "
+                             "target, cycle, session, chain, tau1..taun, payload, dir1..dirn, time, temperature, sx, "
+                             "sy, sz, "
                              "srx, sry, srz, point, plane, setup, u, v, camera, marker; map other names with a column "
                              "mapping)",
                              source=source)
@@ -326,6 +328,7 @@ def read_pose_table(text: str, *, source: str, options: ReadOptions = ReadOption
         payload=payload,
         cycles=strings(table, "cycle", required=True) if "cycle" in table else None,
         session=strings(table, "session", required=True) if "session" in table else None,
+        chain=strings(table, "chain", required=True) if "chain" in table else None,
         directions=_directions(table, len(qcols)) if qcols else None,
         time=numbers(table, ["time"], MAX_TIME_S, "s")[:, 0] if "time" in table else None,
         temperature=numbers(table, ["temperature"], MAX_TEMPERATURE_C, "°C")[:, 0] if "temperature" in table else None,
@@ -489,6 +492,7 @@ def parse_measurements(text: str, *, source: str = "<data>", average: bool = Tru
         pixels=t.pixels,
         camera=None if t.camera is None else tuple(t.camera),
         session=None if t.session is None else tuple(t.session),
+        chain=None if t.chain is None else tuple(t.chain),
     )
     if t.cycles is not None and t.pose_ids is None:
         raise InputError("a cycle column numbers the measuring cycles of each pose: it needs a pose_id column",
@@ -600,6 +604,7 @@ def average_repeats(meas: Measurements, tolerance: float = REPEAT_TOLERANCE_MM, 
         pose_ids=tuple(meas.pose_ids[i] for i in first),
         rows=meas.rows[first],
         session=None if meas.session is None else tuple(meas.session[i] for i in first),
+        chain=None if meas.chain is None else tuple(meas.chain[i] for i in first),
     )
 
 
@@ -646,7 +651,8 @@ def measurements_to_csv(meas: Measurements, *, extra: Mapping[str, Sequence] | N
         groups = groups[1:]
     groups = [(names, np.asarray(v, float)) for names, v in groups if v is not None]
     extra = {**{k: v for k, v in (("point", meas.point), ("plane", meas.plane), ("setup", meas.setup),
-                                  ("session", meas.session)) if v is not None}, **dict(extra or {})}
+                                  ("session", meas.session), ("chain", meas.chain)) if v is not None},
+             **dict(extra or {})}
     marker = meas.camera is not None and meas.targets is not None  # a camera row's target is its marker
     if meas.camera is not None:
         pixels = [("" if np.isnan(u) else repr(float(u)), "" if np.isnan(v) else repr(float(v)))

@@ -37,18 +37,20 @@ from .atomic import atomic_write, read_text
 from .builtins import builtin_names, builtin_text
 
 TOP_KEYS = {"name", "convention", "joint", "base", "tool", "targets", "source", "gravity", "drift", "residual",
-            "region", "fallback", "uncertainty", "controller", "prior", "cameras"}
+            "region", "fallback", "uncertainty", "controller", "prior", "cameras", "chains"}
 CONTROLLER_KEYS = {"coupling"}
 COUPLING_KEYS = {"joint", "plus", "factor"}
-GEOMETRY_KEYS = {"a", "alpha", "d", "theta", "beta", "limits", "type", "name"}
+GEOMETRY_KEYS = {"a", "alpha", "d", "theta", "beta", "limits", "type", "name", "parent"}
 TERM_KEYS = {key.key for t in TERMS.values() for key in t.file_keys}
 JOINT_KEYS = GEOMETRY_KEYS | TERM_KEYS
 #: a urdf-convention robot's joints: origin xyz (mm) and rpy (deg), axis, type, zero offset
-URDF_JOINT_KEYS = {"xyz", "rpy", "axis", "type", "offset", "limits", "name"} | TERM_KEYS
+URDF_JOINT_KEYS = {"xyz", "rpy", "axis", "type", "offset", "limits", "name", "parent"} | TERM_KEYS
 JOINT_TYPES = ("revolute", "prismatic")
 GRAVITY_KEYS = {"direction", "payload_com"}
 DRIFT_KEYS = {"clock", "reference"}
 FRAME_KEYS = {"xyz", "rpy"}
+#: a chain of a tree: the joint at its tip, and its own tool (a frame after that joint)
+CHAIN_KEYS = {"tip", "tool"}
 #: a camera's mounting: its link (0: fixed in the measuring frame), its frame there, whether it was
 #: given rather than found, and the camera it is fixed to (a calibrated rig)
 CAMERA_KEYS = FRAME_KEYS | {"link", "known", "of"}
@@ -57,16 +59,21 @@ _RADIAN_LOOKALIKES = (math.pi / 2, math.pi, math.pi / 4)
 
 def load_robot(spec: str | Path | Robot, *, base_link: str | None = None, tip_link: str | None = None) -> Robot:
     """A robot from a file path (robot TOML; URDF: its chain from ``base_link`` to
-    ``tip_link``, see :mod:`robocal.io.urdf`; a UR kinematics YAML, see :mod:`robocal.io.ur`)
+    ``tip_link``, or the tree of several tips given as ``A,B``, see :mod:`robocal.io.urdf`; a UR
+    kinematics YAML, see :mod:`robocal.io.ur`)
     or a built-in name (see :func:`builtin_names`)."""
     if isinstance(spec, Robot):
         return spec
     path = Path(spec)
     if path.suffix.lower() == ".urdf":
         from .urdf import parse_urdf, whole_model_file
+        from .urdf_tree import parse_urdf_tree
 
         text = read_text(path, "URDF file")
         whole = whole_model_file(text, path)
+        tips = [t.strip() for t in tip_link.split(",") if t.strip()] if tip_link else []
+        if whole is None and len(tips) > 1:  # several tips: the tree of their chains
+            return parse_urdf_tree(text, source=str(path), base_link=base_link, tips=tips)
         if whole is None:
             return parse_urdf(text, source=str(path), base_link=base_link, tip_link=tip_link)
         warnings.warn(f"{path} is the geometry of a model beyond geometry: the whole model is read from {whole}",
@@ -116,9 +123,11 @@ def _vector(value, size, source, where) -> list[float]:
 def _check_degrees(value: float, source, where, zero: bool = False) -> None:
     """A twist or frame angle near π/2, π or π/4 in degrees was typed in radians; a joint zero
     (``zero``) only when it is one of them to the digits a typed radian has: a calibrated zero
-    of −0.785° is a real offset, not π/4."""
+    of −0.785° is a real offset, not π/4.  A typed radian has a few decimals (1.5708, 3.14); a
+    value of many (0.7860811966432728°, a calibrated frame's angle as robocal writes it) is measured."""
     near = 1e-4 if zero else 2e-3
-    if value != 0 and any(abs(abs(value) - r) < near for r in _RADIAN_LOOKALIKES):
+    typed = round(value, 6) == value
+    if value != 0 and typed and any(abs(abs(value) - r) < near for r in _RADIAN_LOOKALIKES):
         raise InputError(f"{value!r} looks like radians (≈ π/2, π or π/4); robot files give angles in degrees",
                          source=source, where=where)
 
@@ -397,13 +406,57 @@ def parse_robot(text: str, *, source: str = "<robot>", default_name: str = "robo
     coupling = () if "controller" not in data else _coupling(data["controller"], len(joints), source)
     prior = None if "prior" not in data else _prior(data["prior"], conv, geom, source)
     cameras = {} if "cameras" not in data else _cameras(data["cameras"], len(joints), source)
+    tree = _tree_spec(joints, data.get("chains"), source)
+    if tree is not None:  # each chain's own tool, a target named after the chain
+        targets = {**_chain_tools(data["chains"], source), **targets}
     robot = Robot(conv, geom, limits, joint_names=tuple(nm or f"joint{i + 1}" for i, nm in enumerate(names))
                   if any(names) else None, base=base, tool=tool, targets=targets, name=name or default_name,
                   source=source, terms=terms, residual=residual, region=region, uncertainty=uncertainty,
-                  coupling=coupling, prior=prior, cameras=cameras)
+                  coupling=coupling, prior=prior, cameras=cameras, tree=tree)
     if uncertainty is not None:
         _check_covariance_names(robot, uncertainty, source)
     return robot
+
+
+def _tree_spec(joints: list[dict], chains, source: str):
+    """A tree (:mod:`robocal.model.kinematic_tree`) where a joint names its ``parent`` (1-based; 0: the base; the
+    one before it where not given) and ``[chains.NAME] tip = K`` names each chain's last joint; None
+    for a serial robot (no parent and no chains)."""
+    from ..model.kinematic_tree import TreeSpec
+
+    stated = any("parent" in j for j in joints)
+    if chains is None and not stated:
+        return None
+    if not isinstance(chains, dict) or not chains or not all(isinstance(v, dict) for v in chains.values()):
+        raise InputError("a tree (joints with a parent) names its chains: tables [chains.NAME] with tip = K",
+                         source=source, where="[chains]")
+    n = len(joints)
+    parents = []
+    for i, j in enumerate(joints):
+        p = j.get("parent", i)
+        if not isinstance(p, int) or isinstance(p, bool) or not 0 <= p <= i:
+            raise InputError(f"parent must be a joint before this one (1…{i}) or 0 (the base), got {p!r}",
+                             source=source, where=f"joint {i + 1}, key 'parent'")
+        parents.append(p - 1)
+    paths = {}
+    for name, table in chains.items():
+        _known_keys(table, CHAIN_KEYS, source, f"[chains.{name}]")
+        tip = table.get("tip")
+        if not isinstance(tip, int) or isinstance(tip, bool) or not 1 <= tip <= n:
+            raise InputError(f"tip must be a joint 1…{n}, got {tip!r}", source=source, where=f"[chains.{name}] tip")
+        path, k = [], tip - 1
+        while k >= 0:
+            path.append(k)
+            k = parents[k]
+        paths[str(name)] = tuple(reversed(path))
+    return TreeSpec(tuple(parents), paths)
+
+
+def _chain_tools(chains: dict, source: str) -> dict:
+    """Each chain's own tool (``[chains.NAME.tool]``, xyz mm and rpy deg after its tip joint; the
+    tip joint's frame where not given), a target named after the chain."""
+    return {str(name): _frame(table["tool"], source, f"chains.{name}.tool") if "tool" in table else np.eye(4)
+            for name, table in chains.items()}
 
 
 def _cameras(table, n: int, source: str) -> dict:
@@ -654,6 +707,8 @@ def robot_to_toml(robot: Robot, comment: str | None = None, residual_file: str |
     lines.append("")
     for i in range(robot.n_joints):
         lines += ["[[joint]]"] + ([f"name = {_quote(robot.joint_names[i])}"] if robot.joint_names else [])
+        if robot.tree is not None:
+            lines.append(f"parent = {robot.tree.parents[i] + 1}")
         lines += _geometry_lines(robot, i)
         lo, hi = robot.limits[i]
         if np.isfinite(lo) and np.isfinite(hi):
@@ -666,7 +721,13 @@ def robot_to_toml(robot: Robot, comment: str | None = None, residual_file: str |
     lines += _drift_lines(robot.terms)
     lines += _frame_text("[base]", robot.base) + [""]
     lines += _frame_text("[tool]", robot.tool) + [""]
+    chains = {} if robot.tree is None else robot.tree.chains
+    for name, joints in chains.items():  # each chain's tip and its own tool
+        lines += [f"[chains.{_quote(name)}]", f"tip = {joints[-1] + 1}", ""]
+        lines += _frame_text(f"[chains.{_quote(name)}.tool]", robot.targets.get(name, np.eye(4))) + [""]
     for name, T in robot.targets.items():
+        if name in chains:
+            continue
         lines += _frame_text(f"[targets.{_quote(name)}]", T) + [""]
     for name, mount in robot.cameras.items():
         where = f"camera {mount.of!r}'s frame" if mount.of else \

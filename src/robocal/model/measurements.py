@@ -66,6 +66,8 @@ class Measurements:
     #: each row's session (any label), or None: one session.  Between sessions the instrument, the
     #: markers or the cameras may have moved: cross-validation holds out whole sessions
     session: tuple[str, ...] | None = None
+    #: each row's chain of a tree robot (:mod:`robocal.model.kinematic_tree`): its point is on that chain's tip
+    chain: tuple[str, ...] | None = None
 
     @property
     def sessions(self) -> tuple[str, ...]:
@@ -248,6 +250,7 @@ class Measurements:
             pixels=None if self.pixels is None else self.pixels[index],
             camera=pick(self.camera),
             session=pick(self.session),
+            chain=pick(self.chain),
         )
 
     def position_only(self) -> Measurements:
@@ -298,7 +301,7 @@ def concatenate(parts: list[Measurements], source: str | None = None) -> Measure
         directions=stack("directions"), time=stack("time"), temperature=stack("temperature"),
         sigma_position=stack("sigma_position"), sigma_orientation=stack("sigma_orientation"),
         sigma_source=sigma_source, point=stack("point"), plane=stack("plane"), setup=stack("setup"),
-        pixels=stack("pixels"), camera=stack("camera"), session=stack("session"),
+        pixels=stack("pixels"), camera=stack("camera"), session=stack("session"), chain=stack("chain"),
         intrinsics={k: v for p in parts for k, v in p.intrinsics.items()})
 
 

@@ -18,7 +18,7 @@ def pose_errors(robot: Robot, meas: Measurements) -> tuple[np.ndarray, np.ndarra
     pixel (px) in the first two slots (:mod:`robocal.model.views`).  Rows that touched an unknown point or plane
     (:mod:`robocal.model.constraints`) have the offset of their predicted point from that
     point's (plane's) best fit."""
-    T = robot.in_sessions(robot.fk(meas.q, meas.targets, meas.inputs), meas.session)
+    T = robot.in_sessions(robot.fk(meas.q, meas.targets, meas.inputs, meas.chain), meas.session)
     dp = meas.position - T[:, :3, 3]
     c = meas.constraints
     if c is not None:  # rows that touched an unknown point or plane: the offset from its best fit
@@ -50,7 +50,7 @@ def pixel_scale(robot: Robot, meas: Measurements) -> np.ndarray:
     if views is None:
         return out
     frames = camera_frames(robot, meas)
-    p = robot.positions(meas.q, meas.targets, meas.inputs)
+    p = robot.positions(meas.q, meas.targets, meas.inputs, meas.chain)
     depth = np.einsum("mj,mj->m", frames[:, :3, 2], p - frames[:, :3, 3])
     focal = np.array([(c.fx + c.fy) / 2.0 for c in views.cameras] + [np.nan])[views.index]
     return np.where(views.rows, depth / focal, np.nan)

@@ -329,7 +329,8 @@ class ParameterSpace:
             if link == 0:
                 out[..., rows, :, :] = poses[..., c:c + 1, :, :]
                 continue
-            R, p = chain_pose(self.robot.convention, geom[..., :link, :], qe[..., rows, :link], base,
+            path = self.robot.link_path(link)
+            R, p = chain_pose(self.robot.convention, geom[..., path, :], qe[..., rows, :][..., path], base,
                               poses[..., c:c + 1, :, :])
             out[..., rows, :, :] = homogeneous(R, p)
         return out
@@ -361,20 +362,22 @@ class ParameterSpace:
             if link == 0:
                 R_parent = np.eye(3)[None]
             else:
-                Jj, _, _, R_parent = chain_twist_jacobian(self.robot.convention, geom[:link], qe[rows, :link], base,
+                path = self.robot.link_path(link)
+                Jj, _, _, R_parent = chain_twist_jacobian(self.robot.convention, geom[path], qe[rows][:, path], base,
                                                           poses[c][None])
                 where = np.flatnonzero(rows)
-                J[at[: link * kinds, None], where] = Jj[:, :kinds].reshape(link * kinds, -1, 6)
+                cols = (path[:, None] * kinds + np.arange(kinds)).ravel()
+                J[at[cols, None], where] = Jj[:, :kinds].reshape(len(cols), -1, 6)
                 nj = self.n_joint_params
                 if np.any(at[nj:nj + 6] < size):
                     Jb = np.zeros((6, len(where), 6))
                     self._base_columns(Jb, deviation[nj:nj + 6], frames[rows, :3, 3] - base[:3, 3])
                     J[at[nj:nj + 6, None], where] = Jb
                 if self.n_term_params:
-                    cols = joint_value_columns(self.robot.convention, self.robot.geometry)[:link]
-                    Jq = Jj[np.arange(link), cols]
+                    value = joint_value_columns(self.robot.convention, self.robot.geometry)[path]
+                    Jq = Jj[np.arange(len(path)), value]
                     J[at[self.size - self.n_term_params:, None], where] = np.einsum(
-                        "imk,mit->tmk", Jq, joints.basis[rows][:, :link])
+                        "imk,mit->tmk", Jq, joints.basis[rows][:, path])
             arm = 0.0
             if of:  # turning the camera it is fixed to swings this one about that one's origin
                 sub = None if joints is None else joints.subset(rows)
@@ -393,11 +396,49 @@ class ParameterSpace:
                     J[at[col + 3 + k], rows, :3] = np.cross(w, arm)
         return frames, J[:size]
 
+    def _tree_columns(self, J, at, geom, q, base, tool, joints, chain):
+        """A tree's joint columns of J (k + 1, m, 6), each chain's rows through its own joints;
+        returns the end rotations, positions and flange rotations of every row."""
+        m, kinds = q.shape[0], len(joint_kinds(self.robot.convention))
+        value = joint_value_columns(self.robot.convention, self.robot.geometry)
+        R_e, p_e, R_f = np.empty((m, 3, 3)), np.empty((m, 3)), np.empty((m, 3, 3))
+        for rows, path in self.robot.tree.groups(chain, m):
+            Jj, R_e[rows], p_e[rows], R_f[rows] = chain_twist_jacobian(
+                self.robot.convention, geom[path], q[rows][:, path], base, tool if len(tool) == 1 else tool[rows])
+            cols = (path[:, None] * kinds + np.arange(kinds)).ravel()
+            where = np.flatnonzero(rows)
+            J[at[cols, None], where] = Jj[:, :kinds].reshape(len(cols), -1, 6)
+            if self.n_term_params:
+                Jq = Jj[np.arange(len(path)), value[path]]
+                J[at[self.size - self.n_term_params:, None], where] = np.einsum("imk,mit->tmk", Jq,
+                                                                                 joints.basis[rows][:, path])
+        return R_e, p_e, R_f
+
     def _tools_for(self, tools: np.ndarray, target_idx: np.ndarray | None) -> np.ndarray:
         return tools[..., :1, :, :] if target_idx is None else tools[..., target_idx, :, :]
 
+    def _chains(self, function, geom, q, base, tools, chain: np.ndarray | None):
+        """``function`` (:func:`chain_pose` or :func:`chain_points`) of every row: for a tree, each
+        chain's rows through that chain's joints (``chain``: each row's chain, :meth:`TreeSpec.index`)."""
+        tree = self.robot.tree
+        if tree is None:
+            return function(self.robot.convention, geom, q, base, tools)
+        m = q.shape[-2]
+        R = p = None
+        for rows, path in tree.groups(chain, m):
+            t = tools if tools.shape[-3] == 1 else tools[..., rows, :, :]
+            out = function(self.robot.convention, geom[..., path, :], q[..., rows, :][..., path], base, t)
+            Rc, pc = out if isinstance(out, tuple) else (None, out)
+            if p is None:
+                p = np.empty(pc.shape[:-2] + (m, 3))
+                R = None if Rc is None else np.empty(Rc.shape[:-3] + (m, 3, 3))
+            p[..., rows, :] = pc
+            if R is not None:
+                R[..., rows, :, :] = Rc
+        return p if R is None else (R, p)
+
     def pose(self, deviation: np.ndarray, q: np.ndarray, target_idx: np.ndarray | None = None,
-             joints: JointData | None = None, session: np.ndarray | None = None):
+             joints: JointData | None = None, session: np.ndarray | None = None, chain: np.ndarray | None = None):
         """End rotation (…, m, 3, 3) and position (…, m, 3) mm for deviation vectors (…, k) at
         commanded joints q (m, n) rad; ``session`` (m,): each row's session, seen through its own
         base (:meth:`session_index`).
@@ -406,18 +447,19 @@ class ParameterSpace:
         """
         geom, base, tools = self.expand(deviation)
         q = self.effective_joints(deviation, q, joints)
-        R, p = chain_pose(self.robot.convention, geom, q, base, self._tools_for(tools, target_idx))
+        R, p = self._chains(chain_pose, geom, q, base, self._tools_for(tools, target_idx), chain)
         D = self._through_sessions(deviation, session, base)
         if D is None:
             return R, p
         return D[..., :3, :3] @ R, np.einsum("...ij,...j->...i", D[..., :3, :3], p) + D[..., :3, 3]
 
     def points(self, deviation: np.ndarray, q: np.ndarray, target_idx: np.ndarray | None = None,
-               joints: JointData | None = None, session: np.ndarray | None = None) -> np.ndarray:
+               joints: JointData | None = None, session: np.ndarray | None = None,
+               chain: np.ndarray | None = None) -> np.ndarray:
         """Measured-point positions (…, m, 3) mm only: the cheap path of position-only objectives."""
         geom, base, tools = self.expand(deviation)
         q = self.effective_joints(deviation, q, joints)
-        p = chain_points(self.robot.convention, geom, q, base, self._tools_for(tools, target_idx))
+        p = self._chains(chain_points, geom, q, base, self._tools_for(tools, target_idx), chain)
         D = self._through_sessions(deviation, session, base)
         return p if D is None else np.einsum("...ij,...j->...i", D[..., :3, :3], p) + D[..., :3, 3]
 
@@ -443,7 +485,7 @@ class ParameterSpace:
 
     def jacobian_columns(self, deviation: np.ndarray, q: np.ndarray, target_idx: np.ndarray | None = None,
                          frames: bool = True, joints: JointData | None = None, active: np.ndarray | None = None,
-                         session: np.ndarray | None = None):
+                         session: np.ndarray | None = None, chain: np.ndarray | None = None):
         """As :meth:`jacobian` with J laid out (k, m, 6); ``frames=False`` leaves the base and
         tool columns zero (cheaper when none of them is estimated); ``active``: the parameters whose
         columns are wanted, in that order (default all; a tool nothing estimates costs nothing).  A
@@ -452,17 +494,20 @@ class ParameterSpace:
         geom, base, tools = self.expand(deviation)
         tool = tools[:1] if target_idx is None else tools[target_idx]
         q = self.effective_joints(deviation, q, joints)
-        Jj, R_e, p_e, R_f = chain_twist_jacobian(self.robot.convention, geom, q, base, tool)
-        m = p_e.shape[0]
+        m = q.shape[0]
         kinds = len(joint_kinds(self.robot.convention))
         at, k = self._rows(active)
         J = np.zeros((k + 1, m, 6))
         nj = self.n_joint_params
-        J[at[:nj]] = Jj[:, :kinds].reshape(nj, m, 6)
-        if self.n_term_params:
-            cols = joint_value_columns(self.robot.convention, self.robot.geometry)
-            Jq = Jj[np.arange(self.robot.n_joints), cols]
-            J[at[self.size - self.n_term_params:]] = np.einsum("imk,mit->tmk", Jq, joints.basis)
+        value = joint_value_columns(self.robot.convention, self.robot.geometry)
+        if self.robot.tree is None:
+            Jj, R_e, p_e, R_f = chain_twist_jacobian(self.robot.convention, geom, q, base, tool)
+            J[at[:nj]] = Jj[:, :kinds].reshape(nj, m, 6)
+            if self.n_term_params:
+                Jq = Jj[np.arange(self.robot.n_joints), value]
+                J[at[self.size - self.n_term_params:]] = np.einsum("imk,mit->tmk", Jq, joints.basis)
+        else:
+            R_e, p_e, R_f = self._tree_columns(J, at, geom, q, base, tool, joints, chain)
         if frames:
             _, db, dt = self._split(deviation)
             if np.any(at[nj:nj + 6] < k):

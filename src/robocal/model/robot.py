@@ -12,6 +12,7 @@ from .camera import CameraMount
 from .corrections import Correction
 from .covariance import ParameterCovariance
 from .dh import ALPHA, BETA, THETA, A, D
+from .kinematic_tree import TreeSpec
 from .kinematics import chain_pose, check_convention, geometry_width, prismatic_mask
 from .kinematics import reach as chain_reach
 from .prior import Prior
@@ -66,6 +67,9 @@ class Robot:
     #: the measuring frame of each session where the instrument moved between them (label → the
     #: base, 4 × 4 mm, as :attr:`base` is in its own session); empty: one measuring frame
     session_bases: Mapping[str, np.ndarray] = field(default_factory=dict)
+    #: a kinematic tree (:mod:`robocal.model.kinematic_tree`): each joint's parent and each chain's joints;
+    #: None for a serial chain
+    tree: TreeSpec | None = None
 
     def __post_init__(self) -> None:
         check_convention(self.convention)
@@ -132,21 +136,35 @@ class Robot:
         q = np.atleast_2d(np.asarray(q, float))
         return q + joint_offsets(self.terms, self.convention, self.geometry, q, inputs)
 
-    def fk(self, q, targets: Sequence[str] | None = None, inputs: JointInputs | None = None) -> np.ndarray:
+    def fk(self, q, targets: Sequence[str] | None = None, inputs: JointInputs | None = None,
+           chains: Sequence[str] | None = None) -> np.ndarray:
         """End poses (m, 4, 4) in the measuring frame for commanded joints q (m, n) rad, with the
         robot's joint terms (on the poses' :class:`~robocal.model.terms.JointInputs`: torques,
         payload, directions of motion, time, where they need them) and its residual correction
-        (:mod:`robocal.model.residual`)."""
+        (:mod:`robocal.model.residual`).  A tree's rows name their chain (``chains``)."""
         q = np.atleast_2d(np.asarray(q, float))
-        R, p = chain_pose(self.convention, self.geometry, self.effective_joints(q, inputs), self.base,
-                          self.tool_frames(targets))
+        qe = self.effective_joints(q, inputs)
+        # a tree's rows without targets are on their chain's own tool
+        tools = self.tool_frames(chains if targets is None and self.tree is not None else targets)
+        if self.tree is not None:
+            R, p = np.empty((len(q), 3, 3)), np.empty((len(q), 3))
+            for rows, path in self.tree.groups(self.tree.index(chains), len(q)):
+                R[rows], p[rows] = chain_pose(self.convention, self.geometry[path], qe[rows][:, path], self.base,
+                                              tools if len(tools) == 1 else tools[rows])
+            return homogeneous(R, p)
+        R, p = chain_pose(self.convention, self.geometry, qe, self.base, tools)
         if self.residual is not None:
             R, p = self.residual.correct(q, R, p, self.base[:3, :3])
         return homogeneous(R, p)
 
-    def positions(self, q, targets: Sequence[str] | None = None, inputs: JointInputs | None = None) -> np.ndarray:
+    def positions(self, q, targets: Sequence[str] | None = None, inputs: JointInputs | None = None,
+                  chains: Sequence[str] | None = None) -> np.ndarray:
         """Measured-point positions (m, 3) mm in the measuring frame for commanded joints q (m, n) rad."""
-        return self.fk(q, targets, inputs)[:, :3, 3]
+        return self.fk(q, targets, inputs, chains)[:, :3, 3]
+
+    def link_path(self, link: int) -> np.ndarray:
+        """The joints (0-based) from the base to link ``link`` (the frame after joint ``link``)."""
+        return np.arange(link) if self.tree is None else np.array(self.tree.path(link - 1), int)
 
     def camera_frames(self, cameras: Sequence[str], q, inputs: JointInputs | None = None) -> np.ndarray:
         """Each row's camera frame (m, 4, 4) in the measuring frame: a fixed camera's pose, or the
@@ -164,8 +182,8 @@ class Robot:
             if mount.link == 0:
                 out[rows] = pose
                 continue
-            k = mount.link
-            R, p = chain_pose(self.convention, self.geometry[:k], self.effective_joints(q, inputs)[rows, :k],
+            path = self.link_path(mount.link)
+            R, p = chain_pose(self.convention, self.geometry[path], self.effective_joints(q, inputs)[rows][:, path],
                               self.base, pose[None])
             out[rows] = homogeneous(R, p)
         return out
@@ -218,6 +236,12 @@ class Robot:
             uncertainty = type(uncertainty)(tuple(uncertainty.names[i] for i in keep),
                                             uncertainty.matrix[np.ix_(keep, keep)])
         return replace(self, session_bases={}, targets=own, uncertainty=uncertainty)
+
+    def chain(self, name: str) -> Robot:
+        """One chain of a tree as a serial robot (:func:`robocal.model.kinematic_tree.chain_robot`)."""
+        from .kinematic_tree import chain_robot
+
+        return chain_robot(self, name)
 
     def replace(self, **changes) -> Robot:
         return replace(self, **changes)

@@ -24,37 +24,41 @@ from .terms import JointInputs, TermSpec
 
 
 def point_covariance(robot, covariance: ParameterCovariance, q: np.ndarray, targets: Sequence[str] | None = None,
-                     inputs: JointInputs | None = None) -> np.ndarray:
-    """Σ (m, 3, 3) mm² of the predicted positions of ``robot`` at commanded joints q (m, n) rad."""
+                     inputs: JointInputs | None = None, chains: Sequence[str] | None = None) -> np.ndarray:
+    """Σ (m, 3, 3) mm² of the predicted positions of ``robot`` at commanded joints q (m, n) rad
+    (a tree's: on each row's chain, ``chains``)."""
     q = np.atleast_2d(np.asarray(q, float))
     spec = robot.terms.spec() if robot.terms is not None else TermSpec()
     space = ParameterSpace.of(robot, None, spec)
     known = [n for n in covariance.names if n in set(space.names)]
     keep = [covariance.names.index(n) for n in known]
     C = covariance.matrix[np.ix_(keep, keep)]
+    if robot.tree is not None and targets is None:
+        targets = chains
     target_idx = None if targets is None else space.target_index(targets)
+    chain = None if robot.tree is None else robot.tree.index(chains)
     Jc, _, _ = space.jacobian_columns(np.zeros(space.size), q, target_idx, frames=True,
-                                      joints=space.joint_data(q, inputs))
+                                      joints=space.joint_data(q, inputs), chain=chain)
     J = Jc[space.index(known)][:, :, :3]  # (k, m, 3)
     return np.einsum("kma,kmb->mab", J, np.tensordot(C, J, axes=(1, 0)))  # C J first: one pass over the poses
 
 
 def point_sigma(robot, covariance: ParameterCovariance, q: np.ndarray, targets: Sequence[str] | None = None,
-                inputs: JointInputs | None = None) -> np.ndarray:
+                inputs: JointInputs | None = None, chains: Sequence[str] | None = None) -> np.ndarray:
     """The standard uncertainty (m,) mm of each predicted position from the parameters alone: √tr Σ."""
-    S = point_covariance(robot.replace(residual=None), covariance, q, targets, inputs)
+    S = point_covariance(robot.replace(residual=None), covariance, q, targets, inputs, chains)
     return np.sqrt(np.maximum(np.einsum("mii->m", S), 0.0))
 
 
 def predicted_sigma(robot, q: np.ndarray, targets: Sequence[str] | None = None,
-                    inputs: JointInputs | None = None) -> np.ndarray:
+                    inputs: JointInputs | None = None, chains: Sequence[str] | None = None) -> np.ndarray:
     """The whole model's predicted position uncertainty (m,) mm at commanded joints q (m, n) rad:
     √(tr J C Jᵀ + tr Σ_residual), the parameters' part where the robot carries their covariance,
     the residual process's where it has one (a process saved without its noise level adds none)."""
     q = np.atleast_2d(np.asarray(q, float))
     var = np.zeros(len(q))
     if robot.uncertainty is not None:
-        var += point_sigma(robot, robot.uncertainty, q, targets, inputs) ** 2
+        var += point_sigma(robot, robot.uncertainty, q, targets, inputs, chains) ** 2
     if robot.residual is not None:
         var += np.nan_to_num(robot.residual.position_variance(q))
     return np.sqrt(var)
@@ -89,7 +93,9 @@ def uncertainty_map(robot, q_low: np.ndarray, q_high: np.ndarray, n: int = 2000,
     and q_high (rad), and at_poses: σ already worked out at the calibration poses, kept beside them."""
     rng = np.random.default_rng(seed)
     q = rng.uniform(np.asarray(q_low, float), np.asarray(q_high, float), (n, len(q_low)))
-    return UncertaintyMap(robot.positions(q), predicted_sigma(robot, q), at_poses)
+    # a tree's joint sets take its chains in turn: every tip mapped over the same region
+    chains = None if robot.tree is None else [robot.tree.names[i % len(robot.tree.names)] for i in range(n)]
+    return UncertaintyMap(robot.positions(q, chains=chains), predicted_sigma(robot, q, chains=chains), at_poses)
 
 
 def known_targets(robot, meas) -> list[str] | None:
@@ -102,12 +108,12 @@ def tcp_map(robot, meas, seed: int | None = 0) -> UncertaintyMap | None:
     poses ``meas`` (None without a covariance or a region), the whole model's."""
     if robot.uncertainty is None or robot.region is None:
         return None
-    at_poses = predicted_sigma(robot, meas.q, known_targets(robot, meas), meas.inputs)
+    at_poses = predicted_sigma(robot, meas.q, known_targets(robot, meas), meas.inputs, meas.chain)
     return uncertainty_map(robot, robot.region.lo, robot.region.hi, seed=seed or 0, at_poses=at_poses)
 
 
 def region_note(robot, q: np.ndarray, targets: Sequence[str] | None = None,
-                inputs: JointInputs | None = None) -> str | None:
+                inputs: JointInputs | None = None, chains: Sequence[str] | None = None) -> str | None:
     """What to say of poses q (m, n) rad the model knows less well than its calibration poses:
     those whose predicted position uncertainty exceeds
     :data:`~robocal.model.region.SIGMA_FACTOR` times its median there (with a covariance), else
@@ -117,7 +123,7 @@ def region_note(robot, q: np.ndarray, targets: Sequence[str] | None = None,
         return None
     faded = correction_note(robot.residual, q)
     if robot.uncertainty is not None and region.sigma_mm:
-        text = region.describe_sigma(predicted_sigma(robot, np.atleast_2d(q), targets, inputs))
+        text = region.describe_sigma(predicted_sigma(robot, np.atleast_2d(q), targets, inputs, chains))
     else:
         text = region.describe(q)
         text = None if text is None else f"{text}: the model is extrapolated there; expect larger errors"

@@ -163,7 +163,7 @@ def _error_figures(result: CalibrationResult) -> list[str]:
     points = where.position
     if where.constraints is not None:  # a contact row measured no point: the calibrated model's is drawn
         points = np.where(where.constraints.rows[:, None],
-                          result.robot.positions(where.q, where.targets, where.inputs), points)
+                          result.robot.positions(where.q, where.targets, where.inputs, where.chain), points)
     in_base = _in_base(result.robot, points)
     parts.append(f"<h2>Where the error is</h2><p>Measured points of the {label} poses in the robot's base frame "
                  + ("(where a row touched a point or plane, the calibrated model's tool point), " if
@@ -455,7 +455,7 @@ def next_steps(result: CalibrationResult) -> list[str]:
             from ..model.uncertainty import known_targets, predicted_sigma
 
             v = result.validation
-            loose = predicted_sigma(result.robot, v.q, known_targets(result.robot, v), v.inputs) > \
+            loose = predicted_sigma(result.robot, v.q, known_targets(result.robot, v), v.inputs, v.chain) > \
                 SIGMA_FACTOR * region.sigma_mm
             far = np.where(loose[:, None], far, 0.0)
         if np.any(far > 0):
