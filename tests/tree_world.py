@@ -141,3 +141,39 @@ def write_rows(rows: list[dict], path, names: list[str]) -> None:
             ",".join(f"{v:.9f}" for v in r["xyz"])
         lines.append(f"{r['pose_id']},{r['chain']},{q},{tail}")
     path.write_text("\n".join(lines) + "\n")
+
+
+def facing_the_hands(truth: Truth, q: np.ndarray) -> np.ndarray:
+    """The joint sets with the neck turned so that the head's camera looks at the midpoint of the
+    hands (as a head tracks them; the truth's own kinematics)."""
+    names = movable()
+    pan, tilt = names.index("neck_pan"), names.index("neck_tilt")
+    out = np.array(q, float)
+    for row in out:
+        for _ in range(3):
+            mid = 0.5 * (truth.pose("left_tool", row[None])[0, :3, 3] + truth.pose("right_tool", row[None])[0, :3, 3])
+            d = np.linalg.inv(truth.pose("head_camera", row[None])[0]) @ np.append(mid, 1.0)
+            row[pan] -= np.arctan2(d[0], d[2])  # the optical frame's x is the image's right
+            row[tilt] += np.arctan2(d[1], d[2])
+    return out
+
+
+def camera_rows(truth: Truth, camera, markers: dict, q: np.ndarray, rng: np.random.Generator,
+                noise: float) -> list[dict]:
+    """The head camera's pixels of the markers on each hand (mm in its last link's frame), where they
+    lie in front of it and fall on its image, with Gaussian noise ``noise`` px."""
+    rows = []
+    w, h = camera.size
+    for i, row in enumerate(q):
+        T_cam = truth.pose("head_camera", row[None])[0]
+        for side in ("left", "right"):
+            T_tip = truth.pose(f"{side}_link6", row[None])[0]
+            for name, p in markers.items():
+                pc = T_cam[:3, :3].T @ (T_tip[:3, :3] @ p + T_tip[:3, 3] - T_cam[:3, 3])
+                if pc[2] < 200.0:
+                    continue
+                uv = camera.project(pc[None])[0] + rng.normal(0.0, noise, 2)
+                if 10 <= uv[0] <= w - 10 and 10 <= uv[1] <= h - 10:
+                    rows.append({"pose_id": f"p{i}", "chain": f"{side}_tool", "q": row, "target": name,
+                                 "camera": camera.name, "uv": uv})
+    return rows

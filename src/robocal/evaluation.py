@@ -93,7 +93,8 @@ def evaluate(robot: str | Path | Robot, data: str | Path | Measurements, *, colu
     meas = data if isinstance(data, Measurements) else load_measurements(
         data, n_joints=r.n_joints, columns=columns, joint_unit=joint_unit, length_unit=length_unit,
         delimiter=delimiter, decimal=decimal, euler=euler,
-        robot_label=r.source, prismatic=tuple(map(bool, r.prismatic)) if r.prismatic.any() else None)
+        robot_label=r.source, prismatic=tuple(map(bool, r.prismatic)) if r.prismatic.any() else None,
+        chains=() if r.tree is None else r.tree.names)
     if meas.camera is not None and any(meas.camera):
         if not all(meas.camera):
             raise InputError("has camera rows beside tracker rows: evaluate each kind in a file of its own",

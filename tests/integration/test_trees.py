@@ -137,3 +137,84 @@ def test_the_exported_urdf_and_per_arm_files_move_every_branch_as_the_calibrated
     again = robocal.load_robot(out / "dual.urdf", tip_link="left_tool,right_tool")
     for chain in calibrated.tree.names:
         assert np.abs(again.fk(q, chains=[chain] * len(q)) - calibrated.fk(q, chains=[chain] * len(q))).max() < 1e-9
+
+
+def test_a_camera_on_a_pan_tilt_neck_calibrates_both_arms_through_the_trunk_they_share(tmp_path):
+    """The head's camera rides turntable, pan and tilt; the markers it sees ride turntable and an arm:
+    the residual follows the tree from the camera down to the turntable and up the arm."""
+    cw = pytest.importorskip("tests.camera_world")
+    path, robot = _nominal(tmp_path)
+    rng = np.random.default_rng(3)
+    truth = tw.plant(rng)
+    camera = cw.camera("head", np.eye(4), f=800.0, size=(1280, 960))
+    camera.write(tmp_path / "head.yaml")
+    markers = {f"m{i + 1}": np.array([x, y, z], float) for i, (x, y, z) in
+               enumerate((x, y, z) for x in (-25, 25) for y in (-25, 25) for z in (75, 125))}
+    cw.write_markers({k: (p, None) for k, p in markers.items()}, tmp_path / "markers.csv")
+    for name, m in (("data.csv", 300), ("held.csv", 150)):
+        q = tw.facing_the_hands(truth, tw.joint_sets(rng, m))
+        tw.write_rows(tw.camera_rows(truth, camera, markers, q, rng, 0.5), tmp_path / name, tw.movable())
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        result = robocal.calibrate(robot, str(tmp_path / "data.csv"), markers=str(tmp_path / "markers.csv"),
+                                   cameras=[f"head={tmp_path / 'head.yaml'},link=head_camera"],
+                                   validate=str(tmp_path / "held.csv"))
+    assert result.physical.physical
+    # the camera found on the head's last link, the neck's joints in the tree's rows
+    assert result.robot.cameras["head"].link == tw.movable().index("neck_tilt") + 1
+    # new poses within 1.2× of what the true model gives there (0.5 px per axis)
+    assert result.metrics["validation_after"].position["rms"] < 1.2 * 0.5 * np.sqrt(2)
+    assert result.metrics["validation_before"].position["rms"] > 1.5 * result.metrics["validation_after"].position["rms"]
+
+
+@pytest.mark.parametrize("change, message", [
+    (lambda text: text.replace(",left_tool,", ",left_arm,", 1), "row 2, column 'chain': chain 'left_arm' is not "
+                                                                 "one of left_tool, right_tool"),
+    (lambda text: "\n".join(",".join(c for i, c in enumerate(line.split(",")) if i != 1)
+                            for line in text.splitlines()) + "\n", "each row names its chain (a chain column)"),
+])
+def test_rows_that_do_not_name_a_chain_of_the_tree_are_refused_on_one_line(tmp_path, run_cli, change, message):
+    path, robot = _nominal(tmp_path, neck=False)
+    rng = np.random.default_rng(2)
+    rows = tw.tracker_rows(tw.plant(rng, neck=False), tw.joint_sets(rng, 12, neck=False), rng, 0.02)
+    data = tmp_path / "data.csv"
+    tw.write_rows(rows, data, tw.movable(neck=False))
+    data.write_text(change(data.read_text()))
+    code, out, err = run_cli("calibrate", path, data, "--tip-link", "left_tool,right_tool", "--out", tmp_path / "r.json")
+    assert code == 2 and message in err and len(err.strip().splitlines()) == 1, err
+    assert not (tmp_path / "r.json").exists()
+
+
+def test_a_chain_column_for_a_serial_robot_is_refused(tmp_path, run_cli):
+    path, _ = _nominal(tmp_path, neck=False)
+    rng = np.random.default_rng(2)
+    rows = tw.tracker_rows(tw.plant(rng, neck=False), tw.joint_sets(rng, 12, neck=False), rng, 0.02)
+    data = tmp_path / "data.csv"
+    left = [{**r, "q": r["q"][:7]} for r in rows if r["chain"] == "left_tool"]  # the left arm's own joints
+    tw.write_rows(left, data, tw.movable(neck=False)[:7])
+    code, _, err = run_cli("calibrate", path, data, "--tip-link", "left_tool")
+    assert code == 2 and "has a chain column" in err and len(err.strip().splitlines()) == 1, err
+
+
+def test_the_tree_s_standard_errors_match_the_spread_over_40_draws(tmp_path):
+    """FIGAROH's check on a tree: over 40 campaigns (new noise, new planted truth) every identified
+    parameter's error in units of its reported σ spreads as a standard normal does."""
+    _, robot = _nominal(tmp_path, neck=False)
+    rng = np.random.default_rng(21)
+    q = tw.joint_sets(rng, 30, neck=False)
+    nominal_cell = tw.Truth(tw.Urdf(tw.urdf(neck=False)), {}, np.eye(4), neck=False)
+    kept = _kept(robot, _measurements(nominal_cell, q, rng, 0.02))
+    z = []
+    for _ in range(40):
+        values, moves, zeros = _planted(robot, kept, rng)
+        truth = tw.Truth(tw.Urdf(tw.urdf(moves, neck=False)), zeros, tw.tracker(rng), neck=False)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            result = robocal.calibrate(robot, _measurements(truth, q, rng, 0.02), frames="base+tool",
+                                       model="geometric", noise=0.02)
+        sigma = dict(zip(result.names, result.uncertainty))
+        z += [(x - values.get(n, 0.0)) / sigma[n] for n, x in zip(result.names, result.x)
+              if not n.startswith(("base", "tool")) and n not in result.held]
+    z = np.array(z)
+    assert 0.8 <= z.std() <= 1.25, z.std()
+    assert np.abs(z).max() < 5.0

@@ -25,7 +25,6 @@ from ..io.atomic import read_text
 from ..io.camera import load_camera
 from ..math.se3 import homogeneous
 from ..model.camera import CameraMount
-from ..model.kinematics import chain_pose
 from ..model.measurements import Measurements
 from ..model.robot import Robot
 from .config import CalibrationConfig
@@ -351,17 +350,17 @@ def register(robot: Robot, meas: Measurements) -> Robot:
             if name in unknown:
                 unknown[name] = robot.tool @ homogeneous(np.eye(3), place)
     robot = robot.replace(targets={**robot.targets, **unknown})
-    tools = robot.tool_frames(meas.targets)
     views = meas.views
-    R, p = chain_pose(robot.convention, robot.geometry, robot.effective_joints(meas.q, meas.inputs), None, tools)
+    qe = robot.effective_joints(meas.q, meas.inputs)
+    R_f, p_f = robot.flange_frames(qe, meas.chain)
+    p = p_f + np.einsum("mij,mj->mi", R_f, robot.tool_frames(meas.targets)[:, :3, 3])
     mounts, poses = dict(robot.cameras), {}
     for c, name in enumerate(views.names):
         rows = views.index == c
         link = mounts[name].link
         points = p[rows]
         if link > 0:  # the points in the frame of the camera's link
-            Rk, pk = chain_pose(robot.convention, robot.geometry[:link],
-                                robot.effective_joints(meas.q, meas.inputs)[rows, :link])
+            Rk, pk = robot.link_frames(qe[rows], link)
             points = np.einsum("mji,mj->mi", Rk, points - pk)
         try:
             poses[name] = views.cameras[c].pose_of(points, meas.pixels[rows])
@@ -475,8 +474,8 @@ def scale_note(problem, x: np.ndarray, covariance: np.ndarray | None) -> str | N
         return None
     u = v / norm
     post = float(np.sqrt(max(u @ covariance @ u, 0.0))) / norm
-    reach = float(np.median(np.linalg.norm(problem.space.points(problem.full(x), problem.meas.q,
-                                                                 problem.target_idx, problem.joints), axis=1)))
+    reach = float(np.median(np.linalg.norm(problem.space.points(problem.full(x), problem.meas.q, problem.target_idx,
+                                                                 problem.joints, chain=problem.chain_index), axis=1)))
     sources = scale_sources(problem)
     where = f"±{100 * post:.2g} %, {post * reach:.3g} mm at the markers' {reach:.0f} mm from the frame's origin"
     if not sources:
@@ -497,7 +496,7 @@ def marker_sigma(problem, x: np.ndarray, covariance: np.ndarray | None) -> np.nd
     full = problem.full(x)
     meas = problem.meas
     Jc, _, p = problem.space.jacobian_columns(full, meas.q, problem.target_idx, joints=problem.joints,
-                                              active=problem.active)
+                                              active=problem.active, chain=problem.chain_index)
     frames, Jf = problem.space.camera_frame_columns(full, meas.q, problem._camera_index, problem.joints,
                                                     active=problem.active)
     d = p - frames[:, :3, 3]

@@ -245,7 +245,8 @@ class CalibrationConfig:
         return asdict(ReadOptions(n_joints=robot.n_joints, columns=columns, joint_unit=self.joint_unit,
                                   length_unit=self.length_unit, robot_label=robot.source, delimiter=self.delimiter,
                                   decimal=self.decimal, euler=self.euler,
-                                  prismatic=slide if any(slide) else None))
+                                  prismatic=slide if any(slide) else None,
+                                  chains=() if robot.tree is None else robot.tree.names))
 
     @classmethod
     def build(cls, config: CalibrationConfig | None = None, **options) -> CalibrationConfig:

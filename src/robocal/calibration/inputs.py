@@ -91,6 +91,9 @@ def load_inputs(robot, data, validate, config: CalibrationConfig, columns=None) 
         val = replace(val, intrinsics=meas.intrinsics)
         cameras.check_pixels(val, meas.intrinsics)
         cameras.check_markers(val, set(meas.target_names) | set(nominal.targets), "no calibration row")
+    if nominal.tree is not None:  # parameters are numbered by the tree's joints: say which is which
+        notes.append(Note(f"a tree of {len(nominal.tree.chains)} chains; its joints, as the parameters number "
+                          f"them (x14 is joint 14's): {nominal.tree.describe(nominal.joint_names)}"))
     meas = _instrument_sigmas(meas, config, notes)
     meas = _excluded(meas, config.exclude, notes)
     if config.payload is not None:  # a stated payload where the files have no column

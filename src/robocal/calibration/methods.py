@@ -144,7 +144,8 @@ def reexpress(search: Problem, x_search: np.ndarray, problem: Problem) -> tuple[
     reported as it is.  Returns the identifiable values and the largest position difference
     (mm) between the two expressions.
     """
-    R, p = search.space.pose(search.full(x_search), search.meas.q, search.target_idx, search.joints)
+    R, p = search.space.pose(search.full(x_search), search.meas.q, search.target_idx, search.joints,
+                             chain=search.chain_index)
     synthetic = replace(search.meas, position=p, rotation=R if problem.uses_orientation else None)
     fit = problem.setup.with_measurements(synthetic).problem(problem.names)
     lm = levenberg_marquardt(fit.residuals, fit.residual_jacobian, search.full(x_search)[problem.active])

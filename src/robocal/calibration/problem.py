@@ -155,7 +155,7 @@ class Problem:
         self._session = self.space.session_index(self.meas.session)
         # each row's chain of a tree (None: a serial chain)
         tree = self.space.robot.tree
-        self._chain = None if tree is None else tree.index(self.meas.chain)
+        self.chain_index = None if tree is None else tree.index(self.meas.chain)
         # the whitening of what a pose's camera rows share (None: every row its own look)
         self._shared = None if setup.shared is None or self.views is None else setup.shared.transform(self.meas)
         self._shapes = self._shape_bodies()
@@ -241,12 +241,22 @@ class Problem:
         out[..., self.active] = x
         return out
 
+    def points(self, X: np.ndarray) -> np.ndarray:
+        """The measured points (…, m, 3) mm the model predicts for parameter vectors X (…, k)."""
+        return self.space.points(self.full(X), self.meas.q, self.target_idx, self.joints, self._session,
+                                 self.chain_index)
+
+    def pose(self, X: np.ndarray):
+        """End rotations (…, m, 3, 3) and points (…, m, 3) mm the model predicts for X (…, k)."""
+        return self.space.pose(self.full(X), self.meas.q, self.target_idx, self.joints, self._session,
+                               self.chain_index)
+
     def errors(self, X: np.ndarray):
         """Position errors (…, m, 3) mm and orientation errors (…, m, 3) rad (or None)."""
         if self._Rm is None:
-            p = self.space.points(self.full(X), self.meas.q, self.target_idx, self.joints, self._session, self._chain)
+            p = self.points(X)
             return self._position_errors(p, X), None
-        R, p = self.space.pose(self.full(X), self.meas.q, self.target_idx, self.joints, self._session, self._chain)
+        R, p = self.pose(X)
         return self._position_errors(p, X), orientation_error(self._Rm, R)
 
     def _position_errors(self, p: np.ndarray, X: np.ndarray) -> np.ndarray:
@@ -293,7 +303,7 @@ class Problem:
         compiled = (self._backend if backend is None else resolve(backend)) == "numba"
         if X.ndim == 2 and compiled and self.joints is None and self._kernels_apply and self._fp is None \
                 and self._fr is None and self.constraints is None and self.views is None and self._session is None \
-                and self._chain is None:
+                and self.chain_index is None:
             # the kernels move no joints, weigh every point alike and know measured points only
             return self._compiled_objective(X, kind)
         dp, dr = self.scaled_errors(X)
@@ -306,7 +316,7 @@ class Problem:
             ds = self.shape_residuals(X) * (self.setup.sigma_position / self.meas.shape_sigma)
             f = f + np.sum(ds * ds, axis=-1)
         if self.n_distances:  # in the objective's mm², weighed as χ² weighs them against σp
-            p = self.space.points(self.full(X), self.meas.q, self.target_idx, self.joints, self._session, self._chain)
+            p = self.points(X)
             dd = self.constraints.distance_residuals(p) * (self.setup.sigma_position / self.constraints.distance_sigma)
             f = f + np.sum(dd * dd, axis=-1)
         return f
@@ -364,7 +374,7 @@ class Problem:
         if self.n_shapes:
             out.append(self.shape_residuals(x) / self.meas.shape_sigma)
         if self.n_distances:
-            p = self.space.points(self.full(x), self.meas.q, self.target_idx, self.joints, self._session, self._chain)
+            p = self.points(x)
             out.append(self.constraints.distance_residuals(p) / self.constraints.distance_sigma)
         return out[0] if len(out) == 1 else np.concatenate(out)
 
@@ -380,7 +390,7 @@ class Problem:
         """Exact ∂(whitened residuals)/∂x, (n_residuals, k_active), Fortran-ordered as MINPACK wants."""
         Jc, R, p = self.space.jacobian_columns(self.full(x), self.meas.q, self.target_idx, frames=self._frames_active,
                                                joints=self.joints, active=self.active,
-                                               session=self._session, chain=self._chain)  # (k, m, 6)
+                                               session=self._session, chain=self.chain_index)  # (k, m, 6)
         k, m = Jc.shape[0], Jc.shape[1]
         out = np.empty((k, self.n_residuals))
         c = self.constraints

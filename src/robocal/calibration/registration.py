@@ -18,7 +18,6 @@ from ..exceptions import InputError
 from ..math.registration import rigid_registration
 from ..math.se3 import homogeneous
 from ..math.so3 import project_to_so3
-from ..model.kinematics import chain_pose
 from ..model.measurements import Measurements
 from ..model.robot import Robot
 
@@ -43,7 +42,7 @@ def register_frames(robot: Robot, meas: Measurements, mode: str, iterations: int
     _check_spread(meas.position, meas.source)
     targets = meas.target_names
     tools = {t: robot.tool_frames([t])[0] if (t == "" or t in robot.targets) else robot.tool.copy() for t in targets}
-    R_f, p_f = chain_pose(robot.convention, robot.geometry, meas.q)  # flange in the robot base frame
+    R_f, p_f = robot.flange_frames(meas.q, meas.chain)  # flange in the robot base frame
     tidx = np.zeros(meas.n_poses, dtype=int) if meas.targets is None else np.array([targets.index(t)
                                                                                      for t in meas.targets])
     base = robot.base

@@ -410,6 +410,22 @@ class CalibrationResult:
                 out[name]["validation_after"] = Metrics.of(self.robot, val[t])
         return out
 
+    def per_chain_metrics(self) -> dict[str, dict[str, Metrics]]:
+        """Before/after (and validation) metrics of each chain of a tree that has rows (px or mm, with
+        mm at the markers for camera rows); empty for a serial robot."""
+        tree, meas = self.robot.tree, self.measurements
+        if tree is None or meas is None or meas.chain is None:
+            return {}
+        out: dict[str, dict[str, Metrics]] = {}
+        for name in tree.names:
+            for key, data, robot in (("before", meas, self.initial), ("after", meas, self.robot),
+                                     ("validation_before", self.validation, self.initial),
+                                     ("validation_after", self.validation, self.robot)):
+                rows = [] if data is None else [i for i, c in enumerate(data.chain or ()) if c == name]
+                if rows:
+                    out.setdefault(name, {})[key] = Metrics.of(robot, data.subset(rows))
+        return {k: v for k, v in out.items() if "after" in v}
+
     def significant(self, i: int) -> bool | None:
         """|deviation| ≥ 2 standard uncertainties (None where no uncertainty is known)."""
         if self.uncertainty is None or not math.isfinite(self.uncertainty[i]):
@@ -488,6 +504,8 @@ class CalibrationResult:
             **({"sigma_by_kind": dict(self.kind_sigma)} if self.kind_sigma else {}),
             "metrics_per_target": {t: {k: v.to_dict() for k, v in m.items()}
                                    for t, m in self.per_target_metrics().items()},
+            **({"metrics_per_chain": {c: {k: v.to_dict() for k, v in m.items()}
+                                      for c, m in self.per_chain_metrics().items()}} if self.robot.tree else {}),
             "frames_registered": frames_dict(self.initial),
             "frames_identified": frames_dict(self.robot),
             "status": opt.status,

@@ -168,7 +168,12 @@ def fit_model(inputs: Inputs, config: CalibrationConfig, progress=None, stages=N
     meas = inputs.meas
     say = stages or (lambda step, steps, text: None)
     mixed = meas.camera is not None and not all(meas.camera)
-    if config.model != "auto" or mixed:
+    tree = inputs.nominal.tree is not None
+    if tree and config.model_terms:  # their torques, loads and corrections run along one chain
+        raise InputError(f"{inputs.nominal.source or inputs.nominal.name} is a tree: its model is its geometry "
+                         f"(joint terms and learned corrections of a tree are not supported; --model geometric)",
+                         option="model")
+    if config.model != "auto" or mixed or tree:
         # camera rows beside tracker rows: models are compared on held-out errors of one unit, and
         # these have two (px, mm); the geometric model is fitted and said
         terms = config.model_terms if config.model != "auto" else frozenset()
@@ -215,8 +220,11 @@ def fit_model(inputs: Inputs, config: CalibrationConfig, progress=None, stages=N
         if terms - set(LEARNED):  # the guard's comparison, and the error budget
             geometric = fit_parametric(inputs, config, term_spec((), meas, config))
         geometric_prediction = parametric_prediction if geometric is fit else predict(geometric, config)[1]
-        said = [Note("model auto: camera rows beside tracker rows are compared in no one unit, so the geometric "
-                     "model is fitted alone")] if config.model == "auto" else []
+        said = [] if config.model != "auto" else [Note(
+            "model auto: a tree's model is its geometry (joint terms and learned corrections run along one chain), "
+            "so the geometric model is fitted alone") if tree else Note(
+            "model auto: camera rows beside tracker rows are compared in no one unit, so the geometric model is "
+            "fitted alone")]
         return Chosen(model_name(terms), fit, residual, [] if choice is None else choice.rows,
                       notes=([] if choice is None else choice.notes) + said + spent_dof(fit, residual),
                       geometric=geometric, prediction=prediction, geometric_prediction=geometric_prediction,

@@ -49,6 +49,7 @@ def _print_summary(result, robot_name: str, data: str) -> None:
         LEARNED_COLUMNS,
         PARAMETER_COLUMNS,
         budget_rows,
+        chain_table,
         frame_rows,
         ladder_columns,
         ladder_rows,
@@ -76,6 +77,9 @@ def _print_summary(result, robot_name: str, data: str) -> None:
         title = "per marker: reprojection RMS (px)" if result.unit == "px" else "per reflector: position RMS (mm)"
         out.print(table(title, ("marker" if result.unit == "px" else "reflector", "points", *keys), rows,
                         text_columns=(0,)))
+    title, columns, rows = chain_table(result)
+    if rows:
+        out.print(table(title, columns, rows, text_columns=(0,)))
     out.print(table("identified parameters (angles in degrees)", PARAMETER_COLUMNS, parameter_rows(result),
                     text_columns=(0, len(PARAMETER_COLUMNS) - 1)))
     out.print(table("frames", FRAME_COLUMNS, frame_rows(result), "left"))
@@ -256,11 +260,17 @@ def calibrate_cmd(
         print_json(result.to_dict())
     elif not quiet:
         _print_summary(result, nominal.name, " + ".join(map(str, data)))
+    chain_files = {f"{c}.toml" for c in (result.robot.tree.names if result.robot.tree else ())}
     for files in written if result.exports is not None else []:
+        arms = [w for w in files[1:] if w.name.removeprefix(f"{files[0].stem}.") in chain_files]
+        files = [w for w in files if w not in arms]
         sidecar = next((w for w in files[1:] if w.suffix == ".toml"), None)
         parts = "" if files[0].suffix.lower() in (".urdf", ".yaml", ".yml") or len(files) < 2 else \
             f" (with {' and '.join(map(str, files[1:]))} beside it: parts of the same model, keep them together)"
         print_notes([f"wrote {result.exports.sentence(files[0], sidecar)}{parts}"], quiet)
+        if arms:
+            print_notes([f"wrote each chain as its own robot file, for filter and compensate: "
+                         f"{', '.join(map(str, arms))}"], quiet)
     verdict(checks, result.figures())
 
 

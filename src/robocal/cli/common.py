@@ -196,7 +196,8 @@ def tip_link_option():
     import typer
 
     return typer.Option(None, "--tip-link", help="URDF robot: the chain's last link (default: the leaf with the "
-                                                 "most movable joints, said on stderr)")
+                                                 "most movable joints, said on stderr); several, A,B: the tree of "
+                                                 "their chains, each row naming its chain (a chain column)")
 
 
 def load(robot, base_link=None, tip_link=None):

@@ -175,6 +175,9 @@ class ReadOptions:
     delimiter: str = ","
     decimal: str = "."
     euler: str = "xyz"
+    #: the robot's chains: a tree's names, each row naming one in a chain column; () a serial robot's
+    #: (no chain column); None: not known (a chain column read as it is)
+    chains: tuple[str, ...] | None = None
 
     def __post_init__(self) -> None:
         if self.joint_unit is not None:
@@ -328,7 +331,7 @@ def read_pose_table(text: str, *, source: str, options: ReadOptions = ReadOption
         payload=payload,
         cycles=strings(table, "cycle", required=True) if "cycle" in table else None,
         session=strings(table, "session", required=True) if "session" in table else None,
-        chain=strings(table, "chain", required=True) if "chain" in table else None,
+        chain=_chains(table, options, source),
         directions=_directions(table, len(qcols)) if qcols else None,
         time=numbers(table, ["time"], MAX_TIME_S, "s")[:, 0] if "time" in table else None,
         temperature=numbers(table, ["temperature"], MAX_TEMPERATURE_C, "°C")[:, 0] if "temperature" in table else None,
@@ -442,6 +445,28 @@ def _sigmas(table: CsvTable, names: tuple[str, ...], scale: float, unit: str) ->
     return scale * values
 
 
+def _chains(table: CsvTable, options: ReadOptions, source: str) -> list[str] | None:
+    """Each row's chain, one of the tree robot's (before rows of one pose are grouped: two arms'
+    rows of a pose are two measurements, not repeats of one)."""
+    robot = options.robot_label or "the robot"
+    if options.chains is None:
+        return strings(table, "chain", required=True) if "chain" in table else None
+    if not options.chains:
+        if "chain" in table:
+            raise InputError(f"has a chain column, but {robot} is a serial robot (a tree names its chains: a URDF "
+                             "with several tips, or [chains] in a robot file)", source=source)
+        return None
+    if "chain" not in table:
+        raise InputError(f"{robot} is a tree of chains {', '.join(options.chains)}: each row names its chain (a chain "
+                         "column)", source=source)
+    chain = strings(table, "chain", required=True)
+    for line, c in zip(table.lines, chain):
+        if c not in options.chains:
+            raise InputError(f"chain {c!r} is not one of {', '.join(options.chains)}", source=source,
+                             where=f"row {int(line)}, column 'chain'")
+    return chain
+
+
 def _check_joint_magnitudes(table: CsvTable, q: np.ndarray, columns: list[str], options: ReadOptions,
                             scale: float) -> None:
     """Turning joints within ±MAX_JOINT_DEG (in radians when the file says so), sliding ones
@@ -548,7 +573,7 @@ def _check_one_pose(meas: Measurements, pose: np.ndarray, labels: list[str], tol
 def average_repeats(meas: Measurements, tolerance: float = REPEAT_TOLERANCE_MM, cycles: Sequence[str] | None = None,
                     joint_tolerance: float = JOINT_TOLERANCE_DEG) -> Measurements:
     """Average the rows of one measurement: same pose_id, same cycle (when the file numbers
-    its measuring cycles), same reflector: mean joints, position, torques and payload; chordal
+    its measuring cycles), same reflector (on the same chain of a tree): mean joints, position, torques and payload; chordal
     mean rotation.
 
     The rows of one pose_id and cycle (every reflector, every repeat) must command the same
@@ -562,7 +587,9 @@ def average_repeats(meas: Measurements, tolerance: float = REPEAT_TOLERANCE_MM, 
               + (f", session {s!r}" if meas.session is not None else "") for p, c, s in
               zip(meas.pose_ids, cycle, session)]
     _check_one_pose(meas, _groups(meas.pose_ids, cycle, session), labels, joint_tolerance)
-    group = _groups(meas.pose_ids, cycle, session, meas.targets or ("",) * meas.n_poses)
+    # a tree's chains each carry their own reflectors: one pose's rows on two arms are two measurements
+    group = _groups(meas.pose_ids, cycle, session, meas.targets or ("",) * meas.n_poses,
+                    meas.chain or ("",) * meas.n_poses)
     n = group.max() + 1
     if n == meas.n_poses:
         return meas

@@ -409,10 +409,13 @@ def parse_robot(text: str, *, source: str = "<robot>", default_name: str = "robo
     tree = _tree_spec(joints, data.get("chains"), source)
     if tree is not None:  # each chain's own tool, a target named after the chain
         targets = {**_chain_tools(data["chains"], source), **targets}
-    robot = Robot(conv, geom, limits, joint_names=tuple(nm or f"joint{i + 1}" for i, nm in enumerate(names))
-                  if any(names) else None, base=base, tool=tool, targets=targets, name=name or default_name,
-                  source=source, terms=terms, residual=residual, region=region, uncertainty=uncertainty,
-                  coupling=coupling, prior=prior, cameras=cameras, tree=tree)
+    try:
+        robot = Robot(conv, geom, limits, joint_names=tuple(nm or f"joint{i + 1}" for i, nm in enumerate(names))
+                      if any(names) else None, base=base, tool=tool, targets=targets, name=name or default_name,
+                      source=source, terms=terms, residual=residual, region=region, uncertainty=uncertainty,
+                      coupling=coupling, prior=prior, cameras=cameras, tree=tree)
+    except ValueError as exc:  # what the parts cannot be together (a tree with joint terms)
+        raise InputError(str(exc), source=source) from None
     if uncertainty is not None:
         _check_covariance_names(robot, uncertainty, source)
     return robot

@@ -82,6 +82,21 @@ class TreeSpec:
         counts = np.bincount([j for joints in self.chains.values() for j in joints], minlength=self.n_joints)
         return tuple(int(j) for j in np.flatnonzero(counts > 1))
 
+    def describe(self, joint_names: Sequence[str] | None = None) -> str:
+        """The joints as parameters number them, each run of a chain's own joints with its chain
+        and the trunk with every chain it carries: "1 turntable (left, right); 2–7 left_1…left_6 (left)"."""
+        label = (lambda j: joint_names[j]) if joint_names else (lambda j: f"joint {j + 1}")
+        owners = [[c for c, joints in self.chains.items() if j in joints] for j in range(self.n_joints)]
+        parts, start = [], 0
+        for j in range(1, self.n_joints + 1):
+            if j < self.n_joints and owners[j] == owners[start] and self.parents[j] == j - 1:
+                continue
+            span = f"{start + 1}" if j - 1 == start else f"{start + 1}–{j}"
+            names = label(start) if j - 1 == start else f"{label(start)}…{label(j - 1)}"
+            parts.append(f"{span} {names} ({', '.join(owners[start]) or 'no chain'})")
+            start = j
+        return "; ".join(parts)
+
     def to_dict(self, joint_names: Sequence[str] | None = None) -> dict:
         label = (lambda j: joint_names[j]) if joint_names else (lambda j: f"q{j + 1}")
         return {name: [label(j) for j in joints] for name, joints in self.chains.items()}

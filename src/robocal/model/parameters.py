@@ -464,14 +464,14 @@ class ParameterSpace:
         return p if D is None else np.einsum("...ij,...j->...i", D[..., :3, :3], p) + D[..., :3, 3]
 
     def jacobian(self, deviation: np.ndarray, q: np.ndarray, target_idx: np.ndarray | None = None,
-                 joints: JointData | None = None):
+                 joints: JointData | None = None, chain: np.ndarray | None = None):
         """Exact derivative of the end pose with respect to the deviation vector (k,).
 
         Returns ``(J, R, p)``: J (m, 6, k) with rows (position mm, rotation rad about the
         measuring-frame axes, left perturbation), R (m, 3, 3), p (m, 3).  J is a view of
         a (k, m, 6) array: each parameter's column is contiguous.
         """
-        Jc, R_e, p_e = self.jacobian_columns(deviation, q, target_idx, joints=joints)
+        Jc, R_e, p_e = self.jacobian_columns(deviation, q, target_idx, joints=joints, chain=chain)
         return np.moveaxis(Jc, 0, -1), R_e, p_e
 
     def _rows(self, active: np.ndarray | None) -> tuple[np.ndarray, int]:

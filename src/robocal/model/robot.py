@@ -89,6 +89,13 @@ class Robot:
             object.__setattr__(self, "joint_names", tuple(self.joint_names))
             if len(self.joint_names) != g.shape[0]:
                 raise ValueError(f"{len(self.joint_names)} joint names for {g.shape[0]} joints")
+        if self.tree is not None:
+            if self.tree.n_joints != g.shape[0]:
+                raise ValueError(f"a tree of {self.tree.n_joints} joints for {g.shape[0]} joints")
+            if (self.terms is not None and self.terms.spec().options) or self.residual is not None:
+                # their torques, loads and corrections run along one chain
+                raise ValueError("a tree's model is its geometry: joint terms and a residual correction are not "
+                                 "supported on a tree")
 
     @classmethod
     def from_dh(cls, convention: str, a, alpha, theta, d, beta=None, prismatic=None, **kw) -> Robot:
@@ -144,8 +151,9 @@ class Robot:
         (:mod:`robocal.model.residual`).  A tree's rows name their chain (``chains``)."""
         q = np.atleast_2d(np.asarray(q, float))
         qe = self.effective_joints(q, inputs)
-        # a tree's rows without targets are on their chain's own tool
-        tools = self.tool_frames(chains if targets is None and self.tree is not None else targets)
+        if self.tree is not None and chains is not None:  # a row without a target is on its chain's own tool
+            targets = list(chains) if targets is None else [t or c for t, c in zip(targets, chains)]
+        tools = self.tool_frames(targets)
         if self.tree is not None:
             R, p = np.empty((len(q), 3, 3)), np.empty((len(q), 3))
             for rows, path in self.tree.groups(self.tree.index(chains), len(q)):
@@ -161,6 +169,23 @@ class Robot:
                   chains: Sequence[str] | None = None) -> np.ndarray:
         """Measured-point positions (m, 3) mm in the measuring frame for commanded joints q (m, n) rad."""
         return self.fk(q, targets, inputs, chains)[:, :3, 3]
+
+    def flange_frames(self, q, chains: Sequence[str] | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Each row's flange (the frame after its chain's last joint) in the robot's base frame, as
+        rotations (m, 3, 3) and positions (m, 3) mm at joints q (m, n) rad taken as they are."""
+        q = np.atleast_2d(np.asarray(q, float))
+        if self.tree is None:
+            return chain_pose(self.convention, self.geometry, q)
+        R, p = np.empty((len(q), 3, 3)), np.empty((len(q), 3))
+        for rows, path in self.tree.groups(self.tree.index(chains), len(q)):
+            R[rows], p[rows] = chain_pose(self.convention, self.geometry[path], q[rows][:, path])
+        return R, p
+
+    def link_frames(self, q, link: int) -> tuple[np.ndarray, np.ndarray]:
+        """Link ``link``'s frame (the frame after joint ``link``) in the base frame at joints q (m, n)
+        rad taken as they are: rotations (m, 3, 3), positions (m, 3) mm."""
+        path = self.link_path(link)
+        return chain_pose(self.convention, self.geometry[path], np.atleast_2d(np.asarray(q, float))[:, path])
 
     def link_path(self, link: int) -> np.ndarray:
         """The joints (0-based) from the base to link ``link`` (the frame after joint ``link``)."""

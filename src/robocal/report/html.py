@@ -19,6 +19,7 @@ from .tables import (
     LEARNED_COLUMNS,
     PARAMETER_COLUMNS,
     budget_rows,
+    chain_table,
     frame_rows,
     ladder_columns,
     ladder_rows,
@@ -206,6 +207,11 @@ def _exports(result: CalibrationResult) -> list[str]:
         return []
     cameras = (" The cameras' poses are in the robot TOML (<code>[cameras.NAME]</code>; beside a URDF, in the TOML "
                "written with it), which <code>robocal evaluate --camera</code> reads." if result.robot.cameras else "")
+    if result.robot.tree is not None:
+        cameras += (" A tree: the URDF holds every branch (each chain's tool on <code>target_CHAIN</code>, each "
+                    "camera's optical frame on <code>camera_NAME_optical</code>), and each chain is written beside "
+                    "any export as its own robot TOML (<code>NAME.CHAIN.toml</code>) for <code>robocal filter</code> "
+                    "and <code>compensate</code>; a kinematics YAML holds one arm, and a tree is not written as one.")
     if e.geometric:
         return [f"<h2>What the exports hold</h2><p>The model is geometry and frames alone: a robot TOML, a URDF and "
                 f"a kinematics YAML carry all of it ({e.whole_rms_mm:.4f} {e.unit} RMS{html.escape(e.at_tool)} "
@@ -263,6 +269,16 @@ def _per_target(result: CalibrationResult) -> list[str]:
     return [f"<h2>Per {what}</h2>",
             _table((what, "points" if result.unit == "mm" else "rows",
                     *(f"{k.replace('_', ' ')} RMS ({result.unit})" for k in keys)), rows)]
+
+
+def _per_chain(result: CalibrationResult) -> list[str]:
+    title, columns, rows = chain_table(result)
+    if not rows:
+        return []
+    what = title[len("per chain: "):]
+    return ["<h2>Per chain</h2>", f"<p>{html.escape(what[0].upper() + what[1:])} of each chain of the "
+            "tree on its own rows; the trunk they share was calibrated once, from all of them.</p>",
+            _table(columns, rows)]
 
 
 def _table(columns, rows, left: int = 1) -> str:
@@ -525,6 +541,7 @@ def calibration_html(result: CalibrationResult, command: str | None = None) -> s
     parts.append(_metrics_table(cols))
     parts += contact
     parts += _camera_table(result)
+    parts += _per_chain(result)
     parts += _per_target(result)
     parts += _error_figures(result)
     parts += _worst(result)

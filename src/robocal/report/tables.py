@@ -13,6 +13,7 @@ import numpy as np
 from ..calibration.result import SIGNIFICANCE_SIGMAS, CalibrationResult, nominal_values
 from ..math.se3 import transform_to_xyz_rpy
 from ..math.so3 import orientation_error
+from ..model.metrics import Metrics
 from ..model.parameters import is_angle, is_frame
 from ..model.terms import reported_unit
 
@@ -90,7 +91,8 @@ def _frame_change(before: np.ndarray, after: np.ndarray, rotation: bool) -> str:
 def frame_rows(result: CalibrationResult) -> list[tuple[str, ...]]:
     """Base and tool frames as identified, and their change from the closed-form registration."""
     frames = {"base": (result.initial.base, result.robot.base)}
-    frames["tool"] = (result.initial.tool, result.robot.tool)
+    if result.robot.tree is None:  # a tree's chains carry their own tools, its targets
+        frames["tool"] = (result.initial.tool, result.robot.tool)
     for name, T in result.robot.targets.items():
         frames[f"tool[{name}]"] = (result.initial.targets.get(name, T), T)
     cameras = {}
@@ -121,6 +123,25 @@ def frame_rows(result: CalibrationResult) -> list[tuple[str, ...]]:
             rpy_text = "not identified"
         rows.append((frame, ", ".join(_number(v, False) for v in xyz), rpy_text, change, note))
     return rows
+
+
+def chain_table(result: CalibrationResult) -> tuple[str, tuple[str, ...], list[tuple[str, ...]]]:
+    """Each chain of a tree: its rows and RMS before, after and on the validation poses, in the
+    data's unit, and in mm at the markers where its rows are pixels (title, columns, rows); no rows
+    for a serial robot."""
+    chains = result.per_chain_metrics()
+    keys = [k for k in ("before", "after", "validation_before", "validation_after")
+            if all(k in m for m in chains.values())]
+    mm = result.unit == "px" and all(m["after"].at_marker is not None for m in chains.values())
+
+    def cell(m: Metrics) -> str:
+        text = f"{m.position['rms']:.4f}"
+        return f"{text} ({m.at_marker['rms']:.3f} mm)" if mm and m.at_marker is not None else text
+
+    title = "per chain: " + ("reprojection RMS, px (mm at the markers)" if mm else
+                             "reprojection RMS (px)" if result.unit == "px" else "position RMS (mm)")
+    columns = ("chain", "rows", *(k.replace("_", " ") for k in keys))
+    return title, columns, [(name, str(m["after"].n), *(cell(m[k]) for k in keys)) for name, m in chains.items()]
 
 
 def noise_line(result) -> str:
