@@ -173,7 +173,18 @@ def simulate(
     if drift:
         time = np.arange(len(q_cmd)) * opt.number(pose_interval, "pose_interval", minimum=0.0, strict=True)
         truth = truth.replace(terms=replace(truth.terms, clock=("s", float(time[-1]))))
-    T = truth.fk(q_act, inputs=JointInputs(torques=torques, directions=directions, time=time, clock="s"))
+    chains, pose_ids = None, None
+    if robot.tree is not None:  # every pose measured on each chain's own tool, the rows of a pose together
+        if terms is not None or tool is not None:
+            raise InputError("a tree's chains carry their own tools and its model is its geometry: no tool or "
+                             "joint terms to plant", option="tool" if tool is not None else "compliance")
+        k = len(robot.tree.names)
+        chains = robot.tree.names * len(q_cmd)
+        pose_ids = tuple(str(i // k + 1) for i in range(k * len(q_cmd)))
+        q_cmd, q_act = np.repeat(q_cmd, k, axis=0), np.repeat(q_act, k, axis=0)
+        directions = np.repeat(directions, k, axis=0)
+    T = truth.fk(q_act, inputs=JointInputs(torques=torques, directions=directions, time=time, clock="s"),
+                 chains=chains)
     pos = T[:, :3, 3] + (rng.normal(0.0, noise, (len(q_cmd), 3)) if noise > 0 else 0.0)
     rot = None
     if measure == "pose":
@@ -181,7 +192,8 @@ def simulate(
         if angle_noise > 0:
             rot = exp_so3(rng.normal(0.0, angle_noise, (len(q_cmd), 3))) @ rot
     return Simulation(Measurements(q=q_cmd, position=pos, rotation=rot, source="<simulated>", torques=torques,
-                                   directions=directions, time=time, order="row order"), truth, planted)
+                                   directions=directions, time=time, order="row order", chain=chains,
+                                   pose_ids=pose_ids), truth, planted)
 
 
 def planted_terms(robot: Robot, compliance: Mapping[int, float] | None,
@@ -349,18 +361,37 @@ def facing(camera, points: np.ndarray, fill: float = 0.7) -> np.ndarray:
     return look_at(centre + distance * direction / np.linalg.norm(direction), centre)
 
 
+def marker_chains(robot: Robot, mounts: Mapping) -> tuple[str | None, ...]:
+    """The chains whose markers cameras see: a tree's every chain but those that carry a camera at
+    their tip (a head's); (None,) for a serial robot."""
+    if robot.tree is None:
+        return (None,)
+    carrying = {c for c, path in robot.tree.chains.items() for m in mounts.values() if m.link == path[-1] + 1}
+    return tuple(c for c in robot.tree.names if c not in carrying)
+
+
+def marker_points(robot: Robot, q: np.ndarray, markers: Sequence[str], chains: Sequence[str | None]) -> np.ndarray:
+    """Each marker on each chain (chain-major) at joints q: (n, chains × markers, 3) mm."""
+    n = len(q)
+    return np.stack([robot.positions(q, [m] * n, chains=None if c is None else [c] * n)
+                     for c in chains for m in markers], axis=1)
+
+
 def camera_rows(robot: Robot, q: np.ndarray, intrinsics: Mapping, markers: Sequence[str], *, noise: float = 0.0,
-                rng: np.random.Generator | None = None, margin: float | None = None):
+                rng: np.random.Generator | None = None, margin: float | None = None,
+                chains: Sequence[str | None] = (None,)):
     """Every (pose, camera, marker) the cell of ``robot`` (its cameras' poses) sees at joints q: the pose
-    index, the camera, the marker and its pixel (with Gaussian ``noise``, px a coordinate).  Seen: in
-    front of the camera and on its image (:meth:`~robocal.model.camera.Camera.in_image`), or with
+    index, the camera, the marker, its pixel (with Gaussian ``noise``, px a coordinate) and its chain
+    (``chains``: a tree's whose markers are seen, :func:`marker_chains`; None for a serial robot).  Seen:
+    in front of the camera and on its image (:meth:`~robocal.model.camera.Camera.in_image`), or with
     ``margin`` that share of the image's size inside its border (an unstated size taken as 2 cx, 2 cy)."""
-    pose, cams, names, pixels = [], [], [], []
-    points = np.stack([robot.positions(q, [m] * len(q)) for m in markers], axis=1)  # (n, markers, 3)
+    pose, cams, names, pixels, on = [], [], [], [], []
+    points = marker_points(robot, q, markers, chains)  # (n, chains × markers, 3)
+    pairs = [(c, m) for c in chains for m in markers]
     for name, camera in intrinsics.items():
         T = robot.camera_frames([name] * len(q), q)
         width, height = camera.width or 2 * camera.cx, camera.height or 2 * camera.cy
-        for k, marker in enumerate(markers):
+        for k, (chain, marker) in enumerate(pairs):
             pc = np.einsum("mji,mj->mi", T[:, :3, :3], points[:, k] - T[:, :3, 3])
             uv = camera.project(pc)
             uv = uv + (rng.normal(0.0, noise, uv.shape) if noise > 0 else 0.0)
@@ -375,7 +406,8 @@ def camera_rows(robot: Robot, q: np.ndarray, intrinsics: Mapping, markers: Seque
             pixels.append(uv[idx])
             cams += [name] * len(idx)
             names += [marker] * len(idx)
-    return np.concatenate(pose), tuple(cams), tuple(names), np.concatenate(pixels)
+            on += [chain] * len(idx)
+    return np.concatenate(pose), tuple(cams), tuple(names), np.concatenate(pixels), tuple(on)
 
 
 def simulate_cameras(robot: Robot, n_poses: int, cameras: Mapping, *, markers: Mapping[str, np.ndarray] | None = None,
@@ -398,7 +430,8 @@ def simulate_cameras(robot: Robot, n_poses: int, cameras: Mapping, *, markers: M
     planted, truth = plant(robot, deviations, rng)
     q = random_joints(robot, n_poses, rng, joint_range)
     names = list(markers)
-    points = np.concatenate([truth.positions(q, [m] * len(q)) for m in names])
+    on = marker_chains(robot, {n: m for n, (_, m) in cameras.items() if m is not None})
+    points = marker_points(truth, q, names, on).reshape(-1, 3)
     mounts = {}
     for name, (camera, mount) in cameras.items():
         if mount is None:
@@ -409,7 +442,8 @@ def simulate_cameras(robot: Robot, n_poses: int, cameras: Mapping, *, markers: M
         mounts[name] = mount
     truth = truth.replace(cameras=mounts)
     intrinsics = {name: camera for name, (camera, _) in cameras.items()}
-    pose, rows_cam, rows_marker, rows_uv = camera_rows(truth, q, intrinsics, names, noise=pixel_noise, rng=rng)
+    pose, rows_cam, rows_marker, rows_uv, rows_chain = camera_rows(truth, q, intrinsics, names, noise=pixel_noise,
+                                                                   rng=rng, chains=on)
     for name in cameras:
         if name not in rows_cam:
             raise InputError(f"camera {name!r} sees no marker at any of the {n_poses} poses: place it elsewhere",
@@ -419,5 +453,6 @@ def simulate_cameras(robot: Robot, n_poses: int, cameras: Mapping, *, markers: M
                         targets=tuple(np.asarray(rows_marker, dtype=object)[order]), source="<simulated>",
                         pose_ids=tuple(str(int(i) + 1) for i in pose[order]),
                         pixels=rows_uv[order], camera=tuple(np.asarray(rows_cam, dtype=object)[order]),
-                        intrinsics=intrinsics)
+                        intrinsics=intrinsics,
+                        chain=None if robot.tree is None else tuple(np.asarray(rows_chain, dtype=object)[order]))
     return Simulation(meas, truth, planted)

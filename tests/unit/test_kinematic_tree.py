@@ -14,48 +14,40 @@ from robocal.math.so3 import orientation_error
 from robocal.model.kinematic_tree import TreeSpec
 from robocal.model.parameters import ParameterSpace
 
-#: a torso joint carrying two 3-joint arms, in the Hayati convention (a, alpha, theta, d, beta)
-HAYATI = """
+#: a torso joint carrying two 3-joint arms, as URDF origins (xyz mm, rpy deg, axis)
+TREE = """
 name = "two arms on a torso"
-convention = "hayati"
+convention = "urdf"
 [[joint]]
-a = 0
-alpha = 0
-d = 300
-theta = 0
-[[joint]]
-parent = 1
-a = 100
-alpha = -90
-d = 200
-theta = 10
-[[joint]]
-a = 350
-alpha = 0
-d = 0
-theta = -90
-beta = 0.1
-[[joint]]
-a = 300
-alpha = 90
-d = 0
-theta = 0
+xyz = [0, 0, 300]
+rpy = [0, 0, 0]
+axis = [0, 0, 1]
 [[joint]]
 parent = 1
-a = 100
-alpha = 90
-d = -200
-theta = -10
+xyz = [50, 200, 200]
+rpy = [-90, 0, 10]
+axis = [0, 0, 1]
 [[joint]]
-a = 350
-alpha = 0
-d = 0
-theta = 90
+xyz = [0, 0, 150]
+rpy = [0, 0, 0]
+axis = [0, 1, 0]
 [[joint]]
-a = 300
-alpha = -90
-d = 50
-theta = 0
+xyz = [0, 0, 350]
+rpy = [0, 5, 0]
+axis = [0, 1, 0]
+[[joint]]
+parent = 1
+xyz = [50, -200, 200]
+rpy = [90, 0, -10]
+axis = [0, 0, 1]
+[[joint]]
+xyz = [0, 0, 150]
+rpy = [0, 0, 0]
+axis = [0, 1, 0]
+[[joint]]
+xyz = [0, 0, 350]
+rpy = [0, 0, 3]
+axis = [1, 0, 0]
 [chains.left]
 tip = 4
 [chains.left.tool]
@@ -69,7 +61,7 @@ rpy = [0, 20, 0]
 """
 
 
-def _robot(text=HAYATI):
+def _robot(text=TREE):
     robot = parse_robot(text)
     return robot.replace(base=xyz_rpy_to_transform([1200, -300, 50], [0.02, -0.01, 1.2]))
 
@@ -91,10 +83,11 @@ def test_a_tree_file_round_trips(rng):
         assert np.abs(again.fk(q, chains=[chain] * 10) - robot.fk(q, chains=[chain] * 10)).max() < 1e-9
 
 
-@pytest.mark.parametrize("convention", ["hayati", "urdf"])
-def test_the_urdf_written_of_a_tree_moves_every_branch_as_an_independent_reader_says(convention, rng):
+@pytest.mark.parametrize("read_back", [False, True])
+def test_the_urdf_written_of_a_tree_moves_every_branch_as_an_independent_reader_says(read_back, rng):
     robot = _robot()
-    if convention == "urdf":  # the same tree as URDF origins: read back from its own URDF
+    robot = robot.replace(geometry=robot.geometry + np.pad(rng.normal(0, 1e-3, (7, 7)), ((0, 0), (0, 7))))
+    if read_back:  # the same tree read back from its own URDF, and written again
         from robocal.io.urdf_tree import parse_urdf_tree
 
         robot = parse_urdf_tree(urdf_text(robot), tips=["target_left", "target_right"])
@@ -143,15 +136,18 @@ def test_the_tree_jacobian_matches_finite_differences(rng):
     assert np.abs(J - Jfd).max() < 1e-5 * max(1.0, np.abs(Jfd).max())
     # a joint off a row's chain moves none of its pose
     left = np.array(chains) == "left"
-    assert np.all(J[left][:, :, space.index(["a5", "theta6", "d7"])] == 0)
+    assert np.all(J[left][:, :, space.index(["x5", "theta6", "rz7"])] == 0)
 
 
 @pytest.mark.parametrize("text, message", [
-    (HAYATI.replace("[chains.left]\ntip = 4", "[chains.left]\ntip = 9"), "tip must be a joint 1…7"),
-    (HAYATI.replace("parent = 1\na = 100\nalpha = 90", "parent = 7\na = 100\nalpha = 90"),
+    (TREE.replace("[chains.left]\ntip = 4", "[chains.left]\ntip = 9"), "tip must be a joint 1…7"),
+    (TREE.replace("parent = 1\nxyz = [50, -200", "parent = 7\nxyz = [50, -200"),
      "parent must be a joint before this one"),
-    (HAYATI.split("[chains.left]")[0], "names its chains: tables"),
-    (HAYATI.replace("tip = 4\n", "tip = 4\nfoo = 1\n"), "foo"),
+    ('convention = "hayati"\n' + "".join(f"[[joint]]\n{p}a = 100\nalpha = 0\nd = 0\ntheta = 0\n" for p in
+                                          ("", "parent = 1\n", "parent = 1\n"))
+     + "[chains.a]\ntip = 2\n[chains.b]\ntip = 3\n", "tree's joints are urdf origins"),
+    (TREE.split("[chains.left]")[0], "names its chains: tables"),
+    (TREE.replace("tip = 4\n", "tip = 4\nfoo = 1\n"), "foo"),
 ])
 def test_a_malformed_tree_is_said_on_one_line(text, message):
     with pytest.raises(InputError, match=message) as info:

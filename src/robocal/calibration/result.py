@@ -399,6 +399,8 @@ class CalibrationResult:
         """Before/after (and validation) metrics of each reflector, when the data have several."""
         if self.measurements is None or len(self.measurements.target_names) < 2:
             return {}
+        if self.robot.tree is not None and set(self.measurements.target_names) <= set(self.robot.tree.names):
+            return {}  # each chain's own tool: the per-chain figures say it
         out: dict[str, dict[str, Metrics]] = {}
         val = {} if self.validation is None else self.validation.by_target()
         for t, m in self.measurements.by_target().items():

@@ -117,8 +117,8 @@ def simulate_cmd(
         for path, text in texts.items():
             atomic_write(path, text)
     if not quiet:
-        what = sim.measurements.describe() if sim.measurements.camera is not None else \
-            f"{sim.measurements.n_poses} poses"
+        what = sim.measurements.describe() if sim.measurements.camera is not None or \
+            sim.measurements.chain is not None else f"{sim.measurements.n_poses} poses"
         console().print(f"wrote {what} to {out}" + (f" and the true robot to {truth}" if truth else ""), markup=False)
 
 
@@ -146,6 +146,9 @@ def placed(robot, spec, values):
 
     if values is None:
         mount = mount_of(robot, spec.name, spec.link)
+        if mount.link > 0 and robot.urdf is not None and spec.link not in (robot.joint_names or ()) and \
+                not str(spec.link).isdigit():
+            return mount  # a URDF's link places it: the file's fixed joints are its pose
         if mount.link > 0:
             raise InputError(f"camera {spec.name!r} rides on link {spec.link}: give its pose there (--camera-pose "
                              f"{spec.name}=x,y,z,rx,ry,rz)", option="camera_pose")

@@ -573,8 +573,8 @@ def _check_one_pose(meas: Measurements, pose: np.ndarray, labels: list[str], tol
 def average_repeats(meas: Measurements, tolerance: float = REPEAT_TOLERANCE_MM, cycles: Sequence[str] | None = None,
                     joint_tolerance: float = JOINT_TOLERANCE_DEG) -> Measurements:
     """Average the rows of one measurement: same pose_id, same cycle (when the file numbers
-    its measuring cycles), same reflector (on the same chain of a tree): mean joints, position, torques and payload; chordal
-    mean rotation.
+    its measuring cycles), same reflector (on the same chain of a tree): mean joints, position,
+    torques and payload; chordal mean rotation.
 
     The rows of one pose_id and cycle (every reflector, every repeat) must command the same
     joints within ``joint_tolerance`` deg, and a measurement's repeated rows must agree within

@@ -1,4 +1,4 @@
-"""URDF trees: a robot of several chains read from a URDF's tips, and any robot's tree written as one URDF.
+"""URDF trees: a robot of several chains read from a URDF's tips, and a tree robot written as one URDF.
 
 Reading (:func:`parse_urdf_tree`): every movable joint on the paths from the base link to the tips
 once, in the order the paths meet them (the data's q1..qn), each with the fixed joints between it
@@ -11,8 +11,8 @@ Writing (:func:`tree_urdf`): a tree read from a URDF is written back as that fil
 branch's joint origins corrected (an identified zero folded in, as for a chain), the identified
 base on ``measuring_frame``, each chain's identified tool on a link ``target_CHAIN`` below its tip
 and each camera's optical frame on a link ``camera_NAME_optical`` (z the optical axis, x the
-image's right) on the link it rides.  A tree from a robot file, in any convention, is written as
-a new URDF of the same kinematics.  A ROS tool reads every branch from the one file.
+image's right) on the link it rides.  A tree from a robot file is written as a new URDF of the same
+kinematics.  A ROS tool reads every branch from the one file.
 """
 
 from __future__ import annotations
@@ -37,7 +37,6 @@ from .urdf_xml import (
     _append,
     _check_size,
     _choose_link,
-    _dh_split,
     _fixed_joint,
     _folded_origin,
     _indent,
@@ -184,22 +183,15 @@ def _put(root: ET.Element, by_child: dict, parent: str, link: str, T: np.ndarray
 
 
 def _from_geometry(robot: Robot) -> ET.Element:
-    """A tree of any convention as a new URDF: joint i turns (slides) about its axis in the frame
-    after the fixed part of its parent joint, a DH joint's about z."""
+    """A tree from a robot file as a new URDF: joint i's origin (its identified turn and zero folded
+    in) in its parent joint's link, its axis as it is."""
     root = ET.Element("robot", {"name": robot.name or "robot"})
     root.text = "\n  "
     elements = [ET.Element("link", {"name": MEASURING_FRAME}), ET.Element("link", {"name": "base_link"}),
                 _fixed_joint(f"{MEASURING_FRAME}_joint", MEASURING_FRAME, "base_link", robot.base)]
     names = robot.joint_names or tuple(f"joint_{i + 1}" for i in range(robot.n_joints))
-    after = []
-    for i, g in enumerate(robot.geometry):
-        if robot.convention == "urdf":
-            before, rest, axis = _folded_origin(g), np.eye(4), g[urdf.AX:urdf.AZ + 1]
-        else:
-            (before, rest), axis = _dh_split(robot.convention, g), np.array([0.0, 0.0, 1.0])
-        p = robot.tree.parents[i]
-        T = (np.eye(4) if p < 0 else after[p]) @ before
-        after.append(rest)
+    for i, g in enumerate(robot.geometry):  # a tree's joints are urdf origins (robocal.model.robot)
+        T, axis, p = _folded_origin(g), g[urdf.AX:urdf.AZ + 1], robot.tree.parents[i]
         j = ET.Element("joint", {"name": names[i], "type": "prismatic" if robot.prismatic[i] else "revolute"})
         ET.SubElement(j, "parent", {"link": "base_link" if p < 0 else f"link_{p + 1}"})
         ET.SubElement(j, "child", {"link": f"link_{i + 1}"})
@@ -219,12 +211,11 @@ def _from_geometry(robot: Robot) -> ET.Element:
         tip = path[-1]
         elements += [ET.Element("link", {"name": f"{TARGET}_{chain}"}),
                      _fixed_joint(f"{TARGET}_{chain}_joint", f"link_{tip + 1}", f"{TARGET}_{chain}",
-                                  after[tip] @ robot.targets.get(chain, np.eye(4)))]
+                                  robot.targets.get(chain, np.eye(4)))]
     for name, mount in robot.cameras.items():
         parent = _camera_parent(robot, mount, lambda k: f"link_{k}")
-        T = mount.pose if mount.of or mount.link == 0 else after[mount.link - 1] @ mount.pose
         elements += [ET.Element("link", {"name": f"camera_{name}_optical"}),
-                     _fixed_joint(f"camera_{name}_optical_joint", parent, f"camera_{name}_optical", T)]
+                     _fixed_joint(f"camera_{name}_optical_joint", parent, f"camera_{name}_optical", mount.pose)]
     for e in elements:
         e.tail = "\n  "
     _append(root, *elements)

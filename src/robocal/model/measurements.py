@@ -189,8 +189,13 @@ class Measurements:
         if self.camera is not None and all(self.camera):
             configs = len(np.unique(np.round(self.q, 9), axis=0))
             cams = len(set(self.camera))
-            return (f"{self.n_poses} camera rows: {len(self.target_names)} marker{'s' * (len(self.target_names) > 1)} "
-                    f"seen by {cams} camera{'s' * (cams > 1)} at {configs} poses")
+            on = "" if self.chain is None else f" on {len(set(self.chain))} chains"
+            return (f"{self.n_poses} camera rows: {len(self.target_names)} marker{'s' * (len(self.target_names) > 1)}"
+                    f"{on} seen by {cams} camera{'s' * (cams > 1)} at {configs} poses")
+        if self.chain is not None:  # a tree's rows: each chain's points at its poses
+            configs = len(np.unique(np.round(self.q, 9), axis=0))
+            chains = len(set(self.chain))
+            return f"{self.n_poses} measured points on {chains} chain{'s' * (chains > 1)} at {configs} poses"
         if self.targets is None or len(self.target_names) == 1:
             return f"{self.n_poses} poses"
         configs = len(np.unique(np.round(self.q, 9), axis=0))

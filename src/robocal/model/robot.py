@@ -90,6 +90,9 @@ class Robot:
             if len(self.joint_names) != g.shape[0]:
                 raise ValueError(f"{len(self.joint_names)} joint names for {g.shape[0]} joints")
         if self.tree is not None:
+            if self.convention != "urdf":  # a DH row turns about its parent's z: siblings would share one axis
+                raise ValueError("a tree's joints are urdf origins (xyz, rpy, axis): in the DH family every child "
+                                 "of a joint turns about that joint's frame's z, so two branches could not part")
             if self.tree.n_joints != g.shape[0]:
                 raise ValueError(f"a tree of {self.tree.n_joints} joints for {g.shape[0]} joints")
             if (self.terms is not None and self.terms.spec().options) or self.residual is not None:

@@ -27,7 +27,7 @@ from ..model.candidates import complete, frame_candidates, joint_candidates
 from ..model.measurements import Measurements
 from ..model.parameters import ParameterSpace, is_angle
 from ..model.robot import Robot
-from ..simulation import camera_rows, facing, random_joints
+from ..simulation import camera_rows, facing, marker_chains, marker_points, random_joints
 
 #: a marker counts as seen where its pixel lies this share of the image's size inside its border
 MARGIN = 0.05
@@ -76,7 +76,8 @@ def plan_camera_poses(robot: Robot, n_poses: int, cameras: Mapping, *, markers: 
     markers = {"m1": robot.tool} if not markers else dict(markers)
     robot = complete(robot).replace(targets={**robot.targets, **markers})
     q = random_joints(robot, candidates, rng, joint_range)
-    points = np.concatenate([robot.positions(q, [m] * len(q)) for m in markers])
+    on = marker_chains(robot, {n: m for n, (_, m) in cameras.items() if m is not None})
+    points = marker_points(robot, q, list(markers), on).reshape(-1, 3)
     mounts, intrinsics = {}, {}
     for name, (camera, mount) in cameras.items():
         if mount is not None and mount.link > 0 and mount.link > robot.n_joints:
@@ -86,12 +87,12 @@ def plan_camera_poses(robot: Robot, n_poses: int, cameras: Mapping, *, markers: 
             mount = CameraMount(0, facing(camera, points))
         mounts[name], intrinsics[name] = mount, camera
     robot = robot.replace(cameras=mounts)
-    pose, cams, names, pixels = camera_rows(robot, q, intrinsics, list(markers), margin=MARGIN)
+    pose, cams, names, pixels, chains = camera_rows(robot, q, intrinsics, list(markers), margin=MARGIN, chains=on)
     if not len(pose):
         raise InputError(f"no camera sees a marker at any of {candidates} candidate joint sets: check the cameras' "
                          "poses (--camera-pose)", option="camera")
     meas = Measurements(q[pose], np.full((len(pose), 3), np.nan), targets=names, camera=cams, pixels=pixels,
-                        intrinsics=intrinsics)
+                        intrinsics=intrinsics, chain=None if robot.tree is None else chains)
     fixed = any(m.link == 0 for m in mounts.values())
     frames = ("base" if fixed else "none") if markers_known else ("base+tool" if fixed else "tcp")
     params = joint_candidates(robot) + frame_candidates(frames, list(markers), False) + \

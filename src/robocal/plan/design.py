@@ -86,8 +86,23 @@ class Plan:
 def _blocks(robot: Robot, q: np.ndarray, names: list[str], measure: str, noise: float, angle_noise: float):
     """Whitened Jacobian blocks (m, r, k) and the unwhitened position rows (m, 3, k)."""
     space = ParameterSpace.of(robot)
-    J, _, _ = space.jacobian(np.zeros(space.size), q)
+    if robot.tree is None:
+        J, _, _ = space.jacobian(np.zeros(space.size), q)
+    else:  # a tree's pose is measured on every chain: its block stacks each chain's rows
+        chains = robot.tree.names
+        labels = [c for _ in range(len(q)) for c in chains]
+        J, _, _ = space.jacobian(np.zeros(space.size), np.repeat(q, len(chains), axis=0), space.target_index(labels),
+                                 chain=robot.tree.index(labels))
+        J = J.reshape(len(q), len(chains), 6, -1)
+        J = np.concatenate([J[:, :, :3].reshape(len(q), -1, J.shape[-1]),
+                            J[:, :, 3:].reshape(len(q), -1, J.shape[-1])], axis=1)
     J = J[:, :, space.index(names)]
+    if robot.tree is not None:
+        half = J.shape[1] // 2
+        pos = J[:, :half]
+        if measure == "position":
+            return pos / noise, pos
+        return np.concatenate([pos / noise, J[:, half:] / angle_noise], axis=1), pos
     pos = J[:, :3]
     if measure == "position":
         return pos / noise, pos
@@ -194,16 +209,17 @@ def reachable_candidates(robot: Robot, n: int, rng: np.random.Generator, joint_r
     for _ in range(attempts):
         q = random_joints(robot, 4 * n, rng, joint_range)
         drawn += len(q)
-        T = robot.replace(base=np.eye(4)).fk(q)
         ok = np.ones(len(q), bool)
-        if workspace is not None:
-            w = np.asarray(workspace, float)
-            ok &= np.all((T[:, :3, 3] >= w[:, 0]) & (T[:, :3, 3] <= w[:, 1]), axis=1)
-        if tracker is not None:
-            to_tracker = np.asarray(tracker, float) - T[:, :3, 3]
-            to_tracker /= np.linalg.norm(to_tracker, axis=1, keepdims=True)
-            cos = np.einsum("mi,mi->m", T[:, :3, 2], to_tracker)
-            ok &= cos >= math.cos(math.radians((fov if fov is not None else 90.0) / 2))
+        for chain in (None,) if robot.tree is None else robot.tree.names:  # a tree's every tip must be seen
+            T = robot.replace(base=np.eye(4)).fk(q, chains=None if chain is None else [chain] * len(q))
+            if workspace is not None:
+                w = np.asarray(workspace, float)
+                ok &= np.all((T[:, :3, 3] >= w[:, 0]) & (T[:, :3, 3] <= w[:, 1]), axis=1)
+            if tracker is not None:
+                to_tracker = np.asarray(tracker, float) - T[:, :3, 3]
+                to_tracker /= np.linalg.norm(to_tracker, axis=1, keepdims=True)
+                cos = np.einsum("mi,mi->m", T[:, :3, 2], to_tracker)
+                ok &= cos >= math.cos(math.radians((fov if fov is not None else 90.0) / 2))
         kept.append(q[ok])
         if sum(len(k) for k in kept) >= n:
             break
@@ -251,7 +267,8 @@ def plan_poses(robot: Robot, n_poses: int, *, candidates: int = 2000, criterion:
     rng = np.random.default_rng(seed)
     robot = complete(robot)  # plan for the parameters a calibration will estimate
     cand, _ = reachable_candidates(robot, candidates, rng, joint_range, workspace, tracker, fov)
-    names = joint_candidates(robot) + frame_candidates(frames, ("",), measure == "pose")
+    names = joint_candidates(robot) + frame_candidates(frames, ("",) if robot.tree is None else robot.tree.names,
+                                                       measure == "pose")
     blocks, _ = _blocks(robot, cand, names, measure, noise, angle_noise)
     ident = analyse(blocks.reshape(-1, len(names)), names, np.array([is_angle(n) for n in names]), len(cand),
                     robot.reach())
