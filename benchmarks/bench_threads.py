@@ -13,7 +13,7 @@ import scipy.linalg
 from threadpoolctl import threadpool_limits
 
 from robocal.bench.workloads import busy_cores
-from robocal.calibration.problem import Setup
+from robocal.calibration.fit.problem import Setup
 from robocal.io.robotfile import load_robot
 from robocal.model.parameters import ParameterSpace
 from robocal.simulation import simulate
@@ -61,7 +61,7 @@ def blas_rows(label):
 def likelihood_rows(label):
     """The residual process's likelihood and gradient on 1000 points (as --model auto tunes it),
     beside its Cholesky factor and inverse alone, on one and on two BLAS threads."""
-    from robocal.calibration.likelihood import MarginalLikelihood, standardise
+    from robocal.calibration.select.likelihood import MarginalLikelihood, standardise
 
     rng = np.random.default_rng(0)
     q = rng.uniform(-2, 2, (1000, 6))

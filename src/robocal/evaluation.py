@@ -81,9 +81,9 @@ def evaluate(robot: str | Path | Robot, data: str | Path | Measurements, *, colu
     calibration's export carries their poses): ``cameras`` gives each one's intrinsics
     (``NAME=FILE`` items), ``markers`` a markers file for markers the model does not carry.
     """
-    from .calibration.checks import check_units
     from .calibration.config import point_distances
-    from .calibration.registration import choose_frames, fit_frames
+    from .calibration.fit.registration import choose_frames, fit_frames
+    from .calibration.judge.checks import check_units
 
     opt.choice(frames, FRAME_CHOICES, "frames", "frames mode")
     r = load_robot(robot)
@@ -103,7 +103,7 @@ def evaluate(robot: str | Path | Robot, data: str | Path | Measurements, *, colu
             raise InputError("camera rows are judged with the cameras the calibration found, in its frames: "
                              "evaluate them with frames none (or auto)", source=meas.source, option="frames")
         frames = "none"
-    from .calibration.cameras import attach_known
+    from .calibration.fit.cameras import attach_known
 
     r, meas = attach_known(r, meas, cameras, markers)
     distances = point_distances(point_distance)

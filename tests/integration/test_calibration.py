@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from robocal.calibration import calibrate
-from robocal.calibration.identifiability import analyse
+from robocal.calibration.judge.identifiability import analyse
 from robocal.io.robotfile import load_robot
 from robocal.model.measurements import Measurements
 from robocal.model.metrics import Metrics

@@ -553,8 +553,8 @@ def test_a_subset_of_rows_keeps_each_rows_camera_whichever_camera_comes_first(tm
     """A fold of the rows whose first row another camera saw predicts its rows as the whole data
     does: each row's camera is found by name, not by the order the rows name them in."""
     from robocal.calibration.config import CalibrationConfig
+    from robocal.calibration.fit.parametric import fit_parametric, term_spec
     from robocal.calibration.inputs import load_inputs
-    from robocal.calibration.parametric import fit_parametric, term_spec
 
     _, data, specs, markers, _ = _torso_cell(11, tmp_path, 30)
     config = CalibrationConfig(cameras=specs, markers=str(markers))
@@ -630,10 +630,10 @@ def test_what_the_pixels_mean_at_the_markers_is_said_in_millimetres(tmp_path):
     """Beside every figure in px: the error at the marker (pixel error × depth ÷ focal length, against
     the independent cell's own depths) and the markers' predicted σ in their camera's frame (against
     finite differences of the calibrated model through the posterior covariance)."""
-    from robocal.calibration.cameras import marker_sigma
     from robocal.calibration.config import CalibrationConfig
+    from robocal.calibration.fit.camera_scale import marker_sigma
+    from robocal.calibration.fit.parametric import fit_parametric, term_spec
     from robocal.calibration.inputs import load_inputs
-    from robocal.calibration.parametric import fit_parametric, term_spec
     from robocal.model.metrics import pixel_scale, pose_errors
 
     cell, data, specs, markers, rng = _torso_cell(31, tmp_path, 40)

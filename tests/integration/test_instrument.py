@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from robocal.calibration import calibrate
-from robocal.calibration.instrument import Instrument, paule_mandel
+from robocal.calibration.fit.instrument import Instrument, paule_mandel
 from robocal.model.measurements import Measurements
 
 DEVIATIONS = {"a2": 0.3, "d4": -0.2, "theta3": 0.002, "alpha2": -0.001, "a3": 0.15}

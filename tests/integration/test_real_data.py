@@ -119,9 +119,10 @@ def test_the_residual_process_keeps_the_more_likely_of_its_two_starts(monkeypatc
     """On the seed-1 half of series C the tuning from scikit-learn's start (every length scale
     1 rad) misses the UR10's short-range structure: the start at the shortest length scale ends
     more than 100 nats more likely with about half the white noise, and that kernel is kept."""
-    from robocal.calibration import crossval, parametric, residual
     from robocal.calibration import inputs as steps_inputs
     from robocal.calibration.config import CalibrationConfig
+    from robocal.calibration.fit import parametric
+    from robocal.calibration.select import crossval, residual
 
     meas = load_measurements(DATA, n_joints=6)
     half = meas.subset(np.sort(np.random.default_rng(1).permutation(meas.n_poses)[: meas.n_poses // 2]))

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from robocal.calibration import calibrate
-from robocal.calibration.problem import Problem
+from robocal.calibration.fit.problem import Problem
 from robocal.io.robotfile import load_robot
 from robocal.model.measurements import Measurements
 from robocal.presets.wen2019 import TABLE2_DEVIATIONS as WEN2019_ERRORS

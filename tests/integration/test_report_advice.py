@@ -37,7 +37,7 @@ def test_a_figure_far_above_the_floor_is_said_with_both_numbers():
 def test_a_model_at_its_floor_is_not_told_to_do_more():
     """A planted robot the geometric model holds exactly, measured with a stated 0.02 mm: its
     cross-validated figure is at the floor, and no advice says otherwise."""
-    from robocal.calibration.instrument import Instrument, with_instrument
+    from robocal.calibration.fit.instrument import Instrument, with_instrument
     from robocal.io.robotfile import load_robot
 
     sim = simulate(load_robot("kr5-arc"), 120, deviations="uniform:0.3,0.003", seed=8, noise=0.02,

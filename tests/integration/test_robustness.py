@@ -87,7 +87,7 @@ def test_a_gross_error_beyond_a_heavy_tail_is_flagged():
     meas = _campaign(300, 7, sag)
     plain, said = _run(meas)
     assert not any("outlier" in s for s in said)
-    from robocal.calibration.statistics import MAXWELL_MEDIAN
+    from robocal.calibration.judge.statistics import MAXWELL_MEDIAN
     from robocal.model.metrics import pose_errors
 
     norm = np.linalg.norm(pose_errors(plain.robot, meas)[0], axis=1)

@@ -180,7 +180,7 @@ def test_a_residual_process_that_spends_the_data_is_said_loudly():
 
 
 def test_auto_never_keeps_a_rung_that_predicts_worse_than_geometry():
-    from robocal.calibration.choice import Candidate, choose
+    from robocal.calibration.select.choice import Candidate, choose
 
     rng = np.random.default_rng(5)
     geometric = rng.normal(0, 0.3, (200, 3))
@@ -234,10 +234,10 @@ def test_the_final_guard_keeps_geometry_over_a_rich_model_that_fits_worse():
     from dataclasses import replace
 
     from robocal.calibration.config import CalibrationConfig
-    from robocal.calibration.guard import guard
+    from robocal.calibration.fit.parametric import fit_parametric, term_spec
     from robocal.calibration.inputs import load_inputs
-    from robocal.calibration.parametric import fit_parametric, term_spec
-    from robocal.calibration.selection import Chosen
+    from robocal.calibration.judge.guard import guard
+    from robocal.calibration.select.selection import Chosen
 
     meas = _kr5_campaign(60, 8)
     cfg = CalibrationConfig(model="harmonics")

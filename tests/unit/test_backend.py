@@ -120,7 +120,7 @@ def test_residual_tuning_on_workers_equals_tuning_here(monkeypatch):
     import numpy as np
 
     import robocal.backend as backend
-    from robocal.calibration.residual import fit_residual
+    from robocal.calibration.select.residual import fit_residual
 
     rng = np.random.default_rng(3)
     q = rng.uniform(-2, 2, (90, 6))

@@ -4,7 +4,7 @@ import math
 
 import numpy as np
 
-from robocal.calibration.diagnostics import physicality
+from robocal.calibration.judge.diagnostics import physicality
 
 
 def test_implausible_deviations_name_parameters_and_cause():

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from robocal.calibration.identifiability import DEPENDENT, NO_EFFECT, Reason, analyse, observability
+from robocal.calibration.judge.identifiability import DEPENDENT, NO_EFFECT, Reason, analyse, observability
 
 
 def test_observability_figures_match_direct_svd(rng):

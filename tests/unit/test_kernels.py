@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from robocal.backend import numba_installed
-from robocal.calibration.problem import Setup
+from robocal.calibration.fit.problem import Setup
 from robocal.math.se3 import xyz_rpy_to_transform
 from robocal.model.dh import CONVENTIONS  # the DH family: the kernels chain these
 from robocal.model.kinematics import chain_points

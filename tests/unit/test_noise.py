@@ -5,9 +5,9 @@ import math
 import numpy as np
 
 from robocal.calibration.config import CalibrationConfig
-from robocal.calibration.methods import fit_lm
-from robocal.calibration.noise import NoiseModel, block_sigmas, settle
-from robocal.calibration.problem import Setup
+from robocal.calibration.fit.methods import fit_lm
+from robocal.calibration.fit.noise import NoiseModel, block_sigmas, settle
+from robocal.calibration.fit.problem import Setup
 from robocal.io.robotfile import load_robot
 from robocal.model.parameters import ParameterSpace
 from robocal.presets import wen2019

@@ -8,8 +8,8 @@ import pytest
 from sklearn.gaussian_process import GaussianProcessRegressor
 from sklearn.gaussian_process.kernels import RBF, ConstantKernel, WhiteKernel
 
-from robocal.calibration.likelihood import MarginalLikelihood, standardise
-from robocal.calibration.residual import MAX_LENGTH_SCALE, MIN_LENGTH_SCALE, MIN_NOISE, Kernel, fit_residual
+from robocal.calibration.select.likelihood import MarginalLikelihood, standardise
+from robocal.calibration.select.residual import MAX_LENGTH_SCALE, MIN_LENGTH_SCALE, MIN_NOISE, Kernel, fit_residual
 from robocal.model.residual import ResidualModel
 
 
@@ -118,7 +118,7 @@ def test_two_starts_and_the_more_likely_kept_on_sparse_data(monkeypatch):
     """Scattered over six joints, 300 poses are too far apart for the shortest length scale:
     from there the tuning stalls at 'all noise', while from 1 rad it finds the structure; the
     1 rad kernel is kept (the UR10's half split is the other way round: test_real_data)."""
-    from robocal.calibration import residual
+    from robocal.calibration.select import residual
 
     rng = np.random.default_rng(0)
     q = rng.uniform(-np.pi, np.pi, (300, 6))

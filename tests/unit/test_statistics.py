@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from scipy.stats import f as f_dist
 
-from robocal.calibration.statistics import covariance, f_test, robust_outliers, standard_uncertainties
+from robocal.calibration.judge.statistics import covariance, f_test, robust_outliers, standard_uncertainties
 
 
 def test_covariance_from_jacobian_and_from_information_equal_the_direct_inverse(rng):

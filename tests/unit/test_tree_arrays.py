@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from sklearn.ensemble import HistGradientBoostingRegressor
 
-from robocal.calibration.trees import choose_settings
+from robocal.calibration.select.trees import choose_settings
 from robocal.model.corrections import Stacked, correction_from_dict
 from robocal.model.residual import Block, ResidualModel
 from robocal.model.trees import Ensemble, TreeResidual, fade

@@ -5,7 +5,7 @@ finite differences, cameras fixed and on a link."""
 import numpy as np
 import pytest
 
-from robocal.calibration.problem import Setup
+from robocal.calibration.fit.problem import Setup
 from robocal.io.camera import load_camera
 from robocal.io.robotfile import load_robot
 from robocal.model.camera import CameraMount

@@ -19,7 +19,7 @@ import numpy as np
 
 from ..backend import numba_installed
 from ..calibration import calibrate
-from ..calibration.problem import Setup
+from ..calibration.fit.problem import Setup
 from ..io.robotfile import load_robot
 from ..model.kinematics import chain_points
 from ..model.parameters import ParameterSpace, is_angle
@@ -345,7 +345,7 @@ def w6_auto(repeats: int = 1, data: Path = UR10_DATA) -> list[Row]:
     user runs them; the ≤ 8× target is theirs) and as calls of the Python API in one process."""
     import tempfile
 
-    from ..calibration.choice import learned_of
+    from ..calibration.select.choice import learned_of
     from ..io.measurements import load_measurements
 
     if not Path(data).is_file():
@@ -541,7 +541,7 @@ def ur5_campaign(n: int = 1000, seed: int = 0):
 def w8_auto_position(repeats: int = 1) -> list[Row]:
     """W8: ``--model auto`` on a UR5-sized position-only set (:func:`ur5_campaign`, 1000 poses)
     beside a geometric LM of the same poses, interleaved as Python calls in one process."""
-    from ..calibration.choice import learned_of
+    from ..calibration.select.choice import learned_of
 
     robot, meas = ur5_campaign()
 

@@ -14,8 +14,8 @@ from ..model.candidates import FRAME_CHOICES
 from ..model.prior import Prior
 from ..model.terms import TERMS
 from ..optimize.lm import LOSSES
-from .instrument import Instrument
-from .noise import NoiseModel
+from .fit.instrument import Instrument
+from .fit.noise import NoiseModel
 from .registry import METHODS as _REGISTRY
 from .registry import Method
 
@@ -111,7 +111,7 @@ class CalibrationConfig:
 
     noise / angle_noise: the measuring device's standard deviation per axis, position (mm)
     and orientation (rad, as a rotation vector); residuals are whitened by them.  A value
-    not stated is estimated from the fit (see :mod:`robocal.calibration.noise`).  k: the
+    not stated is estimated from the fit (see :mod:`robocal.calibration.fit.noise`).  k: the
     older way to weigh orientation, a fixed (σp/σr)² in mm²/rad² instead of angle_noise.
 
     method: ``lm``, ``pso``, ``ipso``, ``ldpso-bt`` or ``hybrid`` (IPSO then LM).
@@ -134,7 +134,7 @@ class CalibrationConfig:
     their count H per joint.  payload: a payload mass (kg) for every pose, where the data have
     no ``payload`` column.  instrument: an MPE-style statement ``"A+B/m"`` (mm, mm per metre
     of distance from the instrument; ``k=K`` for U = K σ, default 2) that sets each point's
-    position σ (see :mod:`robocal.calibration.instrument`); files may give σ per point instead.
+    position σ (see :mod:`robocal.calibration.fit.instrument`); files may give σ per point instead.
     exclude: pose ids (or ``row N`` for files without them) to leave out of the calibration.
     point_distance: known distances between two points of a setup (``"A,B=MM"`` or (A, B, mm)),
     for data whose rows touched unknown points (:mod:`robocal.model.constraints`); distance_sigma:

@@ -16,10 +16,11 @@ from ..model.kinematics import joint_parameter_names
 from ..model.measurements import Measurements, concatenate
 from ..model.prior import unknown_names
 from ..model.robot import Robot
-from . import cameras, checks
 from .config import CalibrationConfig
-from .instrument import Instrument, with_instrument
-from .registration import choose_frames
+from .fit import cameras
+from .fit.instrument import Instrument, with_instrument
+from .fit.registration import choose_frames
+from .judge import checks
 
 
 @dataclass(frozen=True)

@@ -1,7 +1,7 @@
 """The calibration pipeline: nominal robot + measurements → calibrated robot and honest figures.
 
 :func:`calibrate` runs the steps of a calibration through the choice of model
-(:mod:`robocal.calibration.selection`: steps 2–9 once per model, or a ladder of them for
+(:mod:`robocal.calibration.select.selection`: steps 2–9 once per model, or a ladder of them for
 ``auto``), the final guard, and the evaluation:
 
 1. :func:`~.inputs.load_inputs`: robot, data and validation data, checked against each other;
@@ -9,7 +9,7 @@
    frame (and tool offsets) in closed form, the noise weighting to start with;
 3. :func:`~.subset.choose_candidates`: the parameters offered, from the config;
 4. :func:`~.subset.analyse_identifiability`: the identifiable subset, the rest dropped with reasons;
-5. :func:`robocal.calibration.methods.optimize`: the configured method;
+5. :func:`robocal.calibration.fit.methods.optimize`: the configured method;
 6. :func:`~.screening.screen_outliers`: with a robust loss, outliers left out and the inliers refitted;
 7. :func:`~.weighting.reweigh`: σ estimated per residual block where not stated, and the fit repeated;
 8. :func:`~.subset.refine_at_estimate`: identifiability re-checked at the estimate (F-test);
@@ -39,16 +39,18 @@ from ..model.region import Region
 from ..model.robot import Robot
 from ..model.uncertainty import known_targets, predicted_sigma
 from ..optimize.result import Progress
-from . import cameras
 from .config import CalibrationConfig
-from .crossval import sessions_disagree
-from .guard import guard
+from .exports import ExportFigures
+from .fit import cameras
+from .fit.camera_scale import marker_sigma
+from .fit.problem import warm_up
+from .fit.screening import Screening
 from .inputs import load_inputs
-from .problem import warm_up
-from .residual import MAX_POINTS
-from .result import CalibrationResult, ExportFigures
-from .screening import Screening
-from .selection import fit_model
+from .judge.guard import guard
+from .result import CalibrationResult
+from .select.crossval import sessions_disagree
+from .select.residual import MAX_POINTS
+from .select.selection import fit_model
 from .timing import stage, timed
 
 
@@ -123,7 +125,7 @@ def evaluate(initial: Robot, calibrated: Robot, meas: Measurements, all_rows: Me
         def seen(robot: Robot) -> Robot:
             if not robot.session_bases:
                 return robot
-            from .registration import fit_frames
+            from .fit.registration import fit_frames
 
             return fit_frames(robot.without_sessions(), validation, frames)
 
@@ -236,7 +238,7 @@ def _calibrate(robot, data, validate, cfg: CalibrationConfig, columns, progress,
     receiver = geometry_for_receivers(calibrated, geometric)
     scheme = chosen.scheme
     held_out = "new poses" if scheme is None else scheme.held_out
-    markers = None if est.problem.views is None else cameras.marker_sigma(est.problem, est.x, fit.covariance)
+    markers = None if est.problem.views is None else marker_sigma(est.problem, est.x, fit.covariance)
     exports = export_figures(calibrated, receiver, metrics, est.problem.meas, inputs.validation,
                              chosen.geometric_prediction, held_out,
                              None if markers is None else float(np.nanmedian(markers)))

@@ -10,7 +10,6 @@ from pathlib import Path
 
 import numpy as np
 
-from ..exceptions import InputError
 from ..io.atomic import atomic_write
 from ..math.se3 import transform_to_xyz_rpy
 from ..model.kinematics import joint_parameter_names
@@ -23,12 +22,13 @@ from ..model.terms import reported_unit
 from ..model.uncertainty import UncertaintyMap, tcp_map
 from ..optimize.result import OptimizeResult
 from .config import CalibrationConfig
-from .crossval import Scheme
-from .diagnostics import GoodnessOfFit, Physicality
-from .identifiability import Identifiability
-from .instrument import InstrumentFit
-from .judgement import AtEstimate
-from .noise import NoiseEstimate
+from .exports import ExportFigures, export
+from .fit.instrument import InstrumentFit
+from .fit.noise import NoiseEstimate
+from .judge.diagnostics import GoodnessOfFit, Physicality
+from .judge.identifiability import Identifiability
+from .judge.judgement import AtEstimate
+from .select.crossval import Scheme
 
 #: version of the result JSON; 2 added ``schema_version``, the structured ``dropped`` reasons
 #: (kind, related), ``optimizer.method`` naming the solver that ran, status ``completed``,
@@ -97,94 +97,6 @@ class BudgetRow:
         return out if self.axes_mm is None else {**out, "axes_rms_mm": dict(zip("xyz", self.axes_mm))}
 
 
-@dataclass(frozen=True)
-class ExportFigures:
-    """What each kind of export hands its receiver, on the same poses: the whole model (a robot
-    TOML, which every robocal command reads) and its geometry and frames alone (what a URDF or a
-    kinematics YAML can hold: a controller or ROS gets no joint terms and no learned correction).
-    figure: ``validation`` (the validation poses), ``predicted`` (cross-validation of the
-    calibration data, as ``held_out`` says) or ``fit``; RMS and max position errors in mm."""
-
-    figure: str
-    whole_rms_mm: float
-    whole_max_mm: float
-    geometry_rms_mm: float
-    geometry_max_mm: float
-    #: the model holds no more than geometry and frames: every export carries it whole
-    geometric: bool
-    #: what the held-out figure predicts and how: "new poses (5-fold cross-validation of the calibration
-    #: poses)", "a new session (leave-one-session-out, 10 sessions)", …
-    held_out: str = "new poses (5-fold cross-validation of the calibration poses)"
-    #: whose geometry a URDF or YAML carries: "the model's own", or "the geometric calibration's"
-    #: where the model holds joint terms (its own geometry was fitted beside them)
-    geometry_of: str = "the model's own"
-    #: the unit of the figures: mm, or px where every row is a camera's (the fields keep their names)
-    unit: str = "mm"
-    #: camera rows: what the whole model's figure means at the tool: its reprojection RMS at the
-    #: markers (mm), and the markers' predicted position σ in the robot's frame (mm, the median over
-    #: the calibration poses)
-    at_marker_rms_mm: float | None = None
-    tool_sigma_mm: float | None = None
-    #: camera rows: the markers' predicted position σ in their camera's frame (mm, median over the rows)
-    seen_sigma_mm: float | None = None
-    #: the model holds cameras' poses: a URDF or YAML has them not (a robot TOML beside a URDF has)
-    cameras: bool = False
-    #: the measuring frame is a fixed camera's: the robot's frame is found in it, one σ says both
-    measured_in_camera: bool = False
-
-    @property
-    def at_tool(self) -> str:
-        """" (1.21 mm at the markers; their position known to σ 0.05 mm in the cameras' frame, 5.4 mm in the
-        robot's)", or "" where the figures are mm."""
-        said = [] if self.at_marker_rms_mm is None else [f"{self.at_marker_rms_mm:.3g} mm at the markers"]
-        known = ([] if self.seen_sigma_mm is None else [f"{self.seen_sigma_mm:.3g} mm in the cameras' frames"]) + \
-            ([] if self.tool_sigma_mm is None or self.measured_in_camera else [f"{self.tool_sigma_mm:.3g} mm in the "
-                                                                               "robot's"])
-        if known:
-            said.append(f"their position known to σ {', '.join(known)}")
-        return f" ({'; '.join(said)})" if said else ""
-
-    @property
-    def where(self) -> str:
-        return {"validation": "on the validation poses",
-                "predicted": f"predicted on {self.held_out}"}.get(
-            self.figure, "on the calibration poses (in-sample)")
-
-    def sentence(self, path, sidecar=None) -> str:
-        """What the file at ``path`` holds, and how accurate that is: "PATH: …", one line."""
-        suffix = Path(path).suffix.lower()
-        whole = f"{self.whole_rms_mm:.4f} {self.unit} RMS{self.at_tool} {self.where}"
-        if suffix not in (".urdf", ".yaml", ".yml"):
-            return f"{path}: the whole model, {whole}"
-        whose = "" if self.geometry_of == "the model's own" else "the geometric calibration's "
-        frames = f"{whose}joint geometry (its frames are in" if suffix != ".urdf" else \
-            f"{whose}geometry and frames (the whole model is in"
-        if self.geometric and self.cameras:
-            beside = f"; the cameras' poses are in {sidecar}" if sidecar else \
-                "; the cameras' poses are in a robot TOML (export one too)"
-            return f"{path}: the geometry and frames, {whole}{beside}"
-        if self.geometric:
-            return f"{path}: the whole model (geometry and frames), {whole}"
-        held = f"{frames} {sidecar or 'the robot TOML beside it'})"
-        return (f"{path}: {held}; a controller or ROS reading it gets {self.geometry_rms_mm:.4f} {self.unit} RMS "
-                f"{self.where}, where the whole model gets {self.whole_rms_mm:.4f} {self.unit}: its joint terms and "
-                "learned correction reach the robot only through robocal filter and compensate")
-
-    def to_dict(self) -> dict:
-        rms, top = ("position_rms_mm", "position_max_mm") if self.unit == "mm" else \
-            ("reprojection_rms_px", "reprojection_max_px")
-        return {"figure": self.figure, "whole_model": {rms: self.whole_rms_mm, top: self.whole_max_mm,
-                                                       "held_by": ["robot TOML"]},
-                "geometry_and_frames": {rms: self.geometry_rms_mm, top: self.geometry_max_mm,
-                                        "geometry_of": self.geometry_of,
-                                        "held_by": ["URDF", "kinematics YAML (geometry only)"]},
-                "reaches_the_robot": "the whole model through robocal filter and compensate; a URDF or YAML "
-                                     "alone carries geometry and frames",
-                **({} if self.at_marker_rms_mm is None else {"at_marker_rms_mm": self.at_marker_rms_mm}),
-                **({} if self.tool_sigma_mm is None else {"marker_position_sigma_mm": self.tool_sigma_mm}),
-                **({} if self.seen_sigma_mm is None else {"marker_sigma_in_camera_mm": self.seen_sigma_mm})}
-
-
 @dataclass
 class CalibrationResult:
     """Everything a calibration produced.  :meth:`to_dict` gives the JSON of MODEL §5.
@@ -238,9 +150,9 @@ class CalibrationResult:
     #: alone pin it; above :data:`robocal.model.prior.HELD`: held by its prior), None without a prior
     prior_sigma: np.ndarray | None = field(default=None, repr=False)
     prior_share: np.ndarray | None = field(default=None, repr=False)
-    #: the verdict on whether the model is physical (:func:`robocal.calibration.diagnostics.physicality`)
+    #: the verdict on whether the model is physical (:func:`robocal.calibration.judge.diagnostics.physicality`)
     physical: Physicality = field(default_factory=Physicality)
-    #: the kept set's identifiability where the fit ended (:class:`~robocal.calibration.judgement.AtEstimate`)
+    #: the kept set's identifiability where the fit ended (:class:`~robocal.calibration.judge.judgement.AtEstimate`)
     at_estimate: AtEstimate | None = None
     #: what each kind of export hands its receiver (:class:`ExportFigures`), and what a URDF or a
     #: kinematics YAML carries (:func:`robocal.calibration.pipeline.geometry_for_receivers`)
@@ -252,7 +164,7 @@ class CalibrationResult:
     #: camera: px), else empty
     kind_sigma: dict = field(default_factory=dict)
     receiver: Robot | None = field(default=None, repr=False)
-    #: how the held-out figures were made (:class:`~robocal.calibration.crossval.Scheme`)
+    #: how the held-out figures were made (:class:`~robocal.calibration.select.crossval.Scheme`)
     cross_validation: Scheme | None = None
 
     @property
@@ -531,93 +443,11 @@ class CalibrationResult:
 
     def export(self, path: str | Path) -> list[Path]:
         """Write the calibrated robot as a robot file (loadable again), with its residual model in
-        a sibling file when it has one; the paths written.  A ``.urdf`` path writes a URDF (see
-        :mod:`robocal.io.urdf`); joint terms and a residual model cannot live in one, so the
-        whole model goes to a robot TOML beside it, ``NAME.robocal.toml``, as well."""
-        from ..io.robotfile import save_robot
-
-        comment = (f"Calibrated by robocal ({self.method}, objective {self.objective}, seed {self.seed}) from "
-                   f"{self.data or 'measurements'}; {len(self.names)} parameters identified, "
-                   f"{len(self.identifiability.dropped)} left at nominal.")
-        # what makes the model doubtful travels with it, not only on the terminal
-        doubts = [w for w in self.warnings if w.startswith(("implausible", "model misfit"))]
-        comment += "".join(f"\nWARNING: {w}" for w in doubts)
-        if self.model != "geometric":
-            comment += f"\nModel {self.model}: every robocal command uses its joint terms and residual model."
-        path = Path(path)
-        if self.robot.tree is not None and path.suffix.lower() in (".yaml", ".yml"):
-            raise InputError("a UR kinematics file holds one arm: export a tree as .toml or .urdf (each chain gets "
-                             "its own robot file beside it)", source=path)
-        chains = self._export_chains(path, comment)
-        if path.suffix.lower() in (".yaml", ".yml"):
-            return self._export_ur(path, comment)
-        if path.suffix.lower() != ".urdf":
-            return save_robot(self.robot.without_sessions(), path, comment) + chains
-        from ..io.urdf import urdf_text
-
-        written, whole = [], None
-        if not self.robot.geometric or self.robot.cameras:  # the sidecar first: the URDF alone would be an
-            # incomplete model (its joint terms, its cameras' poses)
-            whole = path.with_name(f"{path.stem}.robocal.toml")
-            written = save_robot(self.robot.without_sessions(), whole, comment)
-        probe = bool(self.contact)  # the tip link itself touched the points or planes: it is the tool
-        where = "the tip link is the identified tool point" if probe else "target the tool"
-        receiver = (self.receiver or self.robot).without_sessions()
-        atomic_write(path, urdf_text(receiver, comment + self._receiver_comment() +
-                                     "\nLengths in m, angles in rad; measuring_frame carries the identified base "
-                                     f"frame, {where}.", whole_model=None if whole is None else whole.name,
-                                     tool_at_tip=probe))
-        return [path, *written, *chains]
-
-    def _export_chains(self, path: Path, comment: str) -> list[Path]:
-        """Each chain of a tree as a serial robot file beside ``path`` (``NAME.CHAIN.toml``), for the
-        commands that drive one arm (filter, compensate); none for a serial robot."""
-        from ..io.robotfile import save_robot
-
-        tree = self.robot.tree
-        if tree is None:
-            return []
-        robot = (self.receiver or self.robot).without_sessions()
-        written = []
-        for name in tree.names:
-            try:
-                arm = robot.chain(name)
-            except ValueError as exc:
-                raise InputError(str(exc), source=path) from None
-            written += save_robot(arm, path.with_name(f"{path.stem}.{name}.toml"),
-                                  f"{comment}\nChain {name} of the tree: its joints q1..q{arm.n_joints} are the tree's "
-                                  + ", ".join(arm.joint_names or ()) + ".")
-        return written
-
-
-    def _receiver_comment(self) -> str:
-        """What a URDF's or a YAML's own reader gets, for its header."""
-        e = self.exports
-        if e is None or e.geometric:
-            return ""
-        return (f"\nThis file holds {e.geometry_of} geometry: {e.geometry_rms_mm:.4f} {e.unit} RMS {e.where} (the "
-                f"whole model: {e.whole_rms_mm:.4f} {e.unit}; its joint terms and learned correction reach the robot "
-                "through robocal filter and compensate).")
-
-    def _export_ur(self, path: Path, comment: str) -> list[Path]:
-        """A UR kinematics YAML for a ROS driver (:mod:`robocal.io.ur`), and the whole model
-        (frames, tool, terms) in ``NAME.robocal.toml`` beside it; what the YAML cannot hold is said."""
-        import warnings
-
-        from ..exceptions import RobocalWarning
-        from ..io.robotfile import save_robot
-        from ..io.ur import ur_kinematics_yaml
-
-        text, notes = ur_kinematics_yaml((self.receiver or self.robot).without_sessions())
-        whole = path.with_name(f"{path.stem}.robocal.toml")
-        written = save_robot(self.robot.without_sessions(), whole, comment)
-        head = "".join(f"# {line}\n" for line in (comment + self._receiver_comment() + "\nLengths in m, angles in "
-                                                   f"rad. The measuring frame and the tool are in {whole.name}.")
-                       .splitlines())
-        atomic_write(path, head + text)
-        for note in notes:
-            warnings.warn(f"{path}: {note}", RobocalWarning, stacklevel=2)
-        return [path, *written]
+        a sibling file when it has one; the paths written (:func:`robocal.calibration.exports.export`).
+        A ``.urdf`` path writes a URDF (see :mod:`robocal.io.urdf`); joint terms and a residual model
+        cannot live in one, so the whole model goes to a robot TOML beside it, ``NAME.robocal.toml``,
+        as well."""
+        return export(self, path)
 
 
 def _finite_or_none(v: float):

@@ -197,7 +197,7 @@ def calibrate_cmd(
 
     from .. import options as opt
     from ..calibration import CalibrationConfig, calibrate
-    from ..calibration.methods import settings
+    from ..calibration.fit.methods import settings
     from ..exceptions import InputError
     from ..io.atomic import together
     from ..io.robotfile import load_robot

@@ -177,8 +177,8 @@ def _plan_cameras(r, cameras, camera_pose, markers, pixel_noise, poses, candidat
     """Images to take (see :mod:`robocal.plan.cameras`): the joint log of the chosen poses."""
 
     from .. import options as opt
-    from ..calibration.cameras import load_markers
     from ..calibration.config import camera_poses, camera_specs
+    from ..calibration.fit.cameras import load_markers
     from ..io.camera import load_camera
     from ..io.measurements import joints_to_file
     from ..plan.cameras import plan_camera_poses

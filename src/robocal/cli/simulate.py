@@ -124,8 +124,8 @@ def simulate_cmd(
 
 def _camera_campaign(robot, poses, cameras, poses_given, markers, errors, pixel_noise, seed, joint_range):
     """The cameras' files and poses and the markers read, then :func:`robocal.simulation.simulate_cameras`."""
-    from ..calibration.cameras import load_markers
     from ..calibration.config import camera_poses, camera_specs
+    from ..calibration.fit.cameras import load_markers
     from ..io.camera import load_camera
     from ..simulation import simulate_cameras
 
@@ -140,7 +140,7 @@ def _camera_campaign(robot, poses, cameras, poses_given, markers, errors, pixel_
 def placed(robot, spec, values):
     """A camera's mounting where the command line places it (``values``: x, y, z mm, rx, ry, rz rad in its
     link's frame), or None: a fixed camera left to face the markers.  One on a link needs its place."""
-    from ..calibration.cameras import mount_of
+    from ..calibration.fit.cameras import mount_of
     from ..exceptions import InputError
     from ..math.se3 import frame_from_values
 

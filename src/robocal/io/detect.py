@@ -165,7 +165,7 @@ class Board:
 
     def markers_csv(self) -> str:
         """A markers file of its corners ``C:k`` as one body whose place is unknown
-        (:func:`robocal.calibration.cameras.load_markers`)."""
+        (:func:`robocal.calibration.fit.cameras.load_markers`)."""
         lines = ["marker,x,y,z,body"]
         lines += [f"C:{k},{x!r},{y!r},{z!r},board" for k, (x, y, z) in enumerate(self.corners().tolist())]
         return "\n".join(lines) + "\n"

@@ -7,7 +7,7 @@ lanes take several poses at once, and the measurements are compared in the robot
 one, for the calls a swarm makes (a few hundred chain evaluations: a thread pool costs more
 than it gains, and a serial kernel starts no OpenMP layer), and a parallel one for large
 calls (``*_parallel``).  The results
-equal the numpy path of :mod:`robocal.calibration.problem` (the tests check 1e-9 mm).
+equal the numpy path of :mod:`robocal.calibration.fit.problem` (the tests check 1e-9 mm).
 """
 
 from __future__ import annotations

@@ -6,7 +6,7 @@ better than the base axes); it keeps the orientation of those axes in the robot'
 frame, R_o, so that it turns with the base when the robot is measured from elsewhere.  It is
 added to the model's pose in the measuring frame as p ← p + R_b R_o δp, R ← Exp(R_b R_o δr) R,
 with R_b the base frame's rotation (R_b R_o = I in the calibration's own frame).  It is fitted
-by :mod:`robocal.calibration.residual`; predicting
+by :mod:`robocal.calibration.select.residual`; predicting
 needs only what is stored here, without pickle: the training inputs, the dual coefficients,
 and the kernels' parameters.
 

@@ -5,7 +5,7 @@ over one range of a joint, a bearing's run-out, a wrist's flex that changes with
 Gaussian process with a smooth kernel smooths it away; boosted trees split the joint space where
 the pattern changes.  One ensemble per output (δp: 3 mm; for full-pose data δr: 3 rad, in the
 measuring frame's axes as :mod:`robocal.model.residual` describes), fitted by
-:mod:`robocal.calibration.trees` with scikit-learn's ``HistGradientBoostingRegressor``.  A
+:mod:`robocal.calibration.select.trees` with scikit-learn's ``HistGradientBoostingRegressor``.  A
 calibrated model carries the trees as plain arrays (:class:`Ensemble`) and predicts with numpy:
 using it needs no scikit-learn and no pickle.
 

@@ -104,7 +104,7 @@ class Views:
         slots, zero in the third; zeros at other rows.  A marker behind its camera has no pixel:
         its error is :data:`BEHIND` px, finite, so that a step that takes a marker there is
         refused by the fit instead of ending it (the start is checked:
-        :func:`robocal.calibration.cameras.check_in_front`)."""
+        :func:`robocal.calibration.fit.cameras.check_in_front`)."""
         uv = np.nan_to_num(self.project(p, frames), nan=BEHIND)
         e = np.zeros(p.shape)
         e[..., :2] = np.where(self.rows[:, None], self.pixels - uv, 0.0)

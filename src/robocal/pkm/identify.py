@@ -12,8 +12,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..calibration.identifiability import Identifiability, analyse
-from ..calibration.statistics import residual_variance, standard_uncertainties
+from ..calibration.judge.identifiability import Identifiability, analyse
+from ..calibration.judge.statistics import residual_variance, standard_uncertainties
 from ..optimize.lm import levenberg_marquardt
 from .geometry import PARAM_NAMES, PKMGeometry, reduced_to_pose, rotation_derivatives
 from .kinematics import equations, forward, rod_lengths

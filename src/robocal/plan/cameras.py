@@ -18,9 +18,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .. import options as opt
-from ..calibration.cameras import frame_names
-from ..calibration.identifiability import analyse
-from ..calibration.problem import Setup
+from ..calibration.fit.cameras import frame_names
+from ..calibration.fit.problem import Setup
+from ..calibration.judge.identifiability import analyse
 from ..exceptions import InputError
 from ..model.camera import CameraMount
 from ..model.candidates import complete, frame_candidates, joint_candidates
@@ -123,7 +123,7 @@ def plan_camera_poses(robot: Robot, n_poses: int, cameras: Mapping, *, markers: 
         chosen.append(c)
         free[c] = False
         M = M + A[c]
-    from ..calibration.statistics import standard_uncertainties
+    from ..calibration.judge.statistics import standard_uncertainties
     from .design import short_moves
 
     chosen = np.asarray(chosen)[short_moves(q[np.asarray(chosen)])]

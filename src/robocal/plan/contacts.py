@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .. import options as opt
-from ..calibration.identifiability import analyse
+from ..calibration.judge.identifiability import analyse
 from ..exceptions import InputError
 from ..model.candidates import complete, frame_candidates, joint_candidates
 from ..model.kinematics import joint_kinds

@@ -27,8 +27,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .. import options as opt
-from ..calibration.identifiability import analyse
-from ..calibration.statistics import covariance, standard_uncertainties
+from ..calibration.judge.identifiability import analyse
+from ..calibration.judge.statistics import covariance, standard_uncertainties
 from ..exceptions import InputError
 from ..model.candidates import FRAME_MODES, complete, frame_candidates, joint_candidates
 from ..model.parameters import ParameterSpace, is_angle

@@ -381,7 +381,7 @@ def _floor(result: CalibrationResult) -> float | None:
     sigma = None if result.measurements is None else result.measurements.sigma_position
     if sigma is None:
         return None
-    from ..calibration.learned import instrument_noise
+    from ..calibration.select.learned import instrument_noise
 
     return float(np.sqrt(instrument_noise(sigma)))
 

@@ -10,7 +10,7 @@ travels in a JSON file and predicts inside every inverse-kinematics step).  The 
 and the whole curve over the number of trees read from one fit per fold (staged predictions).
 The orientation outputs take the leaf size chosen on the positions and their own number of trees.
 
-The candidate is judged like the Gaussian process (:mod:`robocal.calibration.selection`): each
+The candidate is judged like the Gaussian process (:mod:`robocal.calibration.select.selection`): each
 outer fold fits trees, with the settings chosen on all the poses, to what its own parametric
 refit leaves on its training poses and predicts the held-out ones.  Choosing two settings on all
 the poses lends the held-out figure a little optimism; the settings' curve is flat near its
@@ -35,9 +35,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..backend import SERIAL, worker_pool
-from ..model.trees import Ensemble, TreeResidual, fade, nearest
-from .statistics import group_folds
+from ...backend import SERIAL, worker_pool
+from ...model.trees import Ensemble, TreeResidual, fade, nearest
+from ..judge.statistics import group_folds
 
 LEARNING_RATE = 0.2
 MAX_TREES = 200

@@ -19,12 +19,12 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..exceptions import Note
-from ..model.prior import ALL, DEFAULTS, Prior, kind_of
-from .config import CalibrationConfig
+from ...exceptions import Note
+from ...model.prior import ALL, DEFAULTS, Prior, kind_of
+from ..config import CalibrationConfig
+from ..judge.statistics import covariance
 from .methods import Estimate
 from .noise import NoiseEstimate
-from .statistics import covariance
 
 #: the kinds the data may size
 SIZED = ("length", "angle", "zero", "compliance", "harmonic", "backlash", "drift")

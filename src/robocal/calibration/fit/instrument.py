@@ -29,9 +29,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..exceptions import InputError
-from ..model.measurements import Measurements
-from .statistics import ChiSquared
+from ...exceptions import InputError
+from ...model.measurements import Measurements
+from ..judge.statistics import ChiSquared
 
 #: the coverage factor of an MPE statement that gives none: U = 2σ
 DEFAULT_COVERAGE = 2.0
@@ -194,7 +194,7 @@ def _spread(sigma: np.ndarray | None):
 
 def beyond_instrument(problem, x: np.ndarray, used: tuple[float, float]) -> InstrumentWeights:
     """τ per block from the residuals at x, with the degrees of freedom the parameters use in
-    each block (``used``: position, orientation; see :func:`robocal.calibration.noise.leverage_split`)."""
+    each block (``used``: position, orientation; see :func:`robocal.calibration.fit.noise.leverage_split`)."""
     meas = problem.meas
     dp, dr = problem.errors(x)
     used_p, used_r = used

@@ -1,6 +1,6 @@
 """The log marginal likelihood of the residual process and its gradient, computed lean.
 
-The process of :mod:`robocal.calibration.residual` has the kernel
+The process of :mod:`robocal.calibration.select.residual` has the kernel
 ``c · exp(−½ Σ_d (Δq_d / ℓ_d)²) + σ² δ`` (scikit-learn's ``ConstantKernel * RBF + WhiteKernel``)
 on standardised outputs.  Its hyperparameters are tuned by maximising the log marginal
 likelihood summed over the outputs, exactly as ``GaussianProcessRegressor.fit`` does (same

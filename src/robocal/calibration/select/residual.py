@@ -9,7 +9,7 @@ white noise by :data:`MIN_NOISE`, so that a process cannot memorise the measurem
 The process is scikit-learn's ``GaussianProcessRegressor(ConstantKernel * RBF + WhiteKernel,
 normalize_y=True)``: the same kernel, parameters, bounds, start, jitter and L-BFGS-B tuning
 (the tests compare the two), with the arithmetic done here: the likelihood without scikit-learn's
-(n, n, p) gradient tensor (:mod:`robocal.calibration.likelihood`), and the conditioning one
+(n, n, p) gradient tensor (:mod:`robocal.calibration.select.likelihood`), and the conditioning one
 Cholesky factor.  Importing scikit-learn alone took 0.8 s, a tenth of ``--model auto``.
 
 Hyperparameters are tuned by maximum marginal likelihood on at most :data:`HYPER_POINTS`
@@ -26,8 +26,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..backend import SERIAL, worker_pool
-from ..model.residual import Block, ResidualModel, rbf
+from ...backend import SERIAL, worker_pool
+from ...model.residual import Block, ResidualModel, rbf
 
 #: shortest length scale of the kernel (rad): about 11°, so one pose cannot bend the correction alone
 MIN_LENGTH_SCALE = 0.2

@@ -8,10 +8,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..model.terms import TERMS
-from .config import LEARNED
+from ...model.terms import TERMS
+from ..config import LEARNED
+from ..fit.parametric import Fit
 from .crossval import FoldData, rms
-from .parametric import Fit
 from .trees import TreeCandidate
 
 #: the joint terms in the order ``auto`` tries them (each term's ``rung``: the cheaper first)

@@ -20,8 +20,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..model.parameters import is_angle, is_frame, is_term
-from .problem import Problem
+from ...model.parameters import is_angle, is_frame, is_term
+from ..fit.problem import Problem
 from .statistics import ChiSquared
 
 #: χ² quantile beyond which a fit with stated noise is called a misfit

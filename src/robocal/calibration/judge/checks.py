@@ -7,10 +7,10 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..exceptions import InputError
-from ..model.jointspace import condition_numbers
-from ..model.measurements import Measurements
-from ..model.robot import Robot
+from ...exceptions import InputError
+from ...model.jointspace import condition_numbers
+from ...model.measurements import Measurements
+from ...model.robot import Robot
 
 #: joint Jacobian condition number above which a pose is called near-singular
 NEAR_SINGULAR = 1e4

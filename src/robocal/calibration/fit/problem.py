@@ -26,16 +26,16 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..backend import run_kernel
-from ..math.so3 import apply_right_jacobian_inv, orientation_error
-from ..model.compiled import resolve
-from ..model.kinematics import joint_kinds
-from ..model.measurements import Measurements
-from ..model.parameters import ParameterSpace, is_angle
+from ...backend import run_kernel
+from ...math.so3 import apply_right_jacobian_inv, orientation_error
+from ...model.compiled import resolve
+from ...model.kinematics import joint_kinds
+from ...model.measurements import Measurements
+from ...model.parameters import ParameterSpace, is_angle
 
 if TYPE_CHECKING:
-    from ..model.prior import Prior
-    from ..model.shared import SharedErrors
+    from ...model.prior import Prior
+    from ...model.shared import SharedErrors
     from .instrument import InstrumentWeights
 
 #: default orientation weight k of the pose objective, mm²/rad², when no noise is stated: 1 rad
@@ -52,7 +52,7 @@ class Setup:
     whitens each residual block; use_orientation: fit orientations when the data have them;
     backend: ``auto``, ``numba`` or ``numpy`` for swarm objectives.  instrument: per-point
     weight factors from the instrument's σ of each measured value (see
-    :mod:`robocal.calibration.instrument`), None to weigh every point of a block alike.
+    :mod:`robocal.calibration.fit.instrument`), None to weigh every point of a block alike.
     prior: the prior σ of every parameter of the space (its own units; inf where free, see
     :mod:`robocal.model.prior`), or None for plain least squares.
     """
@@ -68,7 +68,7 @@ class Setup:
     #: camera rows: the error a pose's rows in one camera share (:mod:`robocal.model.shared`)
     shared: SharedErrors | None = None
     #: the prior kinds whose width the data sized, and that width (file units: mm, deg;
-    #: :mod:`robocal.calibration.widths`)
+    #: :mod:`robocal.calibration.fit.widths`)
     sized: Mapping[str, float] = field(default_factory=dict)
 
     @property
@@ -119,7 +119,7 @@ def warm_up(backend: str, full_pose: bool) -> float:
     if not full_pose or resolve(backend) != "numba":
         return 0.0
     start = time.perf_counter()
-    from ..model import kernels
+    from ...model import kernels
 
     kernels.apply_right_jacobian_inv(np.zeros((1, 3)), np.zeros((1, 1, 3)))
     return time.perf_counter() - start
@@ -211,8 +211,8 @@ class Problem:
         """The bodies of markers of known shape among this problem's targets (None: none)."""
         if not self.meas.shapes:
             return None
-        from ..model.parameters import tool_prefix
-        from ..model.shapes import Shapes
+        from ...model.parameters import tool_prefix
+        from ...model.shapes import Shapes
 
         where = {n: i for i, n in enumerate(self.active)}
         lookup = {n: i for i, n in enumerate(self.space.names)}
@@ -288,7 +288,7 @@ class Problem:
         :mod:`robocal.model.shared`); as they are without it."""
         if self._shared is None:
             return values
-        from ..model.shared import decorrelate
+        from ...model.shared import decorrelate
 
         return decorrelate(self._shared, values)
 
@@ -324,14 +324,14 @@ class Problem:
     @cached_property
     def _kernels_apply(self) -> bool:
         """The compiled kernels chain turning DH-family joints; others take the numpy path."""
-        from ..model.kernels import CONVENTION_CODE
+        from ...model.kernels import CONVENTION_CODE
 
         robot = self.space.robot
         return robot.convention in CONVENTION_CODE and not robot.prismatic.any()
 
     @cached_property
     def _kernel_inputs(self):
-        from ..model import kernels
+        from ...model import kernels
 
         m = self.meas.n_poses
         kinds = len(joint_kinds(self.space.robot.convention))
@@ -412,7 +412,7 @@ class Problem:
             dr = orientation_error(self._Rm, R)
             w = np.ascontiguousarray(Jc[:, :, 3:])
             if self._backend == "numba":  # this kernel is convention-free
-                from ..model import kernels
+                from ...model import kernels
 
                 Jr = run_kernel(kernels.apply_right_jacobian_inv, kernels.apply_right_jacobian_inv_parallel,
                                 w.size // 3, dr, w)

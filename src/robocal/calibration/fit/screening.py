@@ -7,10 +7,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..model.robot import Robot
-from .config import CalibrationConfig
+from ...model.robot import Robot
+from ..config import CalibrationConfig
+from ..judge.statistics import MAX_OUTLIER_FRACTION, OUTLIER_GAP, OUTLIER_SIGMAS, leave_one_out, robust_outliers
 from .methods import Estimate, fit_lm
-from .statistics import MAX_OUTLIER_FRACTION, OUTLIER_GAP, OUTLIER_SIGMAS, leave_one_out, robust_outliers
 
 
 @dataclass(frozen=True)
@@ -43,7 +43,7 @@ def row_kinds(meas) -> tuple[np.ndarray, dict[int, int]]:
 
 
 def screen_outliers(est: Estimate, config: CalibrationConfig) -> tuple[Estimate, Screening, list[str]]:
-    """Step 6: poses that fail the outlier test (:func:`~robocal.calibration.statistics.robust_outliers`).
+    """Step 6: poses that fail the outlier test (:func:`~robocal.calibration.judge.statistics.robust_outliers`).
 
     With a robust loss they are left out and the inliers refitted by plain least squares (the
     answer as if the outliers were never measured); a plain fit on every pose is kept beside

@@ -8,9 +8,9 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..exceptions import Note
-from ..optimize.result import OptimizeResult
-from .config import CalibrationConfig
+from ...exceptions import Note
+from ...optimize.result import OptimizeResult
+from ..config import CalibrationConfig
 from .instrument import (
     MAX_ROUNDS,
     InstrumentFit,
@@ -28,7 +28,7 @@ def weigh_instrument(est: Estimate, config: CalibrationConfig,
                      noise: NoiseEstimate) -> tuple[Estimate, NoiseEstimate, InstrumentFit | None]:
     """Step 8b, where the data give the instrument's σ per point: weigh each point by
     σ_eff² = σ_i² + τ², τ the scatter beyond the instrument, and refit until τ settles (see
-    :mod:`robocal.calibration.instrument`); then the misfit against the instrument alone."""
+    :mod:`robocal.calibration.fit.instrument`); then the misfit against the instrument alone."""
     meas = est.problem.meas
     if meas.sigma_position is None and meas.sigma_orientation is None:
         return est, noise, None
@@ -79,7 +79,7 @@ def weigh_kinds(est: Estimate, config: CalibrationConfig, noise: NoiseEstimate) 
 
 def reweigh(est: Estimate, config: CalibrationConfig) -> tuple[Estimate, NoiseEstimate]:
     """Step 7: estimate σ per residual block where it is not stated, and refit with it until
-    the weights settle (see :mod:`robocal.calibration.noise`).  Swarms keep their answer; their
+    the weights settle (see :mod:`robocal.calibration.fit.noise`).  Swarms keep their answer; their
     σ is estimated once, for the report."""
     model, problem = config.noise_model, est.problem
     full = problem.uses_orientation

@@ -12,13 +12,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..exceptions import InputError
-from ..model.candidates import frame_candidates, joint_candidates
-from ..model.kinematics import joint_kinds
-from ..model.parameters import is_angle, is_term
-from . import cameras, checks
-from .config import CalibrationConfig, resolve_params
-from .identifiability import (
+from ...exceptions import InputError
+from ...model.candidates import frame_candidates, joint_candidates
+from ...model.kinematics import joint_kinds
+from ...model.parameters import is_angle, is_term
+from ..config import CalibrationConfig, resolve_params
+from ..fit import cameras
+from ..fit.methods import Estimate, fit_lm
+from ..fit.problem import Setup
+from ..judge import checks
+from ..judge.identifiability import (
     DEPENDENT,
     NO_EFFECT,
     SECOND_ORDER,
@@ -29,9 +32,7 @@ from .identifiability import (
     Reason,
     analyse,
 )
-from .methods import Estimate, fit_lm
-from .problem import Setup
-from .statistics import f_test
+from ..judge.statistics import f_test
 
 #: significance level of the F-test that decides whether parameters that become
 #: identifiable at the estimate are worth adding
@@ -66,7 +67,7 @@ def choose_candidates(setup: Setup, config: CalibrationConfig, frames_mode: str)
     frames = frame_candidates(frames_mode, setup.meas.target_names, setup.full_pose) + \
         cameras.frame_names(robot, setup.meas)
     if frames_mode in ("base", "base+tool"):  # the sessions' own measuring frames
-        from ..model.parameters import FRAME_AXES, session_prefix
+        from ...model.parameters import FRAME_AXES, session_prefix
 
         frames += [f"{session_prefix(label)}_{ax}" for label in setup.space.sessions for ax in FRAME_AXES]
     terms = setup.space.terms.names(robot.n_joints)
@@ -131,7 +132,7 @@ def unvaried_terms(setup: Setup, names: list[str]) -> dict[str, Reason]:
     pose whose direction is unknown), a drift over one time, any term whose column is constant
     but at a pose or two.  Numerically separable, such a term would be fitted to those few
     poses' noise and reported as if measured."""
-    from ..model.terms import term_of
+    from ...model.terms import term_of
 
     space = setup.space
     terms = [n for n in names if is_term(n)]

@@ -50,8 +50,8 @@ class NoiseModel:
     def checked(cls, noise, angle_noise, k) -> NoiseModel:
         """From option values (``noise`` mm, ``angle_noise`` rad, ``k``), each checked: > 0 and
         finite, and not both angle_noise and k."""
-        from .. import options as opt
-        from ..exceptions import InputError
+        from ... import options as opt
+        from ...exceptions import InputError
 
         values = {name: None if v is None else opt.number(v, name, minimum=0.0, strict=True)
                   for name, v in (("noise", noise), ("angle_noise", angle_noise), ("k", k))}

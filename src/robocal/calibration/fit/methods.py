@@ -16,14 +16,14 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..model.compiled import resolve
-from ..model.parameters import is_angle, is_frame
-from ..optimize.lm import levenberg_marquardt
-from ..optimize.result import OptimizeResult, Progress
-from .config import CalibrationConfig
+from ...model.compiled import resolve
+from ...model.parameters import is_angle, is_frame
+from ...optimize.lm import levenberg_marquardt
+from ...optimize.result import OptimizeResult, Progress
+from ..config import CalibrationConfig
+from ..registry import METHODS
+from ..timing import stage
 from .problem import Problem
-from .registry import METHODS
-from .timing import stage
 
 #: swarms search frame parameters at least this far (mm, rad) around the registration
 FRAME_BOX = (5.0, 0.01)
@@ -86,7 +86,7 @@ def fit_map(problem: Problem, x0: np.ndarray, config: CalibrationConfig, progres
     estimated from the residuals, and a fit that starts from a guessed σ can settle on the wrong
     side: a prior weighed against a σ far too large pulls the deviations in, the residuals grow,
     and the σ they show keeps the prior winning.  So the data's own scale comes first: a plain
-    least-squares fit, the σ its residuals show (:func:`~robocal.calibration.noise.block_sigmas`),
+    least-squares fit, the σ its residuals show (:func:`~robocal.calibration.fit.noise.block_sigmas`),
     then the fit with the prior from there.  ``scaled``: the problem's σ already come from a fit
     of these data (a parent model's settled weights), so the first fit is not needed."""
     if not problem.has_prior or scaled or config.noise_model.stated(problem.uses_orientation):
@@ -115,7 +115,7 @@ def fit_map(problem: Problem, x0: np.ndarray, config: CalibrationConfig, progres
 def _gauss_newton(problem: Problem, x0: np.ndarray, config: CalibrationConfig) -> OptimizeResult | None:
     """The Gauss–Newton step of the data with the prior from the plain fit, where the problem is
     linear there (the χ² it reaches misses the χ² it predicts by less than
-    :data:`~robocal.calibration.noise.LINEAR_CHI2`): then it is the fit LM would converge to, at the
+    :data:`~robocal.calibration.fit.noise.LINEAR_CHI2`): then it is the fit LM would converge to, at the
     cost of one Jacobian.  None where it is not, or with a robust loss."""
     from .noise import LINEAR_CHI2
 
@@ -168,7 +168,7 @@ def run_swarm(search: Problem, config: CalibrationConfig, progress: Progress | N
     with stage("compile"):  # compiled (or loaded from numba's cache) before the swarm's clock starts
         objective(np.zeros((1, len(search.names))))
         if resolve(config.backend) == "numba":
-            from ..optimize import kernels
+            from ...optimize import kernels
 
             kernels.warm_up()
         if config.spec.halton:

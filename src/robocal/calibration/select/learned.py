@@ -8,15 +8,15 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..backend import SERIAL, worker_pool
-from ..model.corrections import Correction, Stacked
-from ..model.measurements import Measurements
-from ..model.trees import TreeResidual
+from ...backend import SERIAL, worker_pool
+from ...model.corrections import Correction, Stacked
+from ...model.measurements import Measurements
+from ...model.trees import TreeResidual
+from ..fit.parametric import Fit
+from ..timing import staged
 from .choice import Candidate, model_name
 from .crossval import K_FOLDS, CrossValidation, FoldData, residual_errors
-from .parametric import Fit
 from .residual import best_kernel, fit_residual, minimised, neg_log_likelihood, scratch_pieces, tune_kernels
-from .timing import staged
 from .trees import Settings, TreeCandidate, choose_settings, fit_trees
 
 #: L-BFGS-B iterations with which each fold re-tunes the residual kernel on its own training poses
@@ -36,7 +36,7 @@ def _fold_prediction(q_train, e_train, q_test, seed, kernels) -> np.ndarray:
 
 def _piece(piece):
     """A worker's piece of the learned candidates: a process's fold prediction, a process's tuning
-    on all poses, or an inner fold of the trees (:func:`robocal.calibration.trees.curve`)."""
+    on all poses, or an inner fold of the trees (:func:`robocal.calibration.select.trees.curve`)."""
     kind, args = piece
     return _fold_prediction(*args) if kind == "fold" else tune_kernels(*args)
 
@@ -153,7 +153,7 @@ def instrument_noise(sigma: np.ndarray | None) -> float:
 def cross_validate_trees(data: FoldData, cv: CrossValidation, meas: Measurements, seed: int | None,
                          pool: worker_pool = SERIAL, settings: Settings | None = None) -> TreeCandidate:
     """The position trees of a parametric fit on all its poses and its held-out errors
-    (:func:`robocal.calibration.trees.fit_trees`), with ``settings`` or those the inner
+    (:func:`robocal.calibration.select.trees.fit_trees`), with ``settings`` or those the inner
     cross-validation chooses on its poses."""
     settings = settings or choose_settings(data.q, data.e, data.groups, seed, pool)
     return fit_trees(data.q, data.e, data.folds, cv.errors, instrument_noise(meas.sigma_position), settings, seed, pool)

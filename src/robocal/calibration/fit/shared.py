@@ -8,9 +8,9 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..exceptions import Note
-from ..model.shared import SharedErrors, estimate_ratio, groups_of
-from .config import CalibrationConfig
+from ...exceptions import Note
+from ...model.shared import SharedErrors, estimate_ratio, groups_of
+from ..config import CalibrationConfig
 from .methods import Estimate, fit_lm
 from .noise import NoiseEstimate
 
@@ -24,9 +24,9 @@ NEGLIGIBLE = 1e-2
 
 def _refit(problem, x: np.ndarray, config: CalibrationConfig):
     """The fit under new weights from x: the Gauss–Newton step where the problem is linear there (the
-    χ² it reaches is the χ² it predicts, within :data:`~robocal.calibration.noise.LINEAR_CHI2`: LM would
+    χ² it reaches is the χ² it predicts, within :data:`~robocal.calibration.fit.noise.LINEAR_CHI2`: LM would
     only confirm it), else LM."""
-    from ..optimize.result import OptimizeResult
+    from ...optimize.result import OptimizeResult
     from .noise import LINEAR_CHI2
 
     r, J = problem.map_residuals(x), problem.map_jacobian(x)

@@ -8,16 +8,16 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..exceptions import Note
-from ..model.parameters import is_term
-from ..model.prior import prior_shares
-from .cameras import scale_note
-from .config import CalibrationConfig
+from ...exceptions import Note
+from ...model.parameters import is_term
+from ...model.prior import prior_shares
+from ..config import CalibrationConfig
+from ..fit.camera_scale import scale_note
+from ..fit.methods import Estimate
+from ..fit.noise import NoiseEstimate
+from ..fit.problem import Problem
 from .diagnostics import GoodnessOfFit, Physicality, goodness_of_fit, joint_patterns, misfit_message, physicality
 from .identifiability import analyse
-from .methods import Estimate
-from .noise import NoiseEstimate
-from .problem import Problem
 from .statistics import covariance
 
 
@@ -92,12 +92,12 @@ PLAUSIBLE_WIDTHS = 4.0
 
 def plausible_limits(problem: Problem, x: np.ndarray, inverse: np.ndarray | None) -> np.ndarray:
     """Each parameter's bound of plausibility, in its own units (a term's in rad of turn): the fixed
-    bounds of :mod:`robocal.calibration.diagnostics`, or :data:`PLAUSIBLE_WIDTHS` of the prior width the
+    bounds of :mod:`robocal.calibration.judge.diagnostics`, or :data:`PLAUSIBLE_WIDTHS` of the prior width the
     fit took where that is wider (a width stated, or one the data sized: then as the kind's other
-    parameters show it, :func:`~robocal.calibration.widths.others_width`)."""
-    from ..model.parameters import is_angle
+    parameters show it, :func:`~robocal.calibration.fit.widths.others_width`)."""
+    from ...model.parameters import is_angle
+    from ..fit.widths import others_width
     from .diagnostics import PLAUSIBLE_ANGLE_RAD, PLAUSIBLE_LENGTH_MM, PLAUSIBLE_TERM_RAD
-    from .widths import others_width
 
     sized = inverse is not None and bool(problem.setup.sized)
     sigma = others_width(problem, x, inverse) if sized else problem.prior_sigma

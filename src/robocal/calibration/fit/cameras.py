@@ -20,14 +20,14 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..exceptions import InputError, Note
-from ..io.atomic import read_text
-from ..io.camera import load_camera
-from ..math.se3 import homogeneous
-from ..model.camera import CameraMount
-from ..model.measurements import Measurements
-from ..model.robot import Robot
-from .config import CalibrationConfig
+from ...exceptions import InputError, Note
+from ...io.atomic import read_text
+from ...io.camera import load_camera
+from ...math.se3 import homogeneous
+from ...model.camera import CameraMount
+from ...model.measurements import Measurements
+from ...model.robot import Robot
+from ..config import CalibrationConfig
 
 #: fewest rows a camera must see for its pose to be found from them (six unknowns, two values a row)
 MIN_ROWS = 6
@@ -62,7 +62,7 @@ def load_markers(path: str) -> MarkerFile:
     column, the rows of one body give their places in that body's own frame (a marker cube, a ChArUco
     board as ``robocal detect --markers-out`` writes it): the body stands where the calibration finds
     it, its markers identified and held to their known distances, every pair of them."""
-    from ..math.se3 import frame_from_values
+    from ...math.se3 import frame_from_values
 
     text = read_text(path, "markers file")
     rows = list(csv.reader(io.StringIO(text)))
@@ -134,7 +134,7 @@ def resolve_link(robot: Robot, link: int | str, camera: str) -> tuple[int, np.nd
         return k, np.eye(4)
     names = tuple(robot.joint_names or ())
     if robot.urdf is not None:
-        from ..io.urdf import link_frame
+        from ...io.urdf import link_frame
 
         try:
             return link_frame(robot, str(link))
@@ -187,7 +187,7 @@ def attach(nominal: Robot, meas: Measurements, config: CalibrationConfig) -> tup
         check_markers(meas, named | set(nominal.targets), f"no markers file ({config.markers})")
         robot = nominal.replace(targets={**nominal.targets, **markers.points})
         meas = replace(meas, shapes=markers.shapes)
-    from ..math.se3 import frame_from_values
+    from ...math.se3 import frame_from_values
 
     given = nominal.cameras  # a robot object may carry mountings, known ones among them
     mounts = {}
@@ -212,7 +212,7 @@ def attach_known(robot: Robot, meas: Measurements, specs, markers: str | None) -
     carries their poses, ``[cameras.NAME]``): each camera's intrinsics from ``specs`` (``NAME=FILE``
     items, a link given must be the model's), the markers from the model's targets or a markers file;
     one line naming what is missing or does not match."""
-    from .config import camera_specs
+    from ..config import camera_specs
 
     specs = camera_specs(specs)
     if meas.camera is None or not any(meas.camera):
@@ -388,7 +388,7 @@ def check_in_front(robot: Robot, meas: Measurements, where: str = "the nominal r
     views = meas.views
     if views is None:
         return
-    from ..model.metrics import camera_frames
+    from ...model.metrics import camera_frames
 
     p = robot.positions(meas.q, meas.targets, meas.inputs, meas.chain)
     behind = views.behind(p, camera_frames(robot, meas))
@@ -401,109 +401,11 @@ def check_in_front(robot: Robot, meas: Measurements, where: str = "the nominal r
 
 def frame_names(robot: Robot, meas: Measurements | None = None) -> list[str]:
     """The camera frame parameters a calibration estimates: every camera's but the measuring frame's."""
-    from ..model.parameters import FRAME_AXES, camera_prefix
+    from ...model.parameters import FRAME_AXES, camera_prefix
 
     first = gauge(robot, meas)
     return [f"{camera_prefix(c)}_{ax}" for c, m in robot.cameras.items() if c != first and not m.known
             for ax in FRAME_AXES]
-
-
-def length_values(problem, x: np.ndarray) -> np.ndarray:
-    """The value (mm) of each estimated length at x, 0 for the other parameters: a uniform scale of
-    the cell about the measuring frame's origin moves each length by its value, and leaves every
-    pixel where it was (the pinhole sees directions only)."""
-    from ..model.kinematics import joint_kinds
-    from ..model.parameters import is_frame, is_term, unit
-
-    robot = problem.space.apply(problem.full(x))
-    kinds = joint_kinds(robot.convention)
-    out = np.zeros(problem.n_params)
-    for i, name in enumerate(problem.names):
-        if is_term(name):
-            continue
-        if is_frame(name):
-            prefix, axis = name.rsplit("_", 1)
-            if axis not in ("x", "y", "z"):
-                continue
-            if prefix == "base":
-                T = robot.base
-            elif prefix.startswith("camera["):
-                T = robot.cameras[prefix[len("camera["):-1]].pose
-            else:
-                T = robot.tool if prefix == "tool" else robot.targets[prefix[len("tool["):-1]]
-            out[i] = T["xyz".index(axis), 3]
-            continue
-        kind = name.rstrip("0123456789")
-        if kind in kinds and unit(name) == "mm":
-            out[i] = robot.geometry[int(name[len(kind):]) - 1, kinds.index(kind)]
-    return out
-
-
-def scale_sources(problem) -> list[str]:
-    """What gives camera rows a scale: the known geometry of two markers or more (fixed offsets on
-    the flange, not estimated), or a camera's known pose beside the measuring frame's (a baseline)."""
-    robot, names = problem.space.robot, set(problem.names)
-    from ..model.parameters import tool_prefix
-
-    known = {t for t in problem.meas.target_names if not any(f"{tool_prefix(t)}_{a}" in names for a in "xyz")}
-    points = {tuple(np.round(robot.tool_frames([t])[0][:3, 3], 6)) for t in known}
-    out = []
-    if len(points) >= 2:
-        out.append("the markers' known offsets")
-    if problem.n_shapes:
-        out.append("the markers' known sizes")
-    first = gauge(robot, problem.meas)
-    if any(m.known for c, m in robot.cameras.items() if c != first):
-        out.append("the cameras' known poses")
-    if tracked(problem.meas):
-        out.append("the tracker rows")
-    return out
-
-
-def scale_note(problem, x: np.ndarray, covariance: np.ndarray | None) -> str | None:
-    """What fixes the cell's scale where cameras saw the data, and how well it is known: the
-    coefficient ε of the estimated lengths' uniform stretch x = ε·v (about the measuring frame's
-    origin, or the cameras' link), whose posterior σ is √(v̂ᵀCv̂)/|v|.  A pinhole sees directions:
-    without a known length among the markers or the cameras (:func:`scale_sources`) only the
-    lengths' prior holds it, and that is a warning."""
-    if problem.views is None or covariance is None:
-        return None
-    v = length_values(problem, x)
-    norm = float(np.linalg.norm(v))
-    if norm == 0.0:
-        return None
-    u = v / norm
-    post = float(np.sqrt(max(u @ covariance @ u, 0.0))) / norm
-    reach = float(np.median(np.linalg.norm(problem.space.points(problem.full(x), problem.meas.q, problem.target_idx,
-                                                                 problem.joints, chain=problem.chain_index), axis=1)))
-    sources = scale_sources(problem)
-    where = f"±{100 * post:.2g} %, {post * reach:.3g} mm at the markers' {reach:.0f} mm from the frame's origin"
-    if not sources:
-        return (f"the pixels do not fix the scale: the lengths' common scale is held by their prior ({where}): "
-                "give markers of known offsets (--markers), or tracker rows")
-    return Note(f"scale: from {' and '.join(sources)} ({where})")
-
-
-def marker_sigma(problem, x: np.ndarray, covariance: np.ndarray | None) -> np.ndarray | None:
-    """Each camera row's predicted σ (mm, rms radius) of its marker's position in its camera's frame,
-    from the posterior covariance of the estimate x: what the model knows of where the markers are
-    as the cameras see them (a joint's zero and a link camera's turn trade off, and only their sum
-    reaches the pixels: in the robot's base frame it is the prior that holds it).  None without a
-    covariance or camera rows."""
-    views = problem.views
-    if views is None or covariance is None or not np.all(np.isfinite(covariance)):
-        return None
-    full = problem.full(x)
-    meas = problem.meas
-    Jc, _, p = problem.space.jacobian_columns(full, meas.q, problem.target_idx, joints=problem.joints,
-                                              active=problem.active, chain=problem.chain_index)
-    frames, Jf = problem.space.camera_frame_columns(full, meas.q, problem._camera_index, problem.joints,
-                                                    active=problem.active)
-    d = p - frames[:, :3, 3]
-    moved = Jc[..., :3] - Jf[..., :3] + np.cross(d[None], Jf[..., 3:])
-    dpc = np.einsum("mji,kmj->kmi", frames[:, :3, :3], moved)  # (k, m, 3) in the camera's axes
-    variance = np.einsum("kma,kl,lma->m", dpc, covariance, dpc)
-    return np.where(views.rows, np.sqrt(np.maximum(variance, 0.0)), np.nan)
 
 
 def coverage_note(meas: Measurements) -> Note | None:
@@ -512,7 +414,7 @@ def coverage_note(meas: Measurements) -> Note | None:
     found = meas.views.coverage() if meas.views is not None else {}
     if not found:
         return None
-    from ..model.views import COVERAGE_GRID
+    from ...model.views import COVERAGE_GRID
 
     parts = ", ".join(f"{c!r} {100 * share:.0f} %" for c, (share, _) in found.items())
     return Note(f"the markers fell in {parts} of the image{'s' * (len(found) > 1)} (cells of a "

@@ -8,13 +8,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..model.measurements import Measurements
-from ..model.metrics import Metrics, pixel_scale
-from .config import CalibrationConfig
-from .methods import fit_lm
-from .parametric import Fit
-from .statistics import group_folds
-from .timing import staged
+from ...model.measurements import Measurements
+from ...model.metrics import Metrics, pixel_scale
+from ..config import CalibrationConfig
+from ..fit.methods import fit_lm
+from ..fit.parametric import Fit
+from ..judge.statistics import group_folds
+from ..timing import staged
 
 K_FOLDS = 5
 #: residual evaluations a fold's LM refit may take where its Gauss–Newton step is not enough.
@@ -212,13 +212,13 @@ def cross_validate(fit: Fit, config: CalibrationConfig, start: np.ndarray | None
     Each fold's refit starts from the full-data estimate and takes the Gauss–Newton step of its
     training poses, from the full-data Jacobian less the held-out rows (a k×k solve); where the
     problem is linear there (the χ² the step reaches misses the χ² it predicts by less than
-    :data:`~robocal.calibration.noise.LINEAR_CHI2`), that step is the refit LM would converge to;
+    :data:`~robocal.calibration.fit.noise.LINEAR_CHI2`), that step is the refit LM would converge to;
     else a second step from the training poses' own Jacobian, taken where it is linear, else LM
     continues from it, for at most :data:`FOLD_EVALUATIONS` evaluations.  Either way the
     estimate is the training poses' own optimum, or (from a swarm's answer along a weakly
     determined valley) as near it as changes the prediction.
     """
-    from .noise import LINEAR_CHI2
+    from ..fit.noise import LINEAR_CHI2
 
     problem = fit.estimate.problem
     x0 = fit.estimate.x if start is None else start

@@ -11,34 +11,34 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..model.candidates import complete
-from ..model.measurements import Measurements
-from ..model.parameters import ParameterSpace
-from ..model.prior import HELD, Prior
-from ..model.robot import Robot
-from ..model.terms import TERMS, TermSpec
-from ..optimize.result import Progress
-from . import cameras
-from .config import CalibrationConfig, resolve_params
-from .diagnostics import GoodnessOfFit, Physicality
-from .identifiability import Identifiability
-from .inputs import Inputs
-from .instrument import InstrumentFit
-from .judgement import AtEstimate, judge
-from .methods import Estimate, optimize
-from .noise import NoiseEstimate
-from .problem import Setup
-from .registration import fit_frames
-from .screening import Screening, screen_outliers
-from .shared import weigh_shared
-from .subset import (
+from ...model.candidates import complete
+from ...model.measurements import Measurements
+from ...model.parameters import ParameterSpace
+from ...model.prior import HELD, Prior
+from ...model.robot import Robot
+from ...model.terms import TERMS, TermSpec
+from ...optimize.result import Progress
+from ..config import CalibrationConfig, resolve_params
+from ..inputs import Inputs
+from ..judge.diagnostics import GoodnessOfFit, Physicality
+from ..judge.identifiability import Identifiability
+from ..judge.judgement import AtEstimate, judge
+from ..select.subset import (
     Candidates,
     analyse_identifiability,
     choose_candidates,
     refine_at_estimate,
     searched_names,
 )
-from .timing import stage
+from ..timing import stage
+from . import cameras
+from .instrument import InstrumentFit
+from .methods import Estimate, optimize
+from .noise import NoiseEstimate
+from .problem import Setup
+from .registration import fit_frames
+from .screening import Screening, screen_outliers
+from .shared import weigh_shared
 from .weighting import reweigh, weigh_instrument, weigh_kinds
 from .widths import size_widths
 
@@ -55,7 +55,7 @@ def complete_model(robot: Robot, config: CalibrationConfig) -> Robot:
 def register(inputs: Inputs, config: CalibrationConfig, spec: TermSpec = TermSpec(),
              parent: Fit | None = None) -> Setup:
     """Step 2: the complete model, its frames fitted with the nominal joints (closed form, then
-    LM on base and tools together: see :func:`~robocal.calibration.registration.fit_frames`),
+    LM on base and tools together: see :func:`~robocal.calibration.fit.registration.fit_frames`),
     the parameter space around the result, and the noise weighting to start with.  A swarm
     then searches a few millimetres around frames that are already right.  With a ``parent``
     fit of the same data (a simpler model), its registration (the same: it depends on the

@@ -8,10 +8,10 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..model.metrics import pose_errors
-from ..model.robot import Robot
-from .selection import Chosen
-from .timing import staged
+from ...model.metrics import pose_errors
+from ...model.robot import Robot
+from ..select.selection import Chosen
+from ..timing import staged
 
 
 @staged("evaluate")

@@ -8,12 +8,12 @@ calibration data (K = 5, folds by ``pose_id``, so the reflectors of one pose sta
    backlash: the cheaper first); the best is kept if it beats geometry;
 3. each remaining term added to the one kept, and so on until no addition wins;
 4. + residual (a Gaussian process) and + trees (gradient-boosted trees,
-   :mod:`robocal.calibration.trees`) on the parametric model chosen, and on geometry alone;
+   :mod:`robocal.calibration.select.trees`) on the parametric model chosen, and on geometry alone;
    and, where the trees predict better than the process and both better than their parametric
    model, the trees with a process on what they leave (``trees+residual``).  The trees come
    first; each process is screened (a kernel tuned on a few hundred poses, each fold
    conditioned, not re-tuned: a tenth of the work) and tuned in full only where its screen does
-   not lose clearly to them (:data:`~robocal.calibration.learned.SCREEN_RATIO` and the paired
+   not lose clearly to them (:data:`~robocal.calibration.select.learned.SCREEN_RATIO` and the paired
    test) and takes something from its model: a process that cannot change the choice costs no
    more than its screen.
 
@@ -36,15 +36,19 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..backend import worker_pool
-from ..exceptions import InputError, Note
-from ..model.corrections import Correction
-from ..model.measurements import Measurements
-from ..model.metrics import Metrics, pose_errors
-from ..model.robot import Robot
-from ..model.terms import TERMS
+from ...backend import worker_pool
+from ...exceptions import InputError, Note
+from ...model.corrections import Correction
+from ...model.measurements import Measurements
+from ...model.metrics import Metrics, pose_errors
+from ...model.robot import Robot
+from ...model.terms import TERMS
+from ..config import LEARNED, CalibrationConfig
+from ..fit.parametric import Fit, fit_parametric, term_spec, unsupported_terms
+from ..inputs import Inputs
+from ..result import BudgetRow, LadderRow
+from ..timing import stage
 from .choice import SIGNIFICANCE, TRIAL_ORDER, Candidate, choose, learned_of, model_name, with_term
-from .config import LEARNED, CalibrationConfig
 from .crossval import (
     K_FOLDS,
     CrossValidation,
@@ -56,7 +60,6 @@ from .crossval import (
     predict,
     rms,
 )
-from .inputs import Inputs
 from .learned import (
     MIN_RESIDUAL_POSES,
     SCREEN_POINTS,
@@ -75,11 +78,8 @@ from .learned import (
     tree_candidates,
     warm_kernels,
 )
-from .parametric import Fit, fit_parametric, term_spec, unsupported_terms
 from .residual import HYPER_POINTS, MAX_POINTS, tune_kernels
-from .result import BudgetRow, LadderRow
 from .sets import choose_set, offered
-from .timing import stage
 from .trees import choose_settings
 
 #: share of the data's values a model may spend on its unknowns (parameters, the residual
@@ -103,7 +103,7 @@ class Chosen:
     #: the geometric fit for the guard to fall back on; None for a model returned unchanged
     prediction: Metrics | None = None
     geometric_prediction: Metrics | None = None
-    #: how the held-out errors were made (:class:`~robocal.calibration.crossval.Scheme`), and the
+    #: how the held-out errors were made (:class:`~robocal.calibration.select.crossval.Scheme`), and the
     #: chosen model's held-out errors of each row (m, 3)
     scheme: Scheme | None = None
     held_errors: np.ndarray | None = None

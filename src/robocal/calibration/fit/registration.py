@@ -14,12 +14,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..exceptions import InputError
-from ..math.registration import rigid_registration
-from ..math.se3 import homogeneous
-from ..math.so3 import project_to_so3
-from ..model.measurements import Measurements
-from ..model.robot import Robot
+from ...exceptions import InputError
+from ...math.registration import rigid_registration
+from ...math.se3 import homogeneous
+from ...math.so3 import project_to_so3
+from ...model.measurements import Measurements
+from ...model.robot import Robot
 
 
 def _check_spread(points: np.ndarray, source: str) -> None:
@@ -149,7 +149,7 @@ def _turned_tool(base_only: Robot, both: Robot, meas: Measurements, targets) -> 
     register with the base alone, the orientations cannot."""
     if meas.rotation is None:
         return False
-    from ..math.so3 import orientation_error
+    from ...math.so3 import orientation_error
 
     def mean_deg(robot, tg):
         R = robot.fk(meas.q, tg, meas.inputs, meas.chain)[:, :3, :3]
@@ -165,7 +165,7 @@ def _fit_frames_whole(robot: Robot, meas: Measurements, mode: str, sigma_positio
     by least squares with finite-difference derivatives: a handful of frame parameters."""
     from scipy.optimize import least_squares
 
-    from ..math.so3 import exp_so3, orientation_error
+    from ...math.so3 import exp_so3, orientation_error
     from .problem import DEFAULT_K
 
     sigma_r = sigma_orientation if sigma_orientation is not None else sigma_position / np.sqrt(DEFAULT_K)
@@ -206,9 +206,9 @@ def fit_frames(robot: Robot, meas: Measurements, mode: str, sigma_position: floa
     The LM step matters when tools are unknown: the closed form registers the base while the
     reflector offset is still a guess, which can leave the base tens of millimetres off.
     """
-    from ..model.candidates import frame_candidates
-    from ..model.parameters import ParameterSpace
-    from ..optimize.lm import levenberg_marquardt
+    from ...model.candidates import frame_candidates
+    from ...model.parameters import ParameterSpace
+    from ...optimize.lm import levenberg_marquardt
     from .problem import DEFAULT_K, Setup
 
     c = meas.constraints

@@ -5,7 +5,7 @@ out: the lens beyond its calibration, the detector's bias, the markers' mounting
 between sessions.  Twelve markers of one pose share all of that.  A model of every joint
 parameter fitted to such rows buys misfit with geometry: it fits the calibration's own sessions
 and predicts the next one worse than a model that moves less.  So the sets are compared as
-``--model auto`` compares terms (:func:`robocal.calibration.choice.choose`):
+``--model auto`` compares terms (:func:`robocal.calibration.select.choice.choose`):
 
 1. ``frames``: the cameras' poses (and the markers' where their offsets are not given), the joints
    as the robot file has them;
@@ -13,7 +13,7 @@ and predicts the next one worse than a model that moves less.  So the sets are c
 3. ``all``: and every joint parameter (each held by its prior where the pixels do not pin it).
 
 Each is fitted and held out by the data's cross-validation scheme (whole sessions where the rows
-name several, :mod:`robocal.calibration.crossval`), and the simplest that predicts the held-out
+name several, :mod:`robocal.calibration.select.crossval`), and the simplest that predicts the held-out
 rows as well as the best is kept: a richer set must beat it by the paired test, session by session.
 """
 
@@ -21,13 +21,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 
-from ..exceptions import InputError, Note
+from ...exceptions import InputError, Note
+from ..config import CalibrationConfig
+from ..fit.parametric import Fit, fit_parametric, term_spec
+from ..inputs import Inputs
+from ..result import LadderRow
 from .choice import Candidate, choose
-from .config import CalibrationConfig
 from .crossval import CrossValidation, cross_validate, held_groups
-from .inputs import Inputs
-from .parametric import Fit, fit_parametric, term_spec
-from .result import LadderRow
 
 #: the sets compared, simplest first
 SETS = ("frames", "zeros", "all")
@@ -62,7 +62,7 @@ def offered(inputs: Inputs, config: CalibrationConfig) -> bool:
 
 def choose_set(inputs: Inputs, config: CalibrationConfig, progress=None, say=None) -> SetChoice:
     """Fit each set of :data:`SETS` and keep the simplest that predicts held-out data as well as
-    the best (:func:`robocal.calibration.choice.choose`, paired by session where there are several)."""
+    the best (:func:`robocal.calibration.select.choice.choose`, paired by session where there are several)."""
     say = say or (lambda step, steps, text: None)
     fitted: list[tuple[str, Candidate, CrossValidation]] = []
     for step, name in enumerate(SETS):
