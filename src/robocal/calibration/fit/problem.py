@@ -7,7 +7,10 @@ rad); everything else stays at the initial robot.
 
 Least squares works on whitened residuals: every position component divided by the
 position noise σp (mm), every orientation component by the orientation noise σr (rad),
-so that the sum of squares is χ² and the Jacobian gives the covariance directly.
+so that the sum of squares is χ² and the Jacobian gives the covariance directly.  Each kind
+of row is one residual block (:mod:`robocal.calibration.fit.blocks`: tracker, contact and
+camera rows' points, orientations, shapes, distances, the prior); the problem evaluates the
+model once at every row, along each row's chain for a tree, and stacks the blocks.
 
 Swarm objectives (MODEL §2), all evaluated for a whole swarm (P, k) in one batched call:
 
@@ -27,11 +30,23 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ...backend import run_kernel
-from ...math.so3 import apply_right_jacobian_inv, orientation_error
+from ...math.so3 import orientation_error
 from ...model.compiled import resolve
 from ...model.kinematics import joint_kinds
 from ...model.measurements import Measurements
 from ...model.parameters import ParameterSpace, is_angle
+from .blocks import (
+    CameraRows,
+    ContactRows,
+    Distances,
+    Evaluation,
+    Orientations,
+    PriorRows,
+    ShapeBodies,
+    TrackerRows,
+    point_errors,
+    point_jacobian,
+)
 
 if TYPE_CHECKING:
     from ...model.prior import Prior
@@ -161,11 +176,16 @@ class Problem:
         self._shapes = self._shape_bodies()
         self._frames_active = bool(np.any(self.active >= self.space.n_joint_params))
         self._backend = resolve(setup.backend)  # read once: ROBOCAL_NO_NUMBA as it is when the problem is set up
-        # 1/σ of each estimated parameter's prior (0 where free): one pseudo-observation x_i/σ_i each
-        sigma = np.full(len(self.active), np.inf) if setup.prior is None else setup.prior[self.active]
-        self.prior_sigma = sigma
-        self._prior_w = np.where(np.isfinite(sigma), 1.0 / np.where(np.isfinite(sigma), sigma, 1.0), 0.0)
-        self._prior_rows = np.flatnonzero(self._prior_w > 0)
+        # the residual blocks (robocal.calibration.fit.blocks): each kind of row's points, then the rest
+        self.point_blocks = [TrackerRows(self.meas.position)] + \
+            ([] if self.constraints is None else [ContactRows(self.constraints)]) + \
+            ([] if self.views is None else [CameraRows(self.views)])
+        self.blocks = ([] if self._Rm is None else [Orientations(self._Rm, self._wr, self._backend)]) + \
+            ([] if self._shapes is None else [ShapeBodies(self._shapes, self.meas.shape_sigma)]) + \
+            ([] if self.n_distances == 0 else [Distances(self.constraints)])
+        # the prior: one pseudo-observation x_i/σ_i of each estimated parameter (none where free)
+        self.prior_sigma = np.full(len(self.active), np.inf) if setup.prior is None else setup.prior[self.active]
+        self.prior = PriorRows(self.prior_sigma)
 
     @property
     def names(self) -> list[str]:
@@ -186,7 +206,7 @@ class Problem:
     @property
     def n_prior(self) -> int:
         """Pseudo-observations of the prior: one per estimated parameter that is not free."""
-        return len(self._prior_rows)
+        return self.prior.n
 
     @property
     def has_prior(self) -> bool:
@@ -251,26 +271,30 @@ class Problem:
         return self.space.pose(self.full(X), self.meas.q, self.target_idx, self.joints, self._session,
                                self.chain_index)
 
-    def errors(self, X: np.ndarray):
-        """Position errors (…, m, 3) mm and orientation errors (…, m, 3) rad (or None)."""
-        if self._Rm is None:
-            p = self.points(X)
-            return self._position_errors(p, X), None
-        R, p = self.pose(X)
-        return self._position_errors(p, X), orientation_error(self._Rm, R)
+    def evaluate(self, X: np.ndarray, jacobian: bool = False) -> Evaluation:
+        """The model at every row for X (…, k) (one solution (k,) with ``jacobian``): what every
+        residual block reads (:class:`~robocal.calibration.fit.blocks.Evaluation`)."""
+        full = self.full(X)
+        if jacobian:
+            J, R, p = self.space.jacobian_columns(full, self.meas.q, self.target_idx, frames=self._frames_active,
+                                                  joints=self.joints, active=self.active,
+                                                  session=self._session, chain=self.chain_index)  # (k, m, 6)
+            at = Evaluation(np.asarray(X, float), p, R, J)
+            if self.views is not None:
+                at.frames, at.Jf = self.space.camera_frame_columns(full, self.meas.q, self._camera_index, self.joints,
+                                                                   active=self.active)
+            return at
+        R, p = (None, self.points(X)) if self._Rm is None else self.pose(X)
+        at = Evaluation(np.asarray(X, float), p, R)
+        if self.views is not None:
+            at.frames = self.space.camera_frames(full, self.meas.q, self._camera_index, self.joints)
+        return at
 
-    def _position_errors(self, p: np.ndarray, X: np.ndarray) -> np.ndarray:
-        """Measured less predicted points (…, m, 3); a contact row's offset from its point's or
-        plane's best fit; a camera row's measured less predicted pixel (px)."""
-        dp = self.meas.position - p
-        c = self.constraints
-        if c is not None:
-            dp = np.where(c.rows[:, None], c.errors(p), dp)
-        v = self.views
-        if v is not None:
-            frames = self.space.camera_frames(self.full(X), self.meas.q, self._camera_index, self.joints)
-            dp = np.where(v.rows[:, None], v.errors(p, frames), dp)
-        return dp
+    def errors(self, X: np.ndarray):
+        """Errors of each row's point (…, m, 3): mm, px for a camera's row (its blocks'); and
+        orientation errors (…, m, 3) rad (or None)."""
+        at = self.evaluate(X)
+        return point_errors(self.point_blocks, at), None if self._Rm is None else orientation_error(self._Rm, at.R)
 
     def scaled_errors(self, X: np.ndarray):
         """:meth:`errors` divided by each point's weight factor (the instrument's, relative):
@@ -367,15 +391,11 @@ class Problem:
         return run_kernel(kernels.objective, kernels.objective_parallel, work, c["conv"], geom, base, tools, *common)
 
     def residuals(self, x: np.ndarray) -> np.ndarray:
-        """Whitened residual vector [δp/σp (3m), δ/σr (3m)] of one solution (k_active,): its
-        squared norm is χ²."""
-        dp, dr = self.errors(x)
-        out = [self._wp * self._decorrelated(dp).ravel()] + ([] if dr is None else [self._wr * dr.ravel()])
-        if self.n_shapes:
-            out.append(self.shape_residuals(x) / self.meas.shape_sigma)
-        if self.n_distances:
-            p = self.points(x)
-            out.append(self.constraints.distance_residuals(p) / self.constraints.distance_sigma)
+        """Whitened residual vector of one solution (k_active,), its squared norm χ²: the rows'
+        points [δp/σp (3m)], then each further block's (orientations δ/σr (3m), shapes, distances)."""
+        at = self.evaluate(x)
+        out = [self._wp * self._decorrelated(point_errors(self.point_blocks, at)).ravel()]
+        out += [block.residuals(at) for block in self.blocks]
         return out[0] if len(out) == 1 else np.concatenate(out)
 
     def n_position_rows(self) -> int:
@@ -387,43 +407,21 @@ class Problem:
         return 3 * self.meas.n_poses if self._Rm is not None else 0
 
     def residual_jacobian(self, x: np.ndarray) -> np.ndarray:
-        """Exact ∂(whitened residuals)/∂x, (n_residuals, k_active), Fortran-ordered as MINPACK wants."""
-        Jc, R, p = self.space.jacobian_columns(self.full(x), self.meas.q, self.target_idx, frames=self._frames_active,
-                                               joints=self.joints, active=self.active,
-                                               session=self._session, chain=self.chain_index)  # (k, m, 6)
-        k, m = Jc.shape[0], Jc.shape[1]
+        """Exact ∂(whitened residuals)/∂x, (n_residuals, k_active), Fortran-ordered as MINPACK wants:
+        each block's rows where :meth:`residuals` puts them."""
+        at = self.evaluate(x, jacobian=True)
+        k, m = at.J.shape[0], at.J.shape[1]
         out = np.empty((k, self.n_residuals))
-        c = self.constraints
-        Jp = -Jc[:, :, :3] if c is None else np.where(c.rows[None, :, None], c.error_jacobian(Jc[:, :, :3], p),
-                                                        -Jc[:, :, :3])
-        v = self.views
-        if v is not None:
-            frames, Jf = self.space.camera_frame_columns(self.full(x), self.meas.q, self._camera_index, self.joints,
-                                                         active=self.active)
-            Jp = v.error_jacobian(Jc[:, :, :3], Jf, p, frames) if v.only else \
-                np.where(v.rows[None, :, None], v.error_jacobian(Jc[:, :, :3], Jf, p, frames), Jp)
-        out[:, : 3 * m] = self._wp * self._decorrelated(Jp).reshape(k, 3 * m)
-        if self.n_distances:
-            out[:, self.n_residuals - self.n_distances:] = c.distance_jacobian(Jc[:, :, :3], p) / c.distance_sigma
-        if self.n_shapes:
-            first = self.n_residuals - self.n_distances - self.n_shapes
-            out[:, first:first + self.n_shapes] = self._shapes.jacobian(x, k)
-        if self._Rm is not None:
-            dr = orientation_error(self._Rm, R)
-            w = np.ascontiguousarray(Jc[:, :, 3:])
-            if self._backend == "numba":  # this kernel is convention-free
-                from ...model import kernels
-
-                Jr = run_kernel(kernels.apply_right_jacobian_inv, kernels.apply_right_jacobian_inv_parallel,
-                                w.size // 3, dr, w)
-            else:
-                Jr = apply_right_jacobian_inv(dr, w)
-            out[:, 3 * m : 6 * m] = -self._wr * Jr.reshape(k, 3 * m)
+        out[:, : 3 * m] = self._wp * self._decorrelated(point_jacobian(self.point_blocks, at)).reshape(k, 3 * m)
+        start = 3 * m
+        for block in self.blocks:
+            out[:, start:start + block.n] = block.jacobian(at)
+            start += block.n
         return out.T
 
     def prior_information(self) -> np.ndarray:
         """The prior's information (k, k): diag(1/σ²), zero where free."""
-        return np.diag(self._prior_w ** 2)
+        return np.diag(self.prior.weight ** 2)
 
     def map_residuals(self, x: np.ndarray) -> np.ndarray:
         """What least squares minimises: the whitened data residuals (:meth:`residuals`), then
@@ -432,13 +430,11 @@ class Problem:
         r = self.residuals(x)
         if not self.has_prior:
             return r
-        return np.concatenate([r, self._prior_w[self._prior_rows] * np.asarray(x)[self._prior_rows]])
+        return np.concatenate([r, self.prior.residuals(x)])
 
     def map_jacobian(self, x: np.ndarray) -> np.ndarray:
         """∂(:meth:`map_residuals`)/∂x: the data's rows, then one row per prior (1/σ_i at i)."""
         J = self.residual_jacobian(x)
         if not self.has_prior:
             return J
-        P = np.zeros((self.n_prior, self.n_params))
-        P[np.arange(self.n_prior), self._prior_rows] = self._prior_w[self._prior_rows]
-        return np.asfortranarray(np.vstack([J, P]))
+        return np.asfortranarray(np.vstack([J, self.prior.jacobian(self.n_params)]))
