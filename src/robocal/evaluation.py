@@ -10,7 +10,7 @@ import numpy as np
 
 from . import options as opt
 from .exceptions import InputError, Note
-from .io.measurements import load_measurements
+from .io.measurements import load_measurements, robot_fields
 from .io.robotfile import load_robot
 from .model.candidates import FRAME_CHOICES
 from .model.measurements import Measurements
@@ -91,10 +91,8 @@ def evaluate(robot: str | Path | Robot, data: str | Path | Measurements, *, colu
         raise InputError("the model carries no parameter covariance ([uncertainty]): export it from a calibration "
                          "with calibrate --export", source=r.source or r.name, option="uncertainty")
     meas = data if isinstance(data, Measurements) else load_measurements(
-        data, n_joints=r.n_joints, columns=columns, joint_unit=joint_unit, length_unit=length_unit,
-        delimiter=delimiter, decimal=decimal, euler=euler,
-        robot_label=r.source, prismatic=tuple(map(bool, r.prismatic)) if r.prismatic.any() else None,
-        chains=() if r.tree is None else r.tree.names)
+        data, columns=columns, joint_unit=joint_unit, length_unit=length_unit,
+        delimiter=delimiter, decimal=decimal, euler=euler, **robot_fields(r))
     if meas.camera is not None and any(meas.camera):
         if not all(meas.camera):
             raise InputError("has camera rows beside tracker rows: evaluate each kind in a file of its own",

@@ -75,9 +75,10 @@ def joint_ranges(robot: Robot, joint_range=None) -> np.ndarray:
 
 
 def random_joints(robot: Robot, n: int, rng: np.random.Generator, joint_range=None) -> np.ndarray:
-    """n joint sets (n, joints) in rad, uniform inside :func:`joint_ranges`."""
+    """n joint sets (n, joints) in rad, uniform inside :func:`joint_ranges`; a coupled joint follows its
+    joints (:mod:`robocal.model.coupled`)."""
     lim = joint_ranges(robot, joint_range)
-    return rng.uniform(lim[:, 0], lim[:, 1], size=(n, robot.n_joints))
+    return robot.couple(rng.uniform(lim[:, 0], lim[:, 1], size=(n, robot.n_joints)))
 
 
 @dataclass(frozen=True)
@@ -161,8 +162,10 @@ def simulate(
     q_cmd = random_joints(robot, n_poses, rng, joint_range) if q is None else np.asarray(q, float)
     torques = None
     if compliance:
-        masses, centres = nominal_masses(robot.convention, truth.geometry)
-        torques = mass_torques(robot.convention, truth.geometry, q_cmd, terms.gravity_direction, masses, centres)
+        parents = None if robot.tree is None else robot.tree.parents
+        masses, centres = nominal_masses(robot.convention, truth.geometry, parents)
+        torques = mass_torques(robot.convention, truth.geometry, q_cmd, terms.gravity_direction, masses, centres,
+                               parents)
     q_act = q_cmd.copy()
     if joint_noise > 0:
         q_act = q_act + rng.normal(0.0, joint_noise, q_cmd.shape)
@@ -175,14 +178,15 @@ def simulate(
         truth = truth.replace(terms=replace(truth.terms, clock=("s", float(time[-1]))))
     chains, pose_ids = None, None
     if robot.tree is not None:  # every pose measured on each chain's own tool, the rows of a pose together
-        if terms is not None or tool is not None:
-            raise InputError("a tree's chains carry their own tools and its model is its geometry: no tool or "
-                             "joint terms to plant", option="tool" if tool is not None else "compliance")
+        if tool is not None:
+            raise InputError("a tree's chains carry their own tools: no tool to plant", option="tool")
         k = len(robot.tree.names)
         chains = robot.tree.names * len(q_cmd)
         pose_ids = tuple(str(i // k + 1) for i in range(k * len(q_cmd)))
         q_cmd, q_act = np.repeat(q_cmd, k, axis=0), np.repeat(q_act, k, axis=0)
         directions = np.repeat(directions, k, axis=0)
+        torques = None if torques is None else np.repeat(torques, k, axis=0)
+        time = None if time is None else np.repeat(time, k)
     T = truth.fk(q_act, inputs=JointInputs(torques=torques, directions=directions, time=time, clock="s"),
                  chains=chains)
     pos = T[:, :3, 3] + (rng.normal(0.0, noise, (len(q_cmd), 3)) if noise > 0 else 0.0)

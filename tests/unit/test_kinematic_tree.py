@@ -153,3 +153,45 @@ def test_a_malformed_tree_is_said_on_one_line(text, message):
     with pytest.raises(InputError, match=message) as info:
         parse_robot(text)
     assert "\n" not in str(info.value)
+
+
+def test_a_tree_s_compliance_jacobian_matches_finite_differences_and_loads_a_joint_with_its_own_branch(rng):
+    from robocal.model.terms import TermSpec, gravity_basis
+
+    robot = _robot()
+    robot = robot.replace(targets={"left": robot.targets["left"], "right": robot.targets["right"]})
+    space = ParameterSpace.of(robot, terms=TermSpec({"compliance": ("gravity", False)}))
+    q = rng.uniform(-1, 1, (10, 7))
+    chains = ["left", "right"] * 5
+    chain, target = robot.tree.index(chains), space.target_index(chains)
+    joints = space.joint_data(q)
+    deviation = rng.normal(size=space.size) * 0.01
+    J, R, _ = space.jacobian(deviation, q, target, joints=joints, chain=chain)
+    h = 1e-6
+    terms = np.flatnonzero([n.startswith("gravity") for n in space.names])
+    for k in terms:
+        e = np.zeros(space.size)
+        e[k] = h
+        pp = space.points(deviation + e, q, target, joints=joints, chain=chain)
+        pm = space.points(deviation - e, q, target, joints=joints, chain=chain)
+        assert np.abs(J[:, :3, k] - (pp - pm) / (2 * h)).max() < 1e-5 * max(1.0, np.abs(J[:, :3, k]).max())
+    # gravity askew to the torso's axis (a robot on a slope), so that it loads joint 1 too
+    phi = gravity_basis("urdf", robot.geometry, q, np.array([0.6, 0.0, -0.8]), robot.tree.parents)
+    # joint 1 (the torso) carries both arms; the left shoulder (2) its own arm (2–4), never the right (5–7)
+    assert np.abs(phi[:, 0, 1:]).max() > 1.0
+    assert np.all(phi[:, 1, 4:] == 0) and np.abs(phi[:, 1, 1:4]).max() > 1.0
+    # the moment about joint 2's axis of a unit first mass moment of link 3, composed here from the file's
+    # origins with scipy's rotations (the URDF rpy: extrinsic x, y, z)
+    from scipy.spatial.transform import Rotation
+
+    def turn(rpy_deg, axis, angle):
+        return Rotation.from_euler("xyz", rpy_deg, degrees=True) * Rotation.from_rotvec(np.multiply(axis, angle))
+
+    g = 9.80665 * np.array([0.6, 0.0, -0.8])
+    for row, qm in enumerate(q):
+        first = turn([0, 0, 0], [0, 0, 1], qm[0])
+        axis2 = (first * Rotation.from_euler("xyz", [-90, 0, 10], degrees=True)).apply([0, 0, 1])
+        R3 = (first * turn([-90, 0, 10], [0, 0, 1], qm[1]) * turn([0, 0, 0], [0, 1, 0], qm[2])).as_matrix()
+        for a in range(3):
+            expected = axis2 @ np.cross(R3 @ np.eye(3)[a], g)
+            assert phi[row, 1, 2, a] == pytest.approx(expected, abs=1e-9)

@@ -9,7 +9,7 @@ from dataclasses import asdict, dataclass, field, fields, replace
 from .. import options as opt
 from ..backend import BACKENDS
 from ..exceptions import InputError
-from ..io.measurements import ReadOptions
+from ..io.measurements import ReadOptions, robot_fields
 from ..model.candidates import FRAME_CHOICES
 from ..model.prior import Prior
 from ..model.terms import TERMS
@@ -241,12 +241,9 @@ class CalibrationConfig:
 
     def read_options(self, robot, columns=None) -> dict:
         """How to read data files for ``robot``: the keywords of the measurement loaders."""
-        slide = tuple(bool(p) for p in robot.prismatic)
-        return asdict(ReadOptions(n_joints=robot.n_joints, columns=columns, joint_unit=self.joint_unit,
-                                  length_unit=self.length_unit, robot_label=robot.source, delimiter=self.delimiter,
-                                  decimal=self.decimal, euler=self.euler,
-                                  prismatic=slide if any(slide) else None,
-                                  chains=() if robot.tree is None else robot.tree.names))
+        return asdict(ReadOptions(columns=columns, joint_unit=self.joint_unit, length_unit=self.length_unit,
+                                  delimiter=self.delimiter, decimal=self.decimal, euler=self.euler,
+                                  **robot_fields(robot)))
 
     @classmethod
     def build(cls, config: CalibrationConfig | None = None, **options) -> CalibrationConfig:

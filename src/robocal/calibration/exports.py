@@ -156,9 +156,16 @@ def _export_chains(result, path: Path, comment: str) -> list[Path]:
             arm = robot.chain(name)
         except ValueError as exc:
             raise InputError(str(exc), source=path) from None
-        written += save_robot(arm, path.with_name(f"{path.stem}.{name}.toml"),
-                              f"{comment}\nChain {name} of the tree: its joints q1..q{arm.n_joints} are the tree's "
-                              + ", ".join(arm.joint_names or ()) + ".")
+        text = f"{comment}\nChain {name} of the tree: its joints q1..q{arm.n_joints} are the tree's " + \
+            ", ".join(arm.joint_names or ()) + "."
+        if not result.robot.geometric:  # a trunk's load depends on every arm: one chain cannot hold it
+            text = text.replace(f"\nModel {result.model}: every robocal command uses its joint terms and residual "
+                                "model.", "") + \
+                (f"\nGeometry only ({'the geometric calibration' if result.receiver is not None else 'the model'}'s): "
+                 f"the tree's joint terms ({result.model}) load its trunk with every arm, which one chain cannot "
+                 f"hold; {path.name if path.suffix.lower() != '.urdf' else path.stem + '.robocal.toml'} holds the "
+                 "whole model.")
+        written += save_robot(arm, path.with_name(f"{path.stem}.{name}.toml"), text)
     return written
 
 

@@ -119,6 +119,18 @@ def _statuses(reached, moved, cond, at_limit, stalled) -> list[str]:
     return status
 
 
+def refuse_coupled(robot: Robot) -> None:
+    """Inverse kinematics sets every joint freely: for a robot whose joint follows others it would
+    answer a pose the robot cannot take (its coupled joint off its coupling), so it refuses."""
+    if robot.coupled:
+        from ..exceptions import InputError
+
+        c = robot.coupled[0]
+        raise InputError(f"joint {c.joint + 1} follows others ({c.describe(robot.joint_names)}): inverse kinematics "
+                         "does not hold coupled joints, so robocal does not solve goals for this robot",
+                         source=robot.source or robot.name)
+
+
 def solve_ik(robot: Robot, position: np.ndarray, rotation: np.ndarray | None, q0: np.ndarray, *,
              rot_weight: float = ROT_WEIGHT, max_iter: int = 100, limits: bool = True,
              inputs: JointInputs | None = None, targets=None) -> IKSolution:
@@ -139,6 +151,7 @@ def solve_ik(robot: Robot, position: np.ndarray, rotation: np.ndarray | None, q0
     The step uses the geometric joint Jacobian, which the terms change by a few hundredths of
     a percent: the solve converges on the full model's pose all the same.
     """
+    refuse_coupled(robot)
     full = rotation is not None
     q = np.array(q0, dtype=float, copy=True)
     m = len(q)

@@ -25,7 +25,7 @@ from ..model.robot import Robot
 from . import closed_form
 from .configuration import TOLERANCE_RAD, Arm, arm_configuration
 from .equivalent import dh_equivalent, wrap
-from .local import ROT_WEIGHT, solve_ik
+from .local import ROT_WEIGHT, refuse_coupled, solve_ik
 
 #: a solution reaches its goal within these (mm, rad)
 REACHED_MM, REACHED_RAD = 1e-5, 1e-8
@@ -142,6 +142,7 @@ def all_solutions(robot: Robot, T: np.ndarray, *, hint: np.ndarray | None = None
     model) puts its tool at the poses T (m, 4, 4), mm, in its measuring frame.  Limits are not
     applied here (:func:`choose` does, with the turns).  hint (m, n) rad: joints to start from
     first where the search is numerical; seed: its random starts."""
+    refuse_coupled(robot)
     T = np.asarray(T, float)
     eq = dh_equivalent(robot)
     kind, exact = closed_form.form_of(eq)

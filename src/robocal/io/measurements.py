@@ -25,6 +25,7 @@ import numpy as np
 from .. import options as opt
 from ..exceptions import InputError
 from ..math.so3 import matrix_to_rpy, project_to_so3, rpy_to_matrix
+from ..model import coupled as coupled_
 from ..model.measurements import Measurements
 from .atomic import atomic_write, read_text
 from .table import DECIMALS, DELIMITERS, CsvTable, numbers, read_csv, strings
@@ -114,7 +115,8 @@ def _directions(table: CsvTable, n_joints: int) -> np.ndarray | None:
     return values
 
 
-def _joint_columns(table: CsvTable, n_joints: int | None, required: bool, robot_label: str) -> list[str]:
+def _joint_columns(table: CsvTable, n_joints: int | None, required: bool, robot_label: str,
+                   n_coupled: int = 0) -> list[str]:
     joints = sorted((int(m.group(1)), h) for h in table.header if (m := _JOINT.match(h)))
     if not joints and required:
         raise InputError("no joint columns (q1, q2, …)", source=table.source)
@@ -122,12 +124,13 @@ def _joint_columns(table: CsvTable, n_joints: int | None, required: bool, robot_
     if numbers_ and numbers_ != list(range(1, len(numbers_) + 1)):
         missing = sorted(set(range(1, max(numbers_) + 1)) - set(numbers_))
         raise InputError(f"joint column 'q{missing[0]}' is missing", source=table.source)
-    if numbers_ and n_joints is not None and len(numbers_) != n_joints:
+    if numbers_ and n_joints is not None and len(numbers_) not in (n_joints, n_joints - n_coupled):
         robot = f" ({Path(robot_label).name})" if robot_label else ""
         hint = ("; a URDF's joints are those of the chain between `base_link` and `tip_link`: check that chain"
                 if robot_label.lower().endswith(".urdf") else "")
+        free = f" ({n_joints - n_coupled} free, the {n_coupled} coupled ones computed)" if n_coupled else ""
         raise InputError(f"file has {len(numbers_)} joint columns (q1..q{len(numbers_)}) but the robot{robot} "
-                         f"has {n_joints} joints{hint}", source=table.source)
+                         f"has {n_joints} joints{free}{hint}", source=table.source)
     return [h for _, h in joints]
 
 
@@ -178,6 +181,9 @@ class ReadOptions:
     #: the robot's chains: a tree's names, each row naming one in a chain column; () a serial robot's
     #: (no chain column); None: not known (a chain column read as it is)
     chains: tuple[str, ...] | None = None
+    #: the robot's coupled joints (:class:`robocal.model.coupled.CoupledJoint` as (joint, sources,
+    #: factors, offset) tuples): a file gives every joint or only the free ones
+    coupled: tuple = ()
 
     def __post_init__(self) -> None:
         if self.joint_unit is not None:
@@ -190,6 +196,15 @@ class ReadOptions:
                 and all(self.euler[i] != self.euler[i + 1] for i in range(2))):
             raise InputError(f"expected three axes, upper case intrinsic (XYZ, ZYX, ZYZ, …) or lower case extrinsic "
                              f"(xyz, …), no axis twice in a row; got {self.euler!r}", option="euler")
+
+
+def robot_fields(robot) -> dict:
+    """What reading a file takes from the robot it is for: its joints (sliding, coupled), its chains,
+    its name for messages (the keywords of :class:`ReadOptions`)."""
+    slide = tuple(bool(p) for p in robot.prismatic)
+    return dict(n_joints=robot.n_joints, robot_label=robot.source, prismatic=slide if any(slide) else None,
+                chains=() if robot.tree is None else robot.tree.names,
+                coupled=tuple((c.joint, c.sources, c.factors, c.offset) for c in robot.coupled))
 
 
 def euler_rotation(angles_deg: np.ndarray, sequence: str = "xyz") -> np.ndarray:
@@ -256,7 +271,17 @@ def read_pose_table(text: str, *, source: str, options: ReadOptions = ReadOption
                              "srx, sry, srz, point, plane, setup, u, v, camera, marker; map other names with a column "
                              "mapping)",
                              source=source)
-    qcols = _joint_columns(table, options.n_joints, require_joints, options.robot_label)
+    qcols = _joint_columns(table, options.n_joints, require_joints, options.robot_label, len(options.coupled))
+    coupled = [coupled_.CoupledJoint(*c) for c in options.coupled]
+    short = bool(coupled and qcols) and len(qcols) == options.n_joints - len(coupled)
+    full_options = options
+    if short:  # the free joints' columns: their own units, the coupled ones filled in below
+        if any(c in table for c in table.header if _TORQUE.match(c) or _DIRECTION.match(c)):
+            raise InputError("torque or direction columns with the coupled joints left out: give every joint's "
+                             f"q1..q{options.n_joints}", source=source)
+        if options.prismatic is not None:
+            options = replace(options, prismatic=tuple(np.array(options.prismatic)[coupled_.free(coupled,
+                                                                                               options.n_joints)]))
     labels = _constraint_labels(table) if require_position else None
     touched = None if labels is None else np.array([bool(a or b) for a, b in zip(labels[0], labels[1])])
     if not require_position and any(c in table for c in CAMERA):
@@ -307,6 +332,8 @@ def read_pose_table(text: str, *, source: str, options: ReadOptions = ReadOption
             raise InputError("all joint values lie within ±π: they look like radians; files give joints in degrees "
                              "(state the joint unit with `joint_unit` rad if they are)", source=source)
         q[:, slide] *= scale
+        if coupled:
+            q = _coupled_joints(table, q, coupled, full_options, short)
     taus = _torque_columns(table, len(qcols)) if qcols else None
     payload = numbers(table, ["payload"], MAX_PAYLOAD_KG, "kg")[:, 0] if "payload" in table else None
     if payload is not None and np.any(payload < 0):
@@ -465,6 +492,27 @@ def _chains(table: CsvTable, options: ReadOptions, source: str) -> list[str] | N
             raise InputError(f"chain {c!r} is not one of {', '.join(options.chains)}", source=source,
                              where=f"row {int(line)}, column 'chain'")
     return chain
+
+
+def _coupled_joints(table: CsvTable, q: np.ndarray, coupled, options: ReadOptions, short: bool) -> np.ndarray:
+    """Every joint's values (deg; mm where it slides): the coupled ones computed from the free joints' where the
+    file leaves them out; where it gives them, its own (a coupled joint's encoder), and a row that strays
+    from its coupling is said."""
+    n = options.n_joints
+    slide = np.zeros(n, bool) if options.prismatic is None else np.array(options.prismatic, bool)
+    unit = np.where(slide, 1.0, 180.0 / math.pi)  # an offset is stored in rad (mm)
+    if short:
+        return coupled_.expand(coupled, q, n, unit)
+    for joint, row, d in coupled_.strays(coupled, q, unit):
+        import warnings
+
+        from ..exceptions import RobocalWarning
+
+        c = next(c for c in coupled if c.joint == joint)
+        warnings.warn(f"{table.source}: q{joint + 1} strays from its coupling ({c.describe()}) by up to "
+                      f"{d:.4g}{' mm' if slide[joint] else '°'} (row {int(table.lines[row])}): the file's values are "
+                      "used", RobocalWarning, stacklevel=3)
+    return q
 
 
 def _check_joint_magnitudes(table: CsvTable, q: np.ndarray, columns: list[str], options: ReadOptions,

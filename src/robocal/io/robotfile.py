@@ -27,6 +27,7 @@ from ..math.se3 import frame_from_values
 from ..math.so3 import matrix_to_rpy
 from ..model import urdf
 from ..model.corrections import Correction, correction_from_dict
+from ..model.coupled import CoupledJoint, check
 from ..model.covariance import ParameterCovariance
 from ..model.kinematics import CONVENTIONS, joint_parameter_names, prismatic_mask
 from ..model.prior import Prior, unknown_names
@@ -40,11 +41,12 @@ TOP_KEYS = {"name", "convention", "joint", "base", "tool", "targets", "source", 
             "region", "fallback", "uncertainty", "controller", "prior", "cameras", "chains"}
 CONTROLLER_KEYS = {"coupling"}
 COUPLING_KEYS = {"joint", "plus", "factor"}
-GEOMETRY_KEYS = {"a", "alpha", "d", "theta", "beta", "limits", "type", "name", "parent"}
+GEOMETRY_KEYS = {"a", "alpha", "d", "theta", "beta", "limits", "type", "name", "parent", "follows", "follows_offset"}
 TERM_KEYS = {key.key for t in TERMS.values() for key in t.file_keys}
 JOINT_KEYS = GEOMETRY_KEYS | TERM_KEYS
 #: a urdf-convention robot's joints: origin xyz (mm) and rpy (deg), axis, type, zero offset
-URDF_JOINT_KEYS = {"xyz", "rpy", "axis", "type", "offset", "limits", "name", "parent"} | TERM_KEYS
+URDF_JOINT_KEYS = {"xyz", "rpy", "axis", "type", "offset", "limits", "name", "parent", "follows",
+                   "follows_offset"} | TERM_KEYS
 JOINT_TYPES = ("revolute", "prismatic")
 GRAVITY_KEYS = {"direction", "payload_com"}
 DRIFT_KEYS = {"clock", "reference"}
@@ -407,13 +409,14 @@ def parse_robot(text: str, *, source: str = "<robot>", default_name: str = "robo
     prior = None if "prior" not in data else _prior(data["prior"], conv, geom, source)
     cameras = {} if "cameras" not in data else _cameras(data["cameras"], len(joints), source)
     tree = _tree_spec(joints, data.get("chains"), source)
+    followers = _followers(joints, slide, source)
     if tree is not None:  # each chain's own tool, a target named after the chain
         targets = {**_chain_tools(data["chains"], source), **targets}
     try:
         robot = Robot(conv, geom, limits, joint_names=tuple(nm or f"joint{i + 1}" for i, nm in enumerate(names))
                       if any(names) else None, base=base, tool=tool, targets=targets, name=name or default_name,
                       source=source, terms=terms, residual=residual, region=region, uncertainty=uncertainty,
-                      coupling=coupling, prior=prior, cameras=cameras, tree=tree)
+                      coupling=coupling, prior=prior, cameras=cameras, tree=tree, coupled=followers)
     except ValueError as exc:  # what the parts cannot be together (a tree with joint terms)
         raise InputError(str(exc), source=source) from None
     if uncertainty is not None:
@@ -532,6 +535,46 @@ def _known_keys(table: dict, allowed: set[str], source: str, where: str) -> None
     if unknown:
         raise InputError(f"unknown key {sorted(unknown)[0]!r} (allowed: {', '.join(sorted(allowed))})", source=source,
                          where=where)
+
+
+def _followers(joints: list[dict], slide: np.ndarray, source: str) -> tuple[CoupledJoint, ...]:
+    """Coupled joints: ``follows = [{joint = 2, factor = -1}, …]`` (1-based) and ``follows_offset`` (deg, mm
+    where it slides): the joint's value is the offset plus each factor times that joint's."""
+    out = []
+    for i, j in enumerate(joints):
+        if "follows" not in j:
+            if "follows_offset" in j:
+                raise InputError("follows_offset without follows", source=source, where=f"joint {i + 1}")
+            continue
+        where = f"joint {i + 1}, key 'follows'"
+        items = j["follows"]
+        if not isinstance(items, list) or not items or not all(isinstance(c, dict) and set(c) == {"joint", "factor"}
+                                                                for c in items):
+            raise InputError("expected a list of tables {joint = K, factor = F}", source=source, where=where)
+        sources = [c["joint"] for c in items]
+        if not all(isinstance(v, int) and not isinstance(v, bool) and 1 <= v <= len(joints) and v != i + 1
+                   for v in sources):
+            raise InputError(f"each joint followed is another joint 1…{len(joints)}, got {sources}", source=source,
+                             where=where)
+        offset = _number(j.get("follows_offset", 0.0), source, f"joint {i + 1}, key 'follows_offset'")
+        out.append(CoupledJoint(i, tuple(v - 1 for v in sources),
+                                tuple(_number(c["factor"], source, where) for c in items),
+                                offset if slide[i] else math.radians(offset)))
+    try:
+        check(out, len(joints))
+    except ValueError as exc:
+        raise InputError(str(exc), source=source, where="key 'follows'") from None
+    return tuple(out)
+
+
+def _follows_lines(robot: Robot, i: int) -> list[str]:
+    c = next((c for c in robot.coupled if c.joint == i), None)
+    if c is None:
+        return []
+    pairs = ", ".join(f"{{joint = {s + 1}, factor = {_num(f)}}}" for s, f in zip(c.sources, c.factors))
+    offset = _num(c.offset) if robot.prismatic[i] else _deg(c.offset)
+    return [f"follows = [{pairs}]  # its value: the offset plus each factor times that joint's"] + \
+        ([f"follows_offset = {offset}"] if c.offset else [])
 
 
 def _coupling(table, n: int, source: str) -> tuple[tuple[int, int, float], ...]:
@@ -712,7 +755,7 @@ def robot_to_toml(robot: Robot, comment: str | None = None, residual_file: str |
         lines += ["[[joint]]"] + ([f"name = {_quote(robot.joint_names[i])}"] if robot.joint_names else [])
         if robot.tree is not None:
             lines.append(f"parent = {robot.tree.parents[i] + 1}")
-        lines += _geometry_lines(robot, i)
+        lines += _geometry_lines(robot, i) + _follows_lines(robot, i)
         lo, hi = robot.limits[i]
         if np.isfinite(lo) and np.isfinite(hi):
             slide = robot.prismatic[i]

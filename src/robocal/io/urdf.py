@@ -55,6 +55,7 @@ from .urdf_xml import (
     _set_origin,
     _tree,
     measuring_frame,
+    mimics,
 )
 
 
@@ -81,12 +82,6 @@ def parse_urdf(text: str, *, source: str = "<urdf>", base_link: str | None = Non
         raise InputError(f"{bad[0].kind} joints are not supported in a serial chain", source=source,
                          where=f"joint '{bad[0].name}'")
     movable = [k for k, j in enumerate(path) if j.kind in MOVABLE]
-    for k in movable:
-        mimic = path[k].element.find("mimic")
-        if mimic is not None:
-            raise InputError(f"mimics joint '{mimic.get('joint')}' (<mimic>): robocal does "
-                             "not calibrate coupled joints; end the chain before it (--tip-link) or drop the "
-                             "coupling", source=source, where=f"joint '{path[k].name}'")
     if not movable:
         raise InputError(f"no movable joint between '{base}' and '{tip}'", source=source)
     lead = np.eye(4)
@@ -117,9 +112,13 @@ def parse_urdf(text: str, *, source: str = "<urdf>", base_link: str | None = Non
     targets, target_joints = _targets(by_child, children, flange, tip)
     chain = UrdfChain(text, base, tip, tuple(path[k].name for k in movable), tuple(folded), lead,
                       tuple(j.name for j in path[:movable[0]]), tail, flange, target_joints)
-    return Robot("urdf", np.array(rows), np.array(limits), base=lead, tool=tail, targets=targets,
-                 name=root.get("name") or Path(source).stem, source=source,
-                 joint_names=tuple(path[k].name for k in movable), urdf=chain)
+    coupled = mimics([path[k] for k in movable], source)
+    try:
+        return Robot("urdf", np.array(rows), np.array(limits), base=lead, tool=tail, targets=targets,
+                     name=root.get("name") or Path(source).stem, source=source,
+                     joint_names=tuple(path[k].name for k in movable), urdf=chain, coupled=coupled)
+    except ValueError as exc:  # a mimic of a mimic
+        raise InputError(str(exc), source=source) from None
 
 
 def _targets(by_child, children, flange: str, tip: str) -> tuple[dict, dict]:

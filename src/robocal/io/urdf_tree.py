@@ -47,6 +47,7 @@ from .urdf_xml import (
     _set_origin,
     _tree,
     measuring_frame,
+    mimics,
 )
 
 
@@ -101,9 +102,13 @@ def parse_urdf_tree(text: str, *, source: str = "<urdf>", base_link: str | None 
     tree = TreeSpec(tuple(parent_of[n] for n in order), chains)
     record = UrdfChain(text, base, ",".join(tips), tuple(order), tuple(folded_of[n] for n in order), lead,
                        tuple(j.name for j in first[:common]), np.eye(4), "", {})
-    return Robot("urdf", np.array(rows), np.array(limits), base=lead, targets=tools,
-                 name=root.get("name") or Path(source).stem, source=source, joint_names=tuple(order), tree=tree,
-                 urdf=record)
+    coupled = mimics([by_name[name] for name in order], source)
+    try:
+        return Robot("urdf", np.array(rows), np.array(limits), base=lead, targets=tools,
+                     name=root.get("name") or Path(source).stem, source=source, joint_names=tuple(order), tree=tree,
+                     urdf=record, coupled=coupled)
+    except ValueError as exc:  # a mimic of a mimic
+        raise InputError(str(exc), source=source) from None
 
 
 def _tree_path(by_child, base: str, tip: str, links, source: str):
@@ -114,10 +119,6 @@ def _tree_path(by_child, base: str, tip: str, links, source: str):
     bad = next((j for j in path if j.kind not in JOINT_TYPES), None)
     if bad is not None:
         raise InputError(f"{bad.kind} joints are not supported in a tree", source=source, where=f"joint '{bad.name}'")
-    mimic = next((j for j in path if j.kind in MOVABLE and j.element.find("mimic") is not None), None)
-    if mimic is not None:
-        raise InputError(f"mimics joint '{mimic.element.find('mimic').get('joint')}' (<mimic>): state the "
-                         "coupling in a robot file instead", source=source, where=f"joint '{mimic.name}'")
     if not any(j.kind in MOVABLE for j in path):
         raise InputError(f"no movable joint between '{base}' and '{tip}'", source=source, option="tip_link")
     _check_size(path, source)
@@ -205,6 +206,12 @@ def _from_geometry(robot: Robot) -> ET.Element:
                                        "velocity": "0"})
         else:
             j.set("type", "continuous" if not robot.prismatic[i] else "prismatic")
+        c = next((c for c in robot.coupled if c.joint == i), None)
+        if c is not None and len(c.sources) == 1:
+            ET.SubElement(j, "mimic", {"joint": names[c.sources[0]], "multiplier": _num(c.factors[0]),
+                                       "offset": _num(c.offset / (1000.0 if robot.prismatic[i] else 1.0))})
+        elif c is not None:  # a URDF's mimic follows one joint
+            j.insert(0, ET.Comment(f" {c.describe(names)}: a URDF mimics one joint; the robot file states it "))
         _indent(j)
         elements += [ET.Element("link", {"name": f"link_{i + 1}"}), j]
     for chain, path in robot.tree.chains.items():

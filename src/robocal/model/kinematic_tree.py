@@ -163,10 +163,17 @@ def chain_robot(robot, name: str):
             coupling.append((where[joint], where[plus], factor))
         elif joint in where or plus in where:
             raise ValueError(f"joint {joint + 1} follows joint {plus + 1}, and only one of them is on chain {name!r}")
+    coupled = []
+    for c in robot.coupled:
+        if c.joint in where and all(j in where for j in c.sources):
+            coupled.append(replace(c, joint=where[c.joint], sources=tuple(where[j] for j in c.sources)))
+        elif c.joint in where:
+            raise ValueError(f"joint {c.joint + 1} follows a joint that is not on chain {name!r}")
     targets = {t: T for t, T in robot.targets.items() if t not in tree.chains}
     return robot.replace(geometry=robot.geometry[path], limits=robot.limits[path], tree=None,
                          joint_names=None if robot.joint_names is None else
                          tuple(robot.joint_names[j] for j in path),
                          tool=robot.targets.get(name, np.eye(4)), targets=targets, cameras=cameras,
                          uncertainty=uncertainty, prior=prior, region=region, coupling=tuple(coupling),
+                         coupled=tuple(coupled),
                          name=f"{robot.name} ({name})", urdf=None)

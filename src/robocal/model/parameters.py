@@ -84,8 +84,9 @@ class JointData:
         if (robot.terms is None or robot.terms.empty) and spec.empty:
             return None
         q = np.atleast_2d(q)
-        return cls(joint_offsets(robot.terms, robot.convention, robot.geometry, q, inputs),
-                   basis(spec, robot.convention, robot.geometry, q, inputs, robot.terms))
+        parents = None if robot.tree is None else robot.tree.parents
+        return cls(joint_offsets(robot.terms, robot.convention, robot.geometry, q, inputs, parents),
+                   basis(spec, robot.convention, robot.geometry, q, inputs, robot.terms, parents))
 
     def subset(self, index) -> JointData:
         return JointData(self.offset[index], self.basis[index])

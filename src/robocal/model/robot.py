@@ -8,6 +8,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..math.se3 import homogeneous
+from . import coupled as coupling_
 from .camera import CameraMount
 from .corrections import Correction
 from .covariance import ParameterCovariance
@@ -70,6 +71,9 @@ class Robot:
     #: a kinematic tree (:mod:`robocal.model.kinematic_tree`): each joint's parent and each chain's joints;
     #: None for a serial chain
     tree: TreeSpec | None = None
+    #: joints whose value follows others (:mod:`robocal.model.coupled`): a torso that keeps its chest
+    #: level; their values are computed, not commanded
+    coupled: tuple[coupling_.CoupledJoint, ...] = ()
 
     def __post_init__(self) -> None:
         check_convention(self.convention)
@@ -89,16 +93,16 @@ class Robot:
             object.__setattr__(self, "joint_names", tuple(self.joint_names))
             if len(self.joint_names) != g.shape[0]:
                 raise ValueError(f"{len(self.joint_names)} joint names for {g.shape[0]} joints")
+        object.__setattr__(self, "coupled", tuple(self.coupled))
+        coupling_.check(self.coupled, g.shape[0])
         if self.tree is not None:
             if self.convention != "urdf":  # a DH row turns about its parent's z: siblings would share one axis
                 raise ValueError("a tree's joints are urdf origins (xyz, rpy, axis): in the DH family every child "
                                  "of a joint turns about that joint's frame's z, so two branches could not part")
             if self.tree.n_joints != g.shape[0]:
                 raise ValueError(f"a tree of {self.tree.n_joints} joints for {g.shape[0]} joints")
-            if (self.terms is not None and self.terms.spec().options) or self.residual is not None:
-                # their torques, loads and corrections run along one chain
-                raise ValueError("a tree's model is its geometry: joint terms and a residual correction are not "
-                                 "supported on a tree")
+            if self.residual is not None:  # a correction learned of one chain's poses
+                raise ValueError("a learned correction runs along one chain: it is not supported on a tree")
 
     @classmethod
     def from_dh(cls, convention: str, a, alpha, theta, d, beta=None, prismatic=None, **kw) -> Robot:
@@ -144,7 +148,8 @@ class Robot:
     def effective_joints(self, q, inputs: JointInputs | None = None) -> np.ndarray:
         """Joint values (m, n) rad the arm reaches for commanded q: q + Δq of its joint terms."""
         q = np.atleast_2d(np.asarray(q, float))
-        return q + joint_offsets(self.terms, self.convention, self.geometry, q, inputs)
+        return q + joint_offsets(self.terms, self.convention, self.geometry, q, inputs,
+                                 None if self.tree is None else self.tree.parents)
 
     def fk(self, q, targets: Sequence[str] | None = None, inputs: JointInputs | None = None,
            chains: Sequence[str] | None = None) -> np.ndarray:
@@ -227,6 +232,15 @@ class Robot:
         for joint, plus, factor in self.coupling:
             q[..., joint] += factor * np.asarray(J)[..., plus]
         return q
+
+    def couple(self, q: np.ndarray) -> np.ndarray:
+        """q (…, n) rad with every coupled joint's value set from the joints it follows."""
+        return coupling_.couple(self.coupled, q) if self.coupled else np.asarray(q, float)
+
+    @property
+    def n_free(self) -> int:
+        """The joints a pose commands: all but the coupled ones."""
+        return self.n_joints - len(self.coupled)
 
     def to_controller(self, q: np.ndarray) -> np.ndarray:
         """The controller's joint values (..., n) of the model's q (the inverse of :meth:`from_controller`)."""

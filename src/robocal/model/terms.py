@@ -31,6 +31,7 @@ degree do not change the basis) and the data, not on p.
 
 from __future__ import annotations
 
+import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 
@@ -52,14 +53,48 @@ def joint_axes_and_links(convention: str, geom: np.ndarray, q: np.ndarray):
     return axes, points, np.stack(Rs[1:], -3)
 
 
-def gravity_basis(convention: str, geom: np.ndarray, q: np.ndarray, direction: np.ndarray) -> np.ndarray:
-    """φ_ij = g R_jᵀ (ĝ × a_i) for j ≥ i (zero for j < i), (m, n, n, 3) in N per kg·m of moment."""
-    axes, _, links = joint_axes_and_links(convention, geom, q)
+def tree_axes_and_links(convention: str, geom: np.ndarray, q: np.ndarray, parents: tuple[int, ...]):
+    """As :func:`joint_axes_and_links` for a tree (``parents``: each joint's parent, −1 on the root):
+    every joint's axis, point and link orientation along its own path from the root."""
+    n = len(parents)
+    axes, points = np.empty(q.shape[:-1] + (n, 3)), np.empty(q.shape[:-1] + (n, 3))
+    links = np.empty(q.shape[:-1] + (n, 3, 3))
+    for leaf in sorted(set(range(n)) - set(parents)):  # every joint lies on some leaf's path
+        path, j = [], leaf
+        while j >= 0:
+            path.append(j)
+            j = parents[j]
+        path = path[::-1]
+        a, p, L = joint_axes_and_links(convention, geom[path], q[..., path])
+        axes[..., path, :], points[..., path, :], links[..., path, :, :] = a, p, L
+    return axes, points, links
+
+
+def outboard(n: int, parents: tuple[int, ...] | None = None) -> np.ndarray:
+    """(n, n) bool: link j is carried by joint i (j = i or beyond it: j ≥ i on a chain, j in i's
+    subtree on a tree).  The links of another branch load a joint not."""
+    if parents is None:
+        return np.triu(np.ones((n, n), bool))
+    out = np.eye(n, dtype=bool)
+    for j in range(n):
+        i = parents[j]
+        while i >= 0:
+            out[i, j] = True
+            i = parents[i]
+    return out
+
+
+def gravity_basis(convention: str, geom: np.ndarray, q: np.ndarray, direction: np.ndarray,
+                  parents: tuple[int, ...] | None = None) -> np.ndarray:
+    """φ_ij = g R_jᵀ (ĝ × a_i) for the links j joint i carries (zero for the others: j < i on a chain,
+    another branch on a tree), (m, n, n, 3) in N per kg·m of moment."""
+    axes, _, links = joint_axes_and_links(convention, geom, q) if parents is None else \
+        tree_axes_and_links(convention, geom, q, parents)
     g = G * np.asarray(direction, float) / np.linalg.norm(direction)
     lever = np.cross(g, axes)  # (m, n_i, 3)
     phi = np.einsum("mjab,mia->mijb", links, lever)  # R_jᵀ (g × a_i)
     n = geom.shape[-2]
-    phi *= np.tril(np.ones((n, n))).T[None, :, :, None]  # only links at or beyond the joint
+    phi *= outboard(n, parents)[None, :, :, None]  # only links at or beyond the joint
     phi[:, prismatic_mask(convention, geom)] = 0.0  # the terms model turning joints
     return phi
 
@@ -78,31 +113,37 @@ def payload_torque(convention: str, geom: np.ndarray, q: np.ndarray, direction: 
 
 
 def mass_torques(convention: str, geom: np.ndarray, q: np.ndarray, direction: np.ndarray, masses: np.ndarray,
-                 centres: np.ndarray) -> np.ndarray:
+                 centres: np.ndarray, parents: tuple[int, ...] | None = None) -> np.ndarray:
     """Gravity torque (m, n) N·m about each joint of point masses ``masses`` (n,) kg carried by the
     links, at ``centres`` (n, 3) mm in each link's own frame (link j: the frame after joint j):
     τ_i = a_i · Σ_{j ≥ i} (c_j − p_i) × m_j g, the load joint i holds (it gives way along it)."""
-    axes, points, links = joint_axes_and_links(convention, geom, q)
-    _, origins = chain_frames(convention, geom, q)
-    o = np.stack([np.broadcast_to(x, origins[-1].shape) for x in origins[1:]], -2)  # (m, n, 3)
+    if parents is None:
+        axes, points, links = joint_axes_and_links(convention, geom, q)
+        _, origins = chain_frames(convention, geom, q)
+        o = np.stack([np.broadcast_to(x, origins[-1].shape) for x in origins[1:]], -2)  # (m, n, 3)
+    else:  # a tree's links are urdf frames: each sits at its joint's origin, on its axis
+        axes, points, links = tree_axes_and_links(convention, geom, q, parents)
+        o = points
     c = o + np.einsum("mjab,jb->mja", links, np.asarray(centres, float))
     weight = G * np.asarray(direction, float) / np.linalg.norm(direction)
     force = np.asarray(masses, float)[:, None] * weight  # (n, 3) N
     arm = (c[:, None, :, :] - points[:, :, None, :]) / 1000.0  # (m, i, j, 3) m
     moment = np.cross(arm, force[None, None])  # (m, i, j, 3)
-    n = geom.shape[-2]
-    outboard = np.triu(np.ones((n, n)))[None, :, :, None]  # j ≥ i
-    tau = np.einsum("mia,mia->mi", axes, np.sum(moment * outboard, axis=2))
+    carried = outboard(geom.shape[-2], parents)[None, :, :, None]  # the links joint i carries
+    tau = np.einsum("mia,mia->mi", axes, np.sum(moment * carried, axis=2))
     tau[:, prismatic_mask(convention, geom)] = 0.0
     return tau
 
 
-def nominal_masses(convention: str, geom: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def nominal_masses(convention: str, geom: np.ndarray, parents: tuple[int, ...] | None = None
+                   ) -> tuple[np.ndarray, np.ndarray]:
     """A plausible mass model of an arm, for simulation: link j weighs 2 kg plus 15 kg per metre of
     its a and d, with its centre half-way along them (mm, in link j's frame).  Not an identified
     model: simulated torques need some load that varies with the pose as a real arm's does."""
-    if convention == "urdf":  # link j reaches to the next joint's origin, given in link j's frame
-        nxt = np.vstack([geom[1:, 0:3], np.zeros((1, 3))])
+    if convention == "urdf":  # link j reaches to the next joint's origin (its first child's, on a tree)
+        n = geom.shape[0]
+        child = [next((k for k in range(n) if (parents[k] if parents else k - 1) == j), None) for j in range(n)]
+        nxt = np.array([geom[k, 0:3] if k is not None else np.zeros(3) for k in child])
         return 2.0 + 15.0 * np.linalg.norm(nxt, axis=1) / 1000.0, nxt / 2
     a, d = np.abs(geom[:, 0]), np.abs(geom[:, 3])
     masses = 2.0 + 15.0 * (a + d) / 1000.0
@@ -225,6 +266,8 @@ class TermInputs:
     q: np.ndarray
     inputs: JointInputs
     terms: JointTerms
+    #: a tree's joints' parents (:class:`robocal.model.kinematic_tree.TreeSpec`), None for a chain
+    parents: tuple[int, ...] | None = None
 
     @property
     def torques(self) -> np.ndarray | None:
@@ -308,6 +351,10 @@ class Term:
                 f"poses, which it does {where}: the rest is a constant offset the geometry absorbs; "
                 f"{self.remedy.format(j=joint)}")
 
+    def never(self, joint: int, parameter: str) -> str:
+        """Why ``parameter`` of joint ``joint`` (1-based), whose basis is zero at every pose, is no parameter."""
+        return f"the {self.name} of joint {joint} has no input at any pose: it is zero, whatever the poses"
+
     def plant(self, planted, n: int) -> dict[str, np.ndarray]:
         """Arrays of a simulated truth from the simulation's option (1-based joints)."""
         raise NotImplementedError
@@ -329,6 +376,12 @@ class Compliance(Term):
 
     def unit_of(self, parameter):
         return "rad/(N·m)" if parameter.startswith("compliance") else "rad"
+
+    def never(self, joint, parameter):
+        if parameter.startswith("compliance"):
+            return f"joint {joint}'s torque is zero at every pose: nothing loads it"
+        return (f"gravity has no moment about joint {joint}'s axis at any pose (the axis stays along gravity): "
+                "nothing loads it")
     file_keys = (FileKey("compliance", "compliance", "scalar", False, "rad/(N·m)"),
                  FileKey("gravity_deflection", "gravity", "links", True, "deg, links {i}.."))
 
@@ -351,11 +404,17 @@ class Compliance(Term):
                 tau = np.zeros(x.q.shape) if x.torques is None else \
                     np.where(prismatic_mask(x.convention, x.geom), 0.0, np.asarray(x.torques, float))
             else:
+                if x.parents is not None:  # which chain's tip carries it is not said
+                    from ..exceptions import InputError
+
+                    raise InputError("a payload's own compliance on a tree: which chain carries the payload is not "
+                                     "said; give the payload as torques (tau columns) or leave it out",
+                                     option="payload")
                 mass = np.zeros(m) if x.payload is None else np.asarray(x.payload, float)
                 tau = payload_torque(x.convention, x.geom, x.q, x.terms.gravity_direction, mass, x.terms.payload_com)
             cols.append(np.einsum("mi,ik->mik", tau, np.eye(n)))
         if option[0] == "gravity":
-            phi = gravity_basis(x.convention, x.geom, x.q, x.terms.gravity_direction)
+            phi = gravity_basis(x.convention, x.geom, x.q, x.terms.gravity_direction, x.parents)
             for i in range(n):
                 b = np.zeros((m, n, 3 * (n - i)))
                 b[:, i, :] = phi[:, i, i:].reshape(m, -1)
@@ -596,21 +655,33 @@ def term_of(parameter: str) -> Term | None:
 
 
 def basis(spec: TermSpec, convention: str, geom: np.ndarray, q: np.ndarray, inputs: JointInputs | None = None,
-          terms: JointTerms | None = None) -> np.ndarray:
-    """B (m, n, T) with Δq = B · p for the parameters p of ``spec`` (in ``spec.names`` order)."""
-    inputs = TermInputs(convention, geom, q, inputs or NO_INPUTS, terms or JointTerms())
+          terms: JointTerms | None = None, parents: tuple[int, ...] | None = None) -> np.ndarray:
+    """B (m, n, T) with Δq = B · p for the parameters p of ``spec`` (in ``spec.names`` order); ``parents``:
+    a tree's (its joints' loads are those of their own branches)."""
+    inputs = TermInputs(convention, geom, q, inputs or NO_INPUTS, terms or JointTerms(), parents)
     cols = [t.basis(option, inputs) for t, option in spec.terms()]
     return np.concatenate(cols, axis=2) if cols else np.zeros(q.shape + (0,))
 
 
 def joint_offsets(terms: JointTerms | None, convention: str, geom: np.ndarray, q: np.ndarray,
-                  inputs: JointInputs | None = None) -> np.ndarray:
+                  inputs: JointInputs | None = None, parents: tuple[int, ...] | None = None) -> np.ndarray:
     """Δq (m, n) rad of a robot's own terms at commanded joints q (zeros without terms)."""
     q = np.atleast_2d(q)
     if terms is None or terms.empty:
         return np.zeros(q.shape)
     spec = terms.spec()
-    return np.einsum("mit,t->mi", basis(spec, convention, geom, q, inputs, terms), terms.vector(spec, q.shape[1]))
+    return np.einsum("mit,t->mi", basis(spec, convention, geom, q, inputs, terms, parents),
+                     terms.vector(spec, q.shape[1]))
+
+
+def off_branch(name: str, parents: tuple[int, ...] | None) -> bool:
+    """A tree's gravity term of a link that joint i does not carry (``gravity{i}_{j}…`` with j on
+    another branch): zero by construction, never a parameter to offer."""
+    m = re.fullmatch(r"gravity(\d+)_(\d+)[xyz]", name)
+    if parents is None or m is None:
+        return False
+    i, j = int(m.group(1)) - 1, int(m.group(2)) - 1
+    return not outboard(len(parents), parents)[i, j]
 
 
 def missing_torques(terms: JointTerms | None, torques, source: str) -> str | None:

@@ -92,7 +92,7 @@ def uncertainty_map(robot, q_low: np.ndarray, q_high: np.ndarray, n: int = 2000,
     """The whole model's σ of the TCP at ``n`` joint sets drawn uniformly (seeded) between q_low
     and q_high (rad), and at_poses: σ already worked out at the calibration poses, kept beside them."""
     rng = np.random.default_rng(seed)
-    q = rng.uniform(np.asarray(q_low, float), np.asarray(q_high, float), (n, len(q_low)))
+    q = robot.couple(rng.uniform(np.asarray(q_low, float), np.asarray(q_high, float), (n, len(q_low))))
     # a tree's joint sets take its chains in turn: every tip mapped over the same region
     chains = None if robot.tree is None else [robot.tree.names[i % len(robot.tree.names)] for i in range(n)]
     return UncertaintyMap(robot.positions(q, chains=chains), predicted_sigma(robot, q, chains=chains), at_poses)

@@ -169,11 +169,11 @@ def fit_model(inputs: Inputs, config: CalibrationConfig, progress=None, stages=N
     say = stages or (lambda step, steps, text: None)
     mixed = meas.camera is not None and not all(meas.camera)
     tree = inputs.nominal.tree is not None
-    if tree and config.model_terms:  # their torques, loads and corrections run along one chain
-        raise InputError(f"{inputs.nominal.source or inputs.nominal.name} is a tree: its model is its geometry "
-                         f"(joint terms and learned corrections of a tree are not supported; --model geometric)",
+    if tree and config.model_terms & set(LEARNED):  # a correction learned of one chain's poses
+        raise InputError(f"{inputs.nominal.source or inputs.nominal.name} is a tree: learned corrections run along "
+                         "one chain and are not supported on a tree; its joint terms are (--model compliance, …)",
                          option="model")
-    if config.model != "auto" or mixed or tree:
+    if config.model != "auto" or mixed:
         # camera rows beside tracker rows: models are compared on held-out errors of one unit, and
         # these have two (px, mm); the geometric model is fitted and said
         terms = config.model_terms if config.model != "auto" else frozenset()
@@ -221,8 +221,6 @@ def fit_model(inputs: Inputs, config: CalibrationConfig, progress=None, stages=N
             geometric = fit_parametric(inputs, config, term_spec((), meas, config))
         geometric_prediction = parametric_prediction if geometric is fit else predict(geometric, config)[1]
         said = [] if config.model != "auto" else [Note(
-            "model auto: a tree's model is its geometry (joint terms and learned corrections run along one chain), "
-            "so the geometric model is fitted alone") if tree else Note(
             "model auto: camera rows beside tracker rows are compared in no one unit, so the geometric model is "
             "fitted alone")]
         return Chosen(model_name(terms), fit, residual, [] if choice is None else choice.rows,
@@ -231,8 +229,9 @@ def fit_model(inputs: Inputs, config: CalibrationConfig, progress=None, stages=N
                       scheme=cv.scheme, held_errors=cv.errors if not learned else candidate.errors)
     groups, poses = held_groups(meas), pose_groups(meas)
     # a learned correction corrects measured positions: rows that touched points or planes, and
-    # camera rows (pixels), have none
-    residuals = poses.max() + 1 >= MIN_RESIDUAL_POSES and meas.constraints is None and meas.camera is None
+    # camera rows (pixels), have none; nor is one learned of a tree's several chains
+    residuals = poses.max() + 1 >= MIN_RESIDUAL_POSES and meas.constraints is None and meas.camera is None and \
+        not tree
     ladder: list[tuple[Candidate, CrossValidation]] = []
     # at most: geometry, each term alone, then each further term on the one kept so far
     lacking = unsupported_terms(TRIAL_ORDER, meas, config)

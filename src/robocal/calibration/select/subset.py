@@ -8,6 +8,7 @@
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 
 import numpy as np
@@ -16,6 +17,7 @@ from ...exceptions import InputError
 from ...model.candidates import frame_candidates, joint_candidates
 from ...model.kinematics import joint_kinds
 from ...model.parameters import is_angle, is_term
+from ...model.terms import off_branch
 from ..config import CalibrationConfig, resolve_params
 from ..fit import cameras
 from ..fit.methods import Estimate, fit_lm
@@ -70,7 +72,9 @@ def choose_candidates(setup: Setup, config: CalibrationConfig, frames_mode: str)
         from ...model.parameters import FRAME_AXES, session_prefix
 
         frames += [f"{session_prefix(label)}_{ax}" for label in setup.space.sessions for ax in FRAME_AXES]
-    terms = setup.space.terms.names(robot.n_joints)
+    # a tree's joint carries its own branch alone: the gravity terms of another branch's links are no parameters
+    parents = None if robot.tree is None else robot.tree.parents
+    terms = [n for n in setup.space.terms.names(robot.n_joints) if not off_branch(n, parents)]
     # a named set (zeros, frames) is a choice of kind, not of parameters: what it offers that the data
     # cannot see is dropped as any default's would be
     explicit = requested is not None and config.params not in ("zeros", "frames")
@@ -144,10 +148,28 @@ def unvaried_terms(setup: Setup, names: list[str]) -> dict[str, Reason]:
     order = list(space.terms.names(space.robot.n_joints))
     reasons = {}
     for name in terms:
-        joint, support = term_support(data.basis[:, :, order.index(name)], groups)
+        column = data.basis[:, :, order.index(name)]
+        joint, support = term_support(column, groups)
         if support < MIN_TERM_SUPPORT:
-            reasons[name] = Reason(UNVARIED, joints=(joint + 1,), detail=term_of(name).unvaried(joint + 1, support))
+            zero = not np.any(np.abs(column) > 1e-12 * max(1.0, float(np.abs(data.basis).max())))
+            joint = int(re.match(r"[a-z]+(\d+)", name).group(1)) - 1 if zero else joint  # its own joint
+            reasons[name] = Reason(UNVARIED, joints=(joint + 1,), detail=term_of(name).never(joint + 1, name) if zero
+                                   else term_of(name).unvaried(joint + 1, support))
     return reasons
+
+
+def _said_once(reasons: dict[str, Reason]) -> list[str]:
+    """One line per reason: the parameters it drops named together (a joint's 54 gravity terms are one
+    choice, not 54 faults)."""
+    by_detail: dict[str, list[str]] = {}
+    for name, r in reasons.items():
+        by_detail.setdefault(r.detail, []).append(name)
+    out = []
+    for detail, names in by_detail.items():
+        named = names[0] if len(names) == 1 else ", ".join(names) if len(names) <= 3 else \
+            f"{names[0]} … {names[-1]} ({len(names)} terms)"
+        out.append(f"{named} dropped: {detail}")
+    return out
 
 
 def gauge_names(setup: Setup) -> list[str]:
@@ -247,7 +269,7 @@ def analyse_identifiability(setup: Setup, candidates: Candidates) -> tuple[Ident
     if unvaried:
         reasons = {**ident.reasons, **unvaried}
         ident = ident.with_changes(dropped=[n for n in candidates.names if n in reasons], reasons=reasons,
-                                   warnings=ident.warnings + [f"{n} dropped: {r.detail}" for n, r in unvaried.items()])
+                                   warnings=ident.warnings + _said_once(unvaried))
     notes = list(ident.warnings)
     if setup.prior is not None and np.any(np.isfinite(setup.prior[:setup.space.n_joint_params])):
         # the prior bounds what the poses leave open: the uncertainties are not large, they are the prior's
