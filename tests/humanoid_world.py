@@ -76,7 +76,7 @@ def urdf(moves: dict[str, tuple] | None = None) -> str:
 def _masses() -> dict[str, tuple[float, np.ndarray]]:
     """Each moving link's mass (kg) and centre (m, in its own frame): half-way to the next joint."""
     out = {}
-    for name, parent, child, kind, xyz, rpy, axis in joints():
+    for name, _, child, kind, *_ in joints():
         if kind == "fixed":
             continue
         after = next((j for j in joints() if j[1] == child), None)
@@ -106,7 +106,7 @@ class Truth:
         masses = _masses()
         frames = {link: self.model.transform("base_link", link, values) for link in masses}
         out = {}
-        for name, parent, child, kind, xyz, rpy, axis in joints():
+        for name, _, child, kind, _, _, axis in joints():
             if kind == "fixed":
                 continue
             T = frames[child]

@@ -12,6 +12,7 @@ The public programs of tests/data/programs are run too: nothing but target numbe
 from __future__ import annotations
 
 import json
+import math
 import re
 import warnings
 from pathlib import Path
@@ -89,7 +90,14 @@ def test_krl_on_a_kuka_convention_robot_on_a_pedestal(tmp_path, run_cli):
     summary = json.loads((tmp_path / "s.json").read_text())
     assert code == 0, err
     assert summary["status"] == {"ok": 17}
-    assert out.read_bytes().decode().replace("\r\n", "\n") == src.replace("\r\n", "\n")  # the .src has no numbers
+    # the .src has no numbers: it changes by the stamp alone, three comment lines after its DEF
+    written = out.read_bytes().decode().replace("\r\n", "\n")
+    lines = written.split("\n")
+    at = next(i for i, x in enumerate(lines) if x.startswith("DEF"))
+    stamp = lines[at + 1:at + 4]
+    assert stamp[0].lstrip().startswith("; Filtered by robocal")
+    assert "sha256" in stamp[1] and "taught points" in stamp[2]
+    assert "\n".join(x for x in written.split("\n") if x not in stamp) == src.replace("\r\n", "\n")
     new = ctl.read_krl(out.with_suffix(".dat").read_text())
     for i, (qi, T) in enumerate(zip(q, world)):
         v = new[f"XP{i + 1}"]
@@ -718,3 +726,60 @@ def test_a_joint_target_at_a_wrist_singularity_is_flagged_not_moved_by_degrees(t
     assert status["j1"].status == "singular" and "left as taught" in status["j1"].reason
     assert "joint 4" in status["j1"].reason or "joint 6" in status["j1"].reason
     assert ctl.read_rapid(result.text)["j1"] == ctl.read_rapid(text)["j1"]
+
+
+def test_a_written_program_is_stamped_its_configuration_changes_said_and_its_angles_keep_their_decimals(
+        tmp_path, planted, run_cli):
+    """RAPID: the written module carries robocal's stamp after its MODULE line (version, the calibrated
+    model's file and SHA-256, what a corrected motion is), reads back with every target, and --no-stamp
+    leaves it out; each changed configuration datum names the joint that moved it.  FANUC: a rewritten
+    angle keeps the file's three decimals wherever they turn the tool to within 0.0005° of the correction."""
+    import hashlib
+
+    from robocal.cli.filter import config_change
+    from robocal.filtering.language import ANGLE_KEEP_DEG
+    from robocal.math.so3 import rpy_to_matrix
+
+    program = PROGRAMS / "rapid" / "Module1.mod"
+    out = tmp_path / "Module1.mod"
+    code, _, err = run_cli("filter", planted["irb120"], program, "--nominal", "irb120", "--tool",
+                           "smc_gripper=0,0,150,0,0,0", "--out", out, "--summary", tmp_path / "s.json")
+    assert code == 0, err
+    lines = out.read_bytes().decode().split("\r\n")
+    assert lines[0].startswith("MODULE") and lines[1].strip().startswith("! Filtered by robocal")
+    assert hashlib.sha256(planted["irb120"].read_bytes()).hexdigest() in lines[2]
+    assert "taught points" in lines[3] and "taught points" in err
+    assert len(load_program(out).targets) == len(load_program(program).targets)
+    code, _, err = run_cli("filter", planted["irb120"], program, "--nominal", "irb120", "--tool",
+                           "smc_gripper=0,0,150,0,0,0", "--out", tmp_path / "plain.mod", "--no-stamp")
+    assert "robocal" not in (tmp_path / "plain.mod").read_text()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        result = filter_program(planted["irb120"], program, "irb120", frames=Frames(tools={"smc_gripper": TOOL}))
+    changed = [c for c in result.corrections if c.corrected and config_change(c)]
+    for c in changed:
+        for part in config_change(c).split("; "):
+            key = part.split()[0]
+            joint = {"cf1": 0, "cf4": 3, "cf6": 5}.get(key)
+            if joint is not None:  # the quadrant written is the one the corrected joint lies in
+                value = float(re.search(r"j\d at ([-+][\d.]+)°", part).group(1))
+                assert f"j{joint + 1} at" in part and int(part.split("→")[1].split(":")[0]) == \
+                    math.floor(np.radians(value) / (math.pi / 2) + 1e-12)
+    # FANUC: a rewritten angle keeps the file's decimals unless they would turn the tool too far
+    fanuc, _, _, _ = _production_ls(tmp_path)
+    nominal, accurate = _robots(tmp_path, "irb120", np.eye(4), COUPLING)
+    code, _, err = run_cli("filter", accurate, fanuc, "--nominal", nominal, "--out", tmp_path / "OUT.LS", "--tool",
+                           "2=0,0,210,0,0,0", "--no-stamp")
+    pattern = r"W =\s*(\S+) deg,\s*P =\s*(\S+) deg,\s*R =\s*(\S+) deg"
+    before = re.findall(pattern, fanuc.read_text())
+    after = re.findall(pattern, (tmp_path / "OUT.LS").read_text())
+    rewritten = [(a, b) for a, b in zip(before, after) if a != b]
+    assert rewritten
+    for a, b in rewritten:
+        own = min(len(v.split(".")[1]) if "." in v else 0 for v in a)
+        places = {len(v.split(".")[1]) for v in b}
+        if places != {max(own, 3)}:  # more decimals: the file's would have turned the tool too far
+            assert places == {4}
+            written = np.radians([float(v) for v in b])
+            R, Q = rpy_to_matrix(written), rpy_to_matrix(np.radians(np.round(np.degrees(written), own)))
+            assert np.degrees(np.arccos(np.clip((np.trace(R @ Q.T) - 1) / 2, -1, 1))) > ANGLE_KEEP_DEG - 1e-4

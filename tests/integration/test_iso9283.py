@@ -190,3 +190,39 @@ def test_a_specification_is_a_verdict_in_the_report_and_the_exit_status(tmp_path
     assert "Specification not met" in (tmp_path / "no.html").read_text()  # the report is written all the same
     code, out, err = run_cli("iso9283", "evaluate", tmp_path / "after.csv", "--require", "XY<=1")
     assert code == 2 and "unknown figure 'XY'" in err
+
+
+def test_the_documented_chain_plans_compensates_simulates_and_evaluates_without_hand_editing(tmp_path, run_cli):
+    """plan → compensate → measure (simulated on the true robot) → evaluate: the plan is a goals file,
+    the compensated commands keep each row's pose, cycle and commanded pose, and a simulated ISO
+    campaign of the true robot is read as measured; the compensated campaign's AP is the smaller."""
+    truth_args = ("--errors", "uniform:0.3,0.003", "--seed", "3")
+    code, _, err = run_cli("simulate", "kr5-arc", *truth_args, "--poses", "60", "--noise", "0.02",
+                           "--out", tmp_path / "cal.csv", "-q")
+    assert code == 0, err
+    code, _, err = run_cli("calibrate", "kr5-arc", tmp_path / "cal.csv", "--export", tmp_path / "cal.toml", "-q")
+    assert code == 0, err
+    code, _, err = run_cli("iso9283", "plan", "kr5-arc", "--cycles", "4", "--out", tmp_path / "plan.csv", "-q")
+    assert code == 0, err
+    plan = list(csv.DictReader((tmp_path / "plan.csv").open()))
+    assert all(len(v.split(".")[-1]) <= 9 for r in plan for k, v in r.items() if k.startswith(("q", "c")))
+    code, _, err = run_cli("compensate", "kr5-arc", tmp_path / "cal.toml", tmp_path / "plan.csv",
+                           "--out", tmp_path / "commands.csv", "-q")
+    assert code == 0, err
+    commands = list(csv.DictReader((tmp_path / "commands.csv").open()))
+    assert [(r["pose"], r["cycle"]) for r in commands] == [(r["pose"], r["cycle"]) for r in plan]
+    assert all(float(a["cx"]) == float(b["cx"]) and float(a["crz"]) == float(b["crz"]) for a, b in zip(commands, plan))
+    assert any(abs(float(a["q2"]) - float(b["q2"])) > 1e-3 for a, b in zip(commands, plan))  # corrected
+    for name, file in (("before", "plan.csv"), ("after", "commands.csv")):
+        code, _, err = run_cli("simulate", "kr5-arc", *truth_args, "--noise", "0.005", "--joint-noise", "0.001",
+                               "--iso", tmp_path / file, "--out", tmp_path / f"{name}.csv", "-q")
+        assert code == 0, err
+    code, out, err = run_cli("iso9283", "evaluate", tmp_path / "before.csv", tmp_path / "after.csv", "--json",
+                             "--conditions", "payload=2 kg,speed=100 %", "--report", tmp_path / "iso.html")
+    assert code == 0, err
+    before, after = json.loads(out)
+    ap = [max(p["AP_p"] for p in c["poses"]) for c in (before, after)]
+    assert ap[1] < 0.3 * ap[0], ap
+    assert before["conditions"] == {"payload": "2 kg", "speed": "100 %"}
+    page = (tmp_path / "iso.html").read_text()
+    assert "Test conditions" in page and "2 kg" in page and "Not stated: warmup, temperature" in page

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from robocal import calibrate
-from robocal.report.html import FLOOR_GAP, next_steps
+from robocal.report.advice import FLOOR_GAP, next_steps
 from robocal.simulation import simulate
 
 UR10 = Path(__file__).resolve().parents[2] / "examples" / "ur10-ipa" / "series_c.csv"

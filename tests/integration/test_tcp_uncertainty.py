@@ -113,3 +113,40 @@ def test_predicted_uncertainty_is_calibrated_inside_and_outside_the_sampled_join
     z = np.array(z)
     rms_in, rms_out = np.sqrt(np.mean(z[:, :15] ** 2)), np.sqrt(np.mean(z[:, 15:] ** 2))
     assert 0.7 < rms_in < 1.4 and 0.7 < rms_out < 1.4, (rms_in, rms_out)  # 30 draws × 15 poses each
+
+
+def test_the_map_samples_the_measured_workspace_by_default_and_its_colours_tell_its_values_apart():
+    """The UR10's real poses span a box of about 800 × 500 × 500 mm, its joints far more: the default map
+    keeps joint sets whose TCP lies in that box (grown by a tenth); --map-over joints draws anywhere in
+    the joint ranges, mostly outside it, where the model knows its TCP less well."""
+    from pathlib import Path
+
+    from robocal.calibration.config import CalibrationConfig
+    from robocal.exceptions import InputError
+    from robocal.io.measurements import load_measurements
+    from robocal.model.uncertainty import BOX_MARGIN, tcp_map
+
+    meas = load_measurements(Path(__file__).parents[2] / "examples" / "ur10-ipa" / "series_c.csv", n_joints=6)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        result = calibrate("ur10", meas.subset(np.arange(300)), "lm", frames="base+tool")
+    m = tcp_map(result.robot, result.measurements, 0)
+    wide = tcp_map(result.robot, result.measurements, 0, over="joints")
+    B = np.linalg.inv(result.robot.base)  # the box is the base frame's, where the report draws the map
+
+    def base(p):
+        return p @ B[:3, :3].T + B[:3, 3]
+
+    tcp = base(result.robot.positions(result.measurements.q))
+    lo, hi = tcp.min(axis=0), tcp.max(axis=0)
+    grown = BOX_MARGIN * (hi - lo) + 1e-6
+    assert m.over == "workspace" and len(m.sigma) == 2000 and result.to_dict()["tcp_uncertainty"]["over"] == \
+        "workspace"
+    assert np.all(base(m.position) >= lo - grown) and np.all(base(m.position) <= hi + grown)
+    outside = np.any((base(wide.position) < lo - grown) | (base(wide.position) > hi + grown), axis=1)
+    assert outside.mean() > 0.5  # the joint ranges reach far beyond the measured box
+    assert np.median(m.sigma) < np.median(wide.sigma)
+    bright = base(m.brightest()[None])[0]
+    assert np.all(bright >= lo - grown) and np.all(bright <= hi + grown)
+    with pytest.raises(InputError, match="map_over"):
+        CalibrationConfig(map_over="everywhere")

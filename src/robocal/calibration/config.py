@@ -13,6 +13,7 @@ from ..io.measurements import ReadOptions, robot_fields
 from ..model.candidates import FRAME_CHOICES
 from ..model.prior import Prior
 from ..model.terms import TERMS
+from ..model.uncertainty import MAP_OVER
 from ..optimize.lm import LOSSES
 from .fit.instrument import Instrument
 from .fit.noise import NoiseModel
@@ -190,6 +191,8 @@ class CalibrationConfig:
     camera_poses: Mapping[str, tuple[float, ...]] = field(default_factory=dict)
     markers: str | None = None
     pixel_noise: float | None = None
+    #: where the report's uncertainty map draws joint sets (:data:`robocal.model.uncertainty.MAP_OVER`)
+    map_over: str = "workspace"
 
     def __post_init__(self) -> None:
         set_ = object.__setattr__
@@ -209,6 +212,7 @@ class CalibrationConfig:
         set_(self, "angle_noise", noise.orientation)
         set_(self, "k", noise.k)
         opt.choice(self.loss, LOSSES, "loss", "loss")
+        opt.choice(self.map_over, MAP_OVER, "map_over", "uncertainty map's region")
         if self.loss != "linear" and not self.spec.least_squares:
             raise InputError(f"a robust loss applies to lm and hybrid, not {self.method}", option="loss")
         set_(self, "f_scale", opt.number(self.f_scale, "f_scale", minimum=0.0, strict=True))

@@ -78,6 +78,8 @@ class ExportFigures:
             beside = f"; the cameras' poses are in {sidecar}" if sidecar else \
                 "; the cameras' poses are in a robot TOML (export one too)"
             return f"{path}: the geometry and frames, {whole}{beside}"
+        if self.geometric and suffix != ".urdf":  # a kinematics YAML holds the joints alone
+            return f"{path}: the joint geometry, {whole} with the frames in {sidecar or 'the robot TOML beside it'}"
         if self.geometric:
             return f"{path}: the whole model (geometry and frames), {whole}"
         held = f"{frames} {sidecar or 'the robot TOML beside it'})"

@@ -285,7 +285,7 @@ class CalibrationResult:
         (:func:`robocal.model.uncertainty.tcp_map`), worked out when first asked for."""
         if self.measurements is None:
             return None
-        return tcp_map(self.robot, self.measurements, self.config.seed)
+        return tcp_map(self.robot, self.measurements, self.config.seed, self.config.map_over)
 
     @property
     def method(self) -> str:

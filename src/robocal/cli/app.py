@@ -130,7 +130,11 @@ def _run(argv: list[str] | None) -> int:
         print(f"robocal: usage error: {old}", file=sys.stderr)
         return 2
     try:
-        result = app(args=argv, prog_name="robocal", standalone_mode=False)
+        from .help import tidy
+
+        command = typer.main.get_command(app)
+        tidy(command)  # every command's --help: panels, placeholders, texts as written
+        result = command.main(args=argv, prog_name="robocal", standalone_mode=False)
     except InputError as exc:
         print(f"robocal: error: {one_line(exc.render(cli=True))}", file=sys.stderr)
         return 2

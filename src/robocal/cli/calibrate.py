@@ -17,6 +17,7 @@ from .common import (
     markers_option,
     print_json,
     quiet_flag,
+    seed_option,
     tip_link_option,
 )
 
@@ -36,13 +37,15 @@ COMPILE_SAID_S = 1.5
 CONFIG_FIELDS = ("method", "frames", "params", "seed", "objective", "noise", "angle_noise", "k", "loss", "f_scale",
                  "particles", "iterations", "box", "halton", "backend", "model", "harmonics", "payload", "joint_unit",
                  "length_unit", "instrument", "delimiter", "decimal", "euler", "exclude", "point_distance",
-                 "distance_sigma", "prior", "row_order", "cameras", "camera_poses", "markers", "pixel_noise")
+                 "distance_sigma", "prior", "row_order", "cameras", "camera_poses", "markers", "pixel_noise",
+                 "map_over")
 #: the command's own options: its inputs and outputs, how to read them, and what it prints
 CLI_ONLY = ("robot", "data", "validate", "out", "export", "report", "column", "base_link", "tip_link", "quiet",
             "position_only", "poses_out", "exclude_file", "as_json", "require")
 
 
 def _print_summary(result, robot_name: str, data: str) -> None:
+    from ..report.advice import next_steps
     from ..report.tables import (
         BUDGET_COLUMNS,
         FRAME_COLUMNS,
@@ -61,6 +64,8 @@ def _print_summary(result, robot_name: str, data: str) -> None:
 
     out = console()
     out.print(f"[bold]{result.headline_text()}[/bold]")
+    for step in next_steps(result):  # what the report's "What to do next" says, in the same words
+        out.print(f"next: {step}", markup=False, highlight=False)
     out.print(metrics_table(f"{robot_name}: {result.method} on {data} ({result.measurements.describe()})",
                             result.accuracy_columns()))
     for key, figures in result.contact.items():
@@ -114,7 +119,7 @@ def calibrate_cmd(
     validate: Path | None = typer.Option(None, "--validate", help="validation CSV (poses not used to identify)"),
     frames: str = typer.Option("auto", "--frames", help="auto | none | base | base+tool | tcp (auto: registered if "
                                "needed; tcp: the tool point alone, for rows that touched points or planes)"),
-    seed: int = typer.Option(0, "--seed"),
+    seed: int = seed_option("every random choice: swarm starts, cross-validation folds, learned corrections"),
     params: str | None = typer.Option(
         None, "--params", help="candidate joint parameters: auto (every one; for camera rows chosen among frames, "
         "zeros and all by held-out data), all, zeros (each joint's zero), frames (none), wen2019 | kou2022, or a "
@@ -152,6 +157,9 @@ def calibrate_cmd(
     report: Path | None = typer.Option(None, "--report", help="self-contained HTML report to write"),
     poses_out: Path | None = typer.Option(None, "--poses-out", help="per-pose errors CSV to write (calibration and "
                                           "validation poses, outliers and poses outside the region flagged)"),
+    map_over: str = typer.Option("workspace", "--map-over", help="the report's uncertainty map: workspace (joint "
+                                 "sets whose TCP lies in the box the measured poses span) | joints (anywhere in the "
+                                 "calibrated joint ranges, in any combination)"),
     exclude: str | None = typer.Option(None, "--exclude", help="pose ids to leave out, ID[,ID…] (row N for files "
                                        "without pose_id)"),
     exclude_file: Path | None = typer.Option(None, "--exclude-file", help="a file of pose ids to leave out, one a "

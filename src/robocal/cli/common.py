@@ -175,7 +175,8 @@ def camera_pose_option(what: str):
     import typer
 
     return typer.Option(None, "--camera-pose", help=f"NAME=x,y,z,rx,ry,rz: {what} (mm, deg; in the measuring frame, "
-                        "or its link's frame); repeatable")
+                        "or its link's frame); RIGHT@LEFT=x,y,z,rx,ry,rz: camera RIGHT fixed to camera LEFT (a stereo "
+                        "rig), its pose in LEFT's frame, known; repeatable")
 
 
 def markers_option(what: str):
@@ -244,6 +245,13 @@ def summary_option(what: str):
     import typer
 
     return typer.Option(None, "--summary", help=f"write {what} as JSON to this file (what --json prints)")
+
+
+def seed_option(what: str):
+    """``--seed N``: what it seeds; the same seed, the same result."""
+    import typer
+
+    return typer.Option(0, "--seed", help=f"seeds {what} (the same seed, the same result)")
 
 
 def quiet_flag():

@@ -38,6 +38,9 @@ def filter_cmd(
     seed: int = typer.Option(0, "--seed", help="random starts of a nominal inverse with no closed form"),
     verbose: bool = typer.Option(False, "--verbose", help="a table row and a stderr line for every target (default: "
                                  "the flagged targets and the largest corrections, about 20 rows)"),
+    no_stamp: bool = typer.Option(False, "--no-stamp", help="leave out the comment lines a changed program gets "
+                                  "at its top (robocal's version, the calibrated model's file and SHA-256, the "
+                                  "date; RAPID, KRL and URScript)"),
     base_link: str | None = base_link_option(),
     tip_link: str | None = tip_link_option(),
     quiet: bool = quiet_flag(),
@@ -48,6 +51,7 @@ def filter_cmd(
     import sys
 
     from .. import options as opt
+    from ..exceptions import Note
     from ..filtering import Frames, filter_program, language_of, load_program
     from ..io.atomic import atomic_write, together
     from ..io.robotfile import load_robot
@@ -70,7 +74,12 @@ def filter_cmd(
     nom = load_robot(nominal, base_link=base_link, tip_link=tip_link)
     with many_small_objects():
         result = filter_program(calibrated, prog, nom, frames=frames, frames_file=controller_frames, seed=seed)
-    written = result.outputs(out)
+    written = result.outputs(out, None if no_stamp else stamp_lines(calibrated, nominal))
+    if nom.source.startswith("built-in ur"):  # the drawing's DH, where every UR runs its own calibration
+        result.notes.append(Note(f"--nominal {nominal} is the drawing's geometry; a UR controller runs its own "
+                                 "factory calibration (calibration.conf): give that as the nominal (robocal robots "
+                                 "--from-ur FILE --out ur-nominal.toml) so that the corrections are the "
+                                 "calibration's alone"))
     with together():
         for path, data in written:
             atomic_write(path, data)
@@ -97,6 +106,20 @@ def filter_cmd(
         raise typer.Exit(PARTIAL)
 
 
+def stamp_lines(calibrated, nominal) -> list[str]:
+    """What a filtered program says of itself, in ASCII comment lines: who filtered it, when, for which
+    calibrated model (its file's SHA-256) on which controller model, and what a corrected motion is."""
+    import datetime
+
+    from .. import __version__
+    from ..report.header import digest
+
+    today = datetime.datetime.now(datetime.UTC).date().isoformat()
+    return [f"Filtered by robocal {__version__} on {today}: targets corrected for the calibrated model",
+            f"  {calibrated} (sha256 {digest(calibrated)}) on a controller running {nominal};",
+            "  linear and circular motions are corrected at their taught points."]
+
+
 #: rows a default run shows: the flagged targets first, then the largest corrections
 SHOWN_ROWS = 20
 #: stderr lines a default run gives per status before it counts the rest
@@ -115,11 +138,30 @@ def shown_rows(corrections, verbose: bool) -> list:
     return [c for c in corrections if id(c) in keep]
 
 
+#: configuration data that name one joint's quadrant, turn or sign (RAPID cf1/cf4/cf6, FANUC's turn
+#: numbers and flip): the joint (0-based) whose value after the correction says why the datum changed
+_JOINT_OF = {"cf1": 0, "cf4": 3, "cf6": 5, "t1": 0, "t4": 3, "t6": 5, "flip": 4}
+
+
 def config_change(c) -> str:
-    """A corrected target's configuration data that changed, before → after (``S 2→6``)."""
+    """A corrected target's configuration data that changed, before → after, each with why: the joint
+    it names at its corrected value (``cf4 0→-1: j4 at -0.016°``), or the arm's posture it encodes."""
+    import math
+
     after = c.config_after or {}
-    return ", ".join(f"{k} {c.config_before.get(k)}→{v}" for k, v in after.items()
-                     if k in c.config_before and c.config_before.get(k) != v)
+    q = None if c.q is None else [math.degrees(v) for v in c.q]
+    parts = []
+    for k, v in after.items():
+        before = c.config_before.get(k)
+        if k not in c.config_before or before == v:
+            continue
+        joints = [_JOINT_OF[k]] if k in _JOINT_OF else \
+            [i for i in range(6) if (int(before) ^ int(v)) >> i & 1] if k == "T" else \
+            [4] if (k == "S" and (int(before) ^ int(v)) & 4) or (k == "cfx" and (int(before) ^ int(v)) & 1) else []
+        why = ", ".join(f"j{j + 1} at {q[j]:+.3f}°" for j in joints if q is not None and j < len(q)) or \
+            "the arm's posture (front/back, elbow)"
+        parts.append(f"{k} {before}→{v}: {why}")
+    return "; ".join(parts)
 
 
 def _row(c) -> tuple[str, ...]:

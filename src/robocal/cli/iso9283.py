@@ -61,6 +61,9 @@ def evaluate_cmd(
                                           "side by side (before, after)"),
     robot: str | None = typer.Option(None, "--robot", help="robot whose nominal model gives the commanded poses of "
                                       "joint commands"),
+    conditions: list[str] | None = typer.Option(None, "--conditions", help="the test conditions, KEY=VALUE[,…]: "
+                                                "payload, speed, warmup, temperature, instrument, tcp (ISO 9283 §6) "
+                                                "or others; in the report and the JSON; repeatable"),
     report: Path | None = typer.Option(None, "--report", help="HTML report to write"),
     as_json: bool = json_flag("the characteristics of every campaign"),
     summary: Path | None = summary_option("the characteristics"),
@@ -76,11 +79,12 @@ def evaluate_cmd(
     from ..io.robotfile import load_robot
     from ..iso9283.characteristics import characteristics
     from ..iso9283.files import load_campaign
-    from ..report.iso9283 import distance_rows, pose_rows, write_iso9283_report
+    from ..report.iso9283 import distance_rows, parse_conditions, pose_rows, write_iso9283_report
     from ..requirements import parse_requirements
     from .common import check_outputs, console, print_json, print_said, table, verdict
 
     checks = parse_requirements(require, "iso9283")
+    stated = parse_conditions(conditions)
     check_outputs(tuple(measured) + ((robot,) if robot else ()), report=report, summary=summary)
     r = None if robot is None else load_robot(robot)
     results = [characteristics(load_campaign(path, r)) for path in measured]
@@ -91,14 +95,14 @@ def evaluate_cmd(
 
             raise InputError(f"poses {', '.join(p.pose for p in res.poses)} differ from the first campaign's "
                              f"({', '.join(p.pose for p in labels)})", source=str(path))
-    document = [res.to_dict() for res in results]
+    document = [{**res.to_dict(), **({"conditions": stated} if stated else {})} for res in results]
     with together():
         if report is not None:
             import shlex
             import sys
 
             write_iso9283_report(results, [str(p) for p in measured], report, "robocal " + shlex.join(sys.argv[1:]),
-                                 checks, robot)
+                                 checks, robot, stated)
         if summary is not None:
             atomic_write(summary, json.dumps(document, indent=2) + "\n")
     print_said([n for res in results for n in res.notes], quiet)

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import typer
 
-from .common import quiet_flag
+from .common import quiet_flag, seed_option
 
 app = typer.Typer(help="The 2TPR&2TPS parallel mechanism (Chen et al.).", no_args_is_help=True)
 
@@ -64,9 +64,9 @@ def fk_cmd(
 @app.command("sensitivity")
 def sensitivity_cmd(
     out: Path = typer.Option(..., "--out", help="JSON file of mean |E| per case"),
-    poses: int = typer.Option(30, "--poses"),
-    seed: int = typer.Option(0, "--seed"),
-    geometry: str | None = typer.Option(None, "--geometry"),
+    poses: int = typer.Option(30, "--poses", help="random poses per case"),
+    seed: int = seed_option("the swarm and the simulated measurements"),
+    geometry: str | None = typer.Option(None, "--geometry", help="mechanism TOML (default: built-in 2tpr2tps)"),
     quiet: bool = quiet_flag(),
 ) -> None:
     """Chen et al. Fig. 4–9: pose errors for 1 mm of error per parameter over workspace poses."""
@@ -96,9 +96,9 @@ def sensitivity_cmd(
 @app.command("compensate")
 def compensate_cmd(
     errors: float = typer.Option(0.5, "--errors", help="planted errors: uniform ± this many mm on all 28"),
-    targets: int = typer.Option(30, "--targets"),
+    targets: int = typer.Option(30, "--targets", help="random goal poses to compensate"),
     noise: float = typer.Option(0.0, "--noise", help="tracker noise σ, mm"),
-    seed: int = typer.Option(0, "--seed"),
+    seed: int = seed_option("the swarm and the simulated measurements"),
     out: Path | None = typer.Option(None, "--out", help="JSON summary"),
     quiet: bool = quiet_flag(),
 ) -> None:
@@ -126,7 +126,7 @@ def compensate_cmd(
 @app.command("calibrate")
 def calibrate_cmd(
     data: Path = typer.Argument(..., help="CSV with columns L1..L4 (commanded, mm) and x, y, z (measured, mm)"),
-    geometry: str | None = typer.Option(None, "--geometry"),
+    geometry: str | None = typer.Option(None, "--geometry", help="mechanism TOML (default: built-in 2tpr2tps)"),
     out: Path | None = typer.Option(None, "--out", help="result JSON"),
     export: Path | None = typer.Option(None, "--export", help="identified mechanism TOML"),
     quiet: bool = quiet_flag(),

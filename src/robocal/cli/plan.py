@@ -13,6 +13,7 @@ from .common import (
     json_flag,
     markers_option,
     quiet_flag,
+    seed_option,
     summary_option,
     tip_link_option,
 )
@@ -44,8 +45,10 @@ def _print_plan(p, r, poses: int, candidates: int, criterion: str, measure: str,
         c.print(f"predicted validation RMS {p.predicted_rms:.4f} mm counts the measuring noise only: what the model "
                 "cannot take (about half a millimetre of a real arm's geometric fit) comes on top; state it with "
                 "--model-error")
-    c.print("least determined: " + ", ".join(f"{p.names[i]} ± {p.predicted_std[i]:.3g} "
-                                             f"{'rad' if is_angle(p.names[i]) else 'mm'}" for i in worst) + advice)
+    from ..report.tables import shown_sigma
+
+    c.print("least determined: " + ", ".join(f"{p.names[i]} {shown_sigma(p.names[i], p.predicted_std[i])}"
+                                             for i in worst) + advice)
 
 
 def plan_cmd(
@@ -61,7 +64,7 @@ def plan_cmd(
     limits: str | None = typer.Option(None, "--limits", help="per joint lo:hi deg, comma-separated (work cell)"),
     noise: float = typer.Option(0.02, "--noise", help="position noise σ, mm"),
     angle_noise: float = typer.Option(0.001, "--angle-noise", help="orientation noise σ, deg"),
-    seed: int = typer.Option(0, "--seed"),
+    seed: int = seed_option("the candidate joint sets drawn"),
     workspace: str | None = typer.Option(None, "--workspace", help="xmin:xmax,ymin:ymax,zmin:zmax (mm, base frame): "
                                          "where the tool may go"),
     tracker: str | None = typer.Option(None, "--tracker", help="x,y,z of the tracker (mm, base frame): poses keep "

@@ -6,18 +6,20 @@ from pathlib import Path
 
 import typer
 
+from .common import quiet_flag
+
 
 def reproduce_cmd(
     scenario: str = typer.Argument(..., help="wen2019 | kou2022 | chen2023 | all"),
     out: Path = typer.Option(..., "--out", help="folder for summary.md, results.json and figures"),
     quick: bool = typer.Option(False, "--quick", help="shortened settings (a smoke test, not the paper's)"),
     runs: int = typer.Option(10, "--runs", help="runs per swarm method (kou2022)"),
-    seed: int = typer.Option(0, "--seed"),
+    seed: int = typer.Option(0, "--seed", help="seeds the runs: run k uses seed + k"),
     workers: int | None = typer.Option(None, "--workers", help="local worker processes for the repeated runs "
                                        "(default: this process, the fairest timing)"),
     scheduler: str | None = typer.Option(None, "--scheduler", help="a Dask scheduler's address for the repeated "
                                          "runs, tcp://HOST:PORT"),
-    quiet: bool = typer.Option(False, "--quiet", "-q"),
+    quiet: bool = quiet_flag(),
 ) -> None:
     """Re-run a paper's experiment and write what it published beside what robocal measures."""
     from ..papers.reproduce import reproduce

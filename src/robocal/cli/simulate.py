@@ -6,7 +6,15 @@ from pathlib import Path
 
 import typer
 
-from .common import base_link_option, camera_option, camera_pose_option, markers_option, quiet_flag, tip_link_option
+from .common import (
+    base_link_option,
+    camera_option,
+    camera_pose_option,
+    markers_option,
+    quiet_flag,
+    seed_option,
+    tip_link_option,
+)
 
 
 def _degrees(values):
@@ -26,7 +34,7 @@ def simulate_cmd(
         0.0, "--joint-noise-uniform", help="half-width of uniform actual − commanded joints, deg (Wen 2019: 5.7296)"
     ),
     measure: str = typer.Option("pose", "--measure", help="pose | position"),
-    seed: int = typer.Option(0, "--seed"),
+    seed: int = seed_option("the planted errors, the joint sets and the noise"),
     joint_range: str | None = typer.Option(None, "--range", help="LO,HI deg for every joint (within limits)"),
     base: str | None = typer.Option(None, "--base", help="true measuring frame → base: x,y,z[,rx,ry,rz] mm, deg"),
     tool: str | None = typer.Option(None, "--tool", help="true flange → point: x,y,z[,rx,ry,rz] mm, deg"),
@@ -52,6 +60,9 @@ def simulate_cmd(
     camera_pose: list[str] | None = camera_pose_option("where a camera is; default: a fixed camera facing the markers"),
     markers: Path | None = markers_option("with --camera (default: one marker, m1, at the tool point)"),
     pixel_noise: float = typer.Option(0.0, "--pixel-noise", help="pixel noise σ per coordinate, px, with --camera"),
+    iso: Path | None = typer.Option(None, "--iso", help="an ISO 9283 command file (iso9283 plan, or its commands "
+                                    "compensated): the true robot runs its rows' joints, written as a measured "
+                                    "campaign iso9283 evaluate reads (--joint-noise: the robot's repeatability)"),
     base_link: str | None = base_link_option(),
     tip_link: str | None = tip_link_option(),
     out: Path = typer.Option(..., "--out", help="measurement CSV to write"),
@@ -61,14 +72,17 @@ def simulate_cmd(
     """Simulate measurements of a robot with planted deviations."""
     import math
 
+    import numpy as np
+
     from .. import options as opt
     from ..io.atomic import atomic_write, together
     from ..io.measurements import measurements_to_csv
     from ..io.robotfile import load_robot, robot_to_toml
+    from ..math.so3 import matrix_to_rpy
     from ..simulation import simulate
     from .common import check_outputs, console
 
-    check_outputs((robot,), out=out, truth=truth)
+    check_outputs((robot,) + ((iso,) if iso else ()), out=out, truth=truth)
 
     r = load_robot(robot, base_link=base_link, tip_link=tip_link)
     rng = None if joint_range is None else tuple(math.radians(v) for v in opt.floats(joint_range, "range", (2,)))
@@ -98,14 +112,33 @@ def simulate_cmd(
         sim = simulate_contacts(r, poses, setups=setups, contact=contact, spacing=spacing, deviations=errors,
                                 noise=noise, seed=seed, tool=opt.frame_values(tool, "tool"), joint_range=rng)
     else:
-        sim = simulate(r, poses, deviations=errors, noise=noise, angle_noise=math.radians(angle_noise),
-                   joint_noise=math.radians(joint_noise), joint_noise_uniform=math.radians(joint_noise_uniform),
+        commands = None
+        if iso is not None:
+            if contact is not None or cameras:
+                from ..exceptions import InputError
+
+                raise InputError("an ISO 9283 campaign is measured by a tracker: no --contact or --camera",
+                                 option="iso")
+            from ..iso9283.files import load_commands
+
+            commands = load_commands(iso, r.n_joints, r.prismatic if r.prismatic.any() else None)
+            poses = len(commands[2])
+        sim = simulate(r, poses, q=None if commands is None else commands[2], deviations=errors, noise=noise,
+                       angle_noise=math.radians(angle_noise), joint_noise=math.radians(joint_noise),
+                       joint_noise_uniform=math.radians(joint_noise_uniform),
                        measure=measure, seed=seed, joint_range=rng, base=opt.frame_values(base, "base"),
                        tool=opt.frame_values(tool, "tool"), compliance=opt.joint_values(compliance, "compliance"),
                        harmonics=opt.harmonic_specs(harmonic),
                        backlash=_degrees(opt.joint_values(backlash, "backlash")),
                        drift=_degrees(opt.joint_values(drift, "drift")), pose_interval=interval)
-    texts = {out: measurements_to_csv(sim.measurements, prismatic=r.prismatic)}
+    if contact is None and not cameras and iso is not None:
+        from ..iso9283.files import campaign_csv
+
+        m = sim.measurements
+        rpy = None if m.rotation is None else np.degrees(matrix_to_rpy(m.rotation))
+        texts = {out: campaign_csv(commands[0], commands[1], m.position, rpy, commands[3])}
+    else:
+        texts = {out: measurements_to_csv(sim.measurements, prismatic=r.prismatic)}
     if truth is not None:
         planted = ", ".join(f"{k}={v:+.6g}" for k, v in sim.deviations.items() if v) or "none"
         if sim.truth.terms is not None:

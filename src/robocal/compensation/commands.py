@@ -41,6 +41,9 @@ from ..model.robot import Robot
 from ..model.terms import JointInputs, drift_note, missing_torques
 from ..model.uncertainty import region_note
 
+#: the Cartesian command's columns beside an ISO 9283 plan's commanded pose (``send_x`` …)
+ISO_SENT = ("x", "y", "z", "rx", "ry", "rz")
+
 
 @dataclass
 class CompensationResult:
@@ -107,7 +110,11 @@ class CompensationResult:
 
     def to_csv(self) -> str:
         n = self.q.shape[1]
-        header = ["pose_id"] + [f"q{i + 1}" for i in range(n)] + ["cx", "cy", "cz", "crx", "cry", "crz"]
+        # an ISO 9283 plan's commands keep its poses, cycles and commanded poses (cx…, what the test is
+        # judged against); the Cartesian commands to send are then send_x…
+        iso = self.goals.cycles is not None
+        header = (["pose", "cycle"] if iso else ["pose_id"]) + [f"q{i + 1}" for i in range(n)] + \
+            ["cx", "cy", "cz", "crx", "cry", "crz"] + ([f"send_{a}" for a in ISO_SENT] if iso else [])
         header += ["residual_mm", "residual_deg", "dq_max_deg", "status", "reason"]
         if self.true_before is not None:
             header += ["true_error_before_mm", "true_error_after_mm"]
@@ -116,9 +123,12 @@ class CompensationResult:
         w.writerow(header)
         qd = joints_to_file(self.q, self.prismatic)
         rpy = np.degrees(matrix_to_rpy(self.cartesian[:, :3, :3]))
+        goal_rpy = None if not iso or self.goals.rotation is None else np.degrees(matrix_to_rpy(self.goals.rotation))
         dq = np.abs(joints_to_file(self.q - self.q_nominal, self.prismatic)).max(axis=1)
         for j in range(len(qd)):
-            row = [self.goals.ids[j]] + [repr(float(v)) for v in qd[j]]
+            row = [self.goals.ids[j]] + ([self.goals.cycles[j]] if iso else []) + [repr(float(v)) for v in qd[j]]
+            if iso:
+                row += [repr(float(v)) for v in self.goals.position[j]] + [repr(float(v)) for v in goal_rpy[j]]
             row += [repr(float(v)) for v in self.cartesian[j, :3, 3]] + [repr(float(v)) for v in rpy[j]]
             row += [f"{self.residual_mm[j]:.3e}", f"{self.residual_deg[j]:.3e}", f"{dq[j]:.6f}", self.status[j],
                     self.reasons[j] if self.reasons else ""]

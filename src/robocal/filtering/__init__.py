@@ -10,9 +10,9 @@ import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..exceptions import InputError
+from ..exceptions import InputError, Note
 from .correct import Correction, Frames, check, plan, summary_notes
-from .language import Language, language_of, languages
+from .language import Language, language_of, languages, stamped
 from .program import Program, check_finite, encode
 
 
@@ -48,11 +48,16 @@ class FilterResult:
             out[c.status] = out.get(c.status, 0) + 1
         return out
 
-    def outputs(self, out: str | Path) -> list[tuple[Path, bytes]]:
-        """(path, bytes) of every file to write for ``--out``: the program, and its companions beside it."""
+    def outputs(self, out: str | Path, stamp: list[str] | None = None) -> list[tuple[Path, bytes]]:
+        """(path, bytes) of every file to write for ``--out``: the program, and its companions beside it;
+        ``stamp``: comment lines at the top of the program's module or routine where a target changed and
+        the language has comment lines (:func:`~.language.stamped`)."""
         out = Path(out)
+        texts = list(self.texts)
+        if stamp and any(c.corrected for c in self.corrections):
+            texts[0] = stamped(texts[0], self.language, stamp)
         return [(out if f.out_suffix is None else out.with_suffix(f.out_suffix), encode(text, f.encoding))
-                for f, text in zip(self.program.files, self.texts)]
+                for f, text in zip(self.program.files, texts)]
 
     def to_dict(self) -> dict:
         ok = [c for c in self.corrections if c.corrected]
@@ -109,6 +114,9 @@ def filter_program(calibrated, program: str | Path | Program, nominal, *, frames
         check(prog, again, language, corrections, nom, accurate, frames, seed)
         if any(c.status == "check failed" for c in corrections):
             texts = filtered_texts(prog, language, corrections, changes)  # failed checks left as they were
+    if any(c.corrected and c.target.kind == "pose" for c in corrections):
+        notes = notes + [Note("a linear or circular motion is corrected at its taught points: the path between them "
+                              "is the controller's interpolation of the corrected points")]
     return FilterResult(prog, language, texts, corrections, summary_notes(corrections, notes))
 
 

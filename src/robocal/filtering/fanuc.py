@@ -30,7 +30,7 @@ from ..exceptions import InputError
 from ..inverse.configuration import TOLERANCE_RAD
 from ..inverse.solve import Request
 from ..math.so3 import rpy_to_matrix
-from .language import DECIMALS, Language, fixed_xyz, set_number, set_text
+from .language import DECIMALS, Language, angle_decimals, fixed_xyz, set_number, set_text
 from .program import NUMBER, Field, Lines, Program, ProgramFile, Target, read_file
 
 _POSITION = re.compile(r"^P\[(\d+)(?::\s*\"?([^\]\"]*)\"?)?\]\s*\{(.*?)\};", re.S | re.M)
@@ -283,8 +283,9 @@ def write(t: Target, pose: np.ndarray | None, q: np.ndarray | None, config: dict
     for k, v in zip("XYZ", pose[:3, 3]):
         set_number(out, f[k], float(v), DECIMALS["mm"])
     wpr = fixed_xyz(pose[:3, :3], (f["W"].value, f["P"].value, f["R"].value))
+    places = angle_decimals([f[k] for k in "WPR"], wpr)  # the file's own where they carry the correction
     for k, v in zip("WPR", wpr):
-        set_number(out, f[k], float(v), DECIMALS["deg"])
+        set_number(out, f[k], float(v), places)
     for k, v in config.items():
         if k in f:
             set_text(out, f[k], str(v))

@@ -32,7 +32,7 @@ from ..inverse.configuration import TOLERANCE_RAD
 from ..inverse.solve import Request
 from ..math.se3 import homogeneous
 from ..math.so3 import rpy_to_matrix
-from .language import DECIMALS, Language, fixed_xyz, keep_on_boundary, set_number, set_text
+from .language import DECIMALS, Language, angle_decimals, fixed_xyz, keep_on_boundary, set_number, set_text
 from .program import NUMBER, Field, Program, ProgramFile, Target, line_of, read_file
 
 _AGGREGATE = re.compile(r"\{([^{}]*)\}")
@@ -351,8 +351,9 @@ def write(t: Target, pose: np.ndarray | None, q: np.ndarray | None, config: dict
     for k, v in zip("XYZ", pose[:3, 3]):
         set_number(out, f[k], float(v), DECIMALS["mm"])
     c, b, a = fixed_xyz(pose[:3, :3], (f["C"].value, f["B"].value, f["A"].value))
+    places = angle_decimals([f[k] for k in "CBA"], (c, b, a))  # the file's own where they carry the correction
     for k, v in zip("ABC", (a, b, c)):
-        set_number(out, f[k], float(v), DECIMALS["deg"])
+        set_number(out, f[k], float(v), places)
     for k in ("S", "T"):
         if k in config and k in f:
             set_text(out, f[k], krl_spelled(config[k], f[k].text))
@@ -362,4 +363,5 @@ def write(t: Target, pose: np.ndarray | None, q: np.ndarray | None, config: dict
 LANGUAGE = Language(
     name="krl", title="KUKA KRL", suffixes=(".src", ".dat"), read=read, write=write, request=request,
     encode=encode, units="mm, deg", orientation="R = Rz(A)·Ry(B)·Rx(C)",
-    frames="$TOOL/$BASE: TOOL_DATA[n], BASE_DATA[n] from $config.dat, BAS(#TOOL|#BASE, n), FDAT_ACT, inline frames")
+    frames="$TOOL/$BASE: TOOL_DATA[n], BASE_DATA[n] from $config.dat, BAS(#TOOL|#BASE, n), FDAT_ACT, inline frames",
+    stamp=(r"^\s*DEF(?:FCT)?\b[^\n]*", ";"))

@@ -52,6 +52,9 @@ class Language:
     orientation: str
     #: where the language declares its TCPs and user frames
     frames: str
+    #: a stamp's place and comment mark: (the line after which it goes, as a regular expression; the mark
+    #: that begins a comment line), or None where a comment line would renumber the program (FANUC)
+    stamp: tuple[str, str] | None = None
 
 
 def languages() -> dict[str, Language]:
@@ -80,6 +83,26 @@ def language_of(path: Path, fmt: str = "auto") -> Language:
 
 #: decimals written at least: mm 3 (µm), deg 4, a quaternion 8, URScript's m and rad 7
 DECIMALS = {"mm": 3, "deg": 4, "quat": 8, "ur": 7}
+
+
+#: a Cartesian target's angles keep the file's own decimals where, rounded to them, they still turn the
+#: tool to within this of the corrected orientation (half the filter's 0.001° check), deg
+ANGLE_KEEP_DEG = 5e-4
+
+
+def angle_decimals(fields: list[Field], values) -> int:
+    """The decimals to write a Cartesian target's three angles (deg, R = Rz(c)·Ry(b)·Rx(a) of ``values``
+    a, b, c) with: the file's own where they carry the correction, else :data:`DECIMALS` ``deg``."""
+    from ..math.so3 import rpy_to_matrix
+
+    own = min(f.decimals() for f in fields)
+    if own >= DECIMALS["deg"]:
+        return DECIMALS["deg"]
+    exact = np.radians(np.asarray(values, float))
+    rounded = np.radians(np.round(np.asarray(values, float), own))
+    R, Q = rpy_to_matrix(exact), rpy_to_matrix(rounded)
+    turned = math.degrees(math.acos(max(-1.0, min(1.0, (np.trace(R @ Q.T) - 1.0) / 2.0))))
+    return own if turned <= ANGLE_KEEP_DEG else DECIMALS["deg"]
 
 
 def set_number(changes: list, f: Field, value: float, decimals: int) -> None:
@@ -136,3 +159,22 @@ def keep_on_boundary(new: int, fact: int, original: int | None) -> int:
 
 
 __all__ = ["DECIMALS", "Language", "Program", "Target", "languages", "language_of"]
+
+
+def stamped(text: str, language: Language, lines: list[str]) -> str:
+    """``text`` with ``lines`` as comment lines at the top of its module or routine (after the line the
+    language's stamp names, with that body's indentation and the file's line ends); as it is where the
+    language takes no stamp."""
+    import re
+
+    if language.stamp is None or not lines:
+        return text
+    opener, mark = language.stamp
+    newline = "\r\n" if "\r\n" in text else "\n"
+    found = re.search(opener, text, re.MULTILINE)
+    at = 0 if found is None else (text.find("\n", found.end()) + 1 or len(text))
+    if at == len(text) and not text.endswith("\n"):
+        text, at = text + newline, len(text) + len(newline)
+    following = text[at:].split("\n", 1)[0]
+    indent = following[:len(following) - len(following.lstrip(" \t"))] if found is not None else ""
+    return text[:at] + "".join(f"{indent}{mark} {line}{newline}" for line in lines) + text[at:]

@@ -281,4 +281,5 @@ def write(t: Target, pose: np.ndarray | None, q: np.ndarray | None, config: dict
 LANGUAGE = Language(
     name="rapid", title="ABB RAPID", suffixes=(".mod", ".modx", ".prg", ".sys"), read=read, write=write,
     request=request, encode=encode, units="mm, deg", orientation="unit quaternion [q1 q2 q3 q4], scalar first",
-    frames="tooldata and wobjdata (uframe · oframe) the motions name; tool0, wobj0")
+    frames="tooldata and wobjdata (uframe · oframe) the motions name; tool0, wobj0",
+    stamp=(r"^\s*MODULE\b[^\n]*", "!"))

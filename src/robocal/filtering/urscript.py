@@ -245,4 +245,5 @@ def write(t: Target, pose: np.ndarray | None, q: np.ndarray | None, config: dict
 LANGUAGE = Language(
     name="urscript", title="URScript", suffixes=(".script", ".urscript"), read=read, write=write, request=request,
     encode=encode, units="m, rad", orientation="rotation vector (axis × angle, rad)",
-    frames="set_tcp(p[…]); pose_trans(FEATURE, target) with FEATURE a pose variable")
+    frames="set_tcp(p[…]); pose_trans(FEATURE, target) with FEATURE a pose variable",
+    stamp=(r"^\s*def\s+\w+\s*\([^\n]*", "#"))

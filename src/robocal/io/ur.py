@@ -184,6 +184,13 @@ def _check_moves(nominal: Robot, robot: Robot, source: str) -> None:
                          f"millimetres or degrees, or another robot's nominal model?)", source=source)
 
 
+def holds(robot: Robot) -> bool:
+    """Whether a UR kinematics YAML can hold this robot's joints: six turning joints, one chain, each
+    turning about its own z (a URDF's)."""
+    return robot.tree is None and robot.n_joints == 6 and not robot.prismatic.any() and \
+        (robot.convention != "urdf" or bool(np.allclose(robot.geometry[:, U.AX:U.AZ + 1], [0.0, 0.0, 1.0])))
+
+
 def joint_origins(robot: Robot) -> tuple[np.ndarray, np.ndarray]:
     """Each joint's origin O_i (6, 4, 4) in the frame before it, mm, with the joint turning
     about its z axis after it, and the fixed transform left after the last joint's turn
@@ -228,8 +235,8 @@ def ur_kinematics_yaml(robot: Robot, label: str = "") -> tuple[str, list[str]]:
     notes = []
     if not (np.allclose(leftover[:3, 3], 0.0, atol=LEFTOVER_MM) and
             np.allclose(leftover[:3, :3], np.eye(3), atol=LEFTOVER_RAD)):
-        xyz = ", ".join(f"{v:.6g}" for v in leftover[:3, 3])
-        rpy = ", ".join(f"{math.degrees(v):.6g}" for v in matrix_to_rpy(leftover[:3, :3]))
+        xyz = ", ".join(f"{round(v, 4) + 0.0:g}" for v in leftover[:3, 3])  # + 0.0: no "-0"
+        rpy = ", ".join(f"{round(math.degrees(v), 4) + 0.0:g}" for v in matrix_to_rpy(leftover[:3, :3]))
         notes.append(f"the flange sits at xyz ({xyz}) mm, rpy ({rpy}) deg after the last joint's frame: a kinematics "
                      "YAML ends at that frame, so add this offset to the controller's TCP")
     lines = ["kinematics:"]
@@ -240,6 +247,7 @@ def ur_kinematics_yaml(robot: Robot, label: str = "") -> tuple[str, list[str]]:
         if robot.convention == "urdf" and not np.any(g[i, U.RX:U.OFFSET + 1]):
             rpy = g[i, U.ROLL:U.YAW + 1]  # as read: the same rotation, spelt as the file spelt it
         values = [*(O[:3, 3] / 1000.0), *rpy]
-        lines += [f"    {k}: {v!r}" for k, v in zip(KEYS, map(float, values))]
+        # a round-off below a picometre or a nano-radian is a zero, and no zero has a sign
+        lines += [f"    {k}: {(0.0 if abs(v) < 1e-12 else v)!r}" for k, v in zip(KEYS, map(float, values))]
     lines.append(f"  hash: {label or 'calib_robocal'}")
     return "\n".join(lines) + "\n", notes

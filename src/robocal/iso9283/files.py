@@ -29,8 +29,17 @@ from .cube import TestPlan
 
 #: commanded poses of one label that differ more than this between cycles are not one pose (mm, deg)
 SAME_POSE_MM = 1e-3
+#: the columns ``robocal compensate`` adds to an ISO plan's commands: read past, as the commands are
+COMPENSATED = ("residual_mm", "residual_deg", "dq_max_deg", "status", "reason", "true_error_before_mm",
+               "true_error_after_mm", "send_x", "send_y", "send_z", "send_rx", "send_ry", "send_rz")
 #: magnitudes beyond which a value is a typo (mm, deg)
 MAX_MM, MAX_DEG = 1e7, 36_000.0
+
+
+def _short(value: float, decimals: int) -> str:
+    """A command's number to ``decimals`` places (nm, nano-degrees: far below any robot's resolution), so
+    that 2.4999999999999973 reads 2.5 and no zero has a sign."""
+    return repr(round(float(value), decimals) + 0.0)
 
 
 def plan_csv(plan: TestPlan, cycles: int, prismatic=None) -> str:
@@ -43,8 +52,35 @@ def plan_csv(plan: TestPlan, cycles: int, prismatic=None) -> str:
     rpy = plan.rpy_deg()
     for c in range(1, cycles + 1):
         for k, label in enumerate(plan.labels):
-            w.writerow([label, c, *(repr(float(v)) for v in qfile[k]), *(repr(float(v)) for v in plan.position[k]),
-                        *(repr(float(v)) for v in rpy)])
+            w.writerow([label, c, *(_short(v, 9) for v in qfile[k]), *(_short(v, 6) for v in plan.position[k]),
+                        *(_short(v, 9) for v in rpy)])
+    return out.getvalue()
+
+
+def load_commands(path: str | Path, n_joints: int, prismatic=None):
+    """An ISO 9283 command file (a plan, or its compensated commands): each row's pose label, cycle,
+    joints (m, n) rad, and commanded pose (m, 6: mm, deg) — what a simulated campaign runs."""
+    source = str(path)
+    table = read_csv(read_text(path, "ISO 9283 command file"), source=source)
+    columns = [f"q{i + 1}" for i in range(n_joints)]
+    table.require(["pose", "cycle", *columns, "cx", "cy", "cz", "crx", "cry", "crz"])
+    q = joints_from_file(numbers(table, columns, MAX_DEG, "deg"), prismatic)
+    commanded = np.column_stack([numbers(table, ["cx", "cy", "cz"], MAX_MM, "mm"),
+                                 numbers(table, ["crx", "cry", "crz"], MAX_DEG, "deg")])
+    return strings(table, "pose", required=True), strings(table, "cycle", required=True), q, commanded
+
+
+def campaign_csv(labels, cycles, measured: np.ndarray, rpy_deg: np.ndarray | None, commanded: np.ndarray) -> str:
+    """A measured campaign as :func:`load_campaign` reads it: pose, cycle, x, y, z [rx, ry, rz] (mm, deg) and
+    the commanded cx … crz."""
+    out = io.StringIO()
+    w = csv.writer(out, lineterminator="\n")
+    turned = rpy_deg is not None
+    w.writerow(["pose", "cycle", "x", "y", "z", *(("rx", "ry", "rz") if turned else ()), "cx", "cy", "cz", "crx",
+                "cry", "crz"])
+    for k, (label, cycle) in enumerate(zip(labels, cycles)):
+        w.writerow([label, cycle, *(repr(float(v)) for v in measured[k]),
+                    *((repr(float(v)) for v in rpy_deg[k]) if turned else ()), *(repr(float(v)) for v in commanded[k])])
     return out.getvalue()
 
 
@@ -60,6 +96,8 @@ def load_campaign(path: str | Path, robot=None) -> Campaign:
     table.require(["pose", "cycle", "x", "y", "z"])
     known = {"pose", "cycle", "x", "y", "z", "rx", "ry", "rz", "cx", "cy", "cz", "crx", "cry", "crz"}
     for h in table.header:
+        if h in COMPENSATED:  # a compensated command file with the measured x, y, z added
+            continue
         if h not in known and not (h.startswith("q") and h[1:].isdigit()):
             raise InputError(f"unknown column '{h}' (expected pose, cycle, x, y, z, optional rx, ry, rz, and the "
                              "commanded cx, cy, cz [crx, cry, crz] or q1..qN)", source=source)

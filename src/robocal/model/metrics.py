@@ -162,7 +162,8 @@ def table_rows(columns: dict[str, Metrics]) -> list[tuple[str, list[str]]]:
 
 #: the columns of a per-pose table (mm and deg)
 POSE_COLUMNS = ("set", "pose_id", "row", "reflector", "contact", "setup", "dx_mm", "dy_mm", "dz_mm", "error_mm",
-                "rx_deg", "ry_deg", "rz_deg", "angle_deg", "outlier", "outside_region_deg")
+                "rx_deg", "ry_deg", "rz_deg", "angle_deg", "outlier", "outside_region_deg",
+                "outside_joint")
 
 
 #: the columns of a camera row's error in a per-pose table (px), after ``setup``
@@ -184,12 +185,12 @@ def per_pose(robot: Robot, meas: Measurements, label: str = "", outlier_rows=fro
     position error δp (mm, measuring frame; a contact row's offset from its point or plane) and
     its norm, orientation error about x, y, z and its angle (deg; empty for position data),
     whether it was left out as an outlier (``outlier_rows``: file rows), and how far (deg, mm for
-    a sliding joint) it lies outside the region the model was calibrated on."""
+    a sliding joint) it lies outside the region the model was calibrated on, and by which joint most."""
     dp, dr = pose_errors(robot, meas)
-    far = np.zeros(meas.n_poses)
+    far, worst = np.zeros(meas.n_poses), np.zeros(meas.n_poses, int)
     if robot.region is not None:  # degrees for a turning joint, mm for a sliding one
-        d = robot.region.outside(meas.q)
-        far = np.max(np.where(robot.prismatic, d, np.degrees(d)), axis=1)
+        d = np.where(robot.prismatic, *(lambda x: (x, np.degrees(x)))(robot.region.outside(meas.q)))
+        far, worst = np.max(d, axis=1), np.argmax(d, axis=1)
     rows = []
     c = meas.constraints
     seen = np.zeros(meas.n_poses, bool) if meas.camera is None else np.array([bool(x) for x in meas.camera])
@@ -202,7 +203,7 @@ def per_pose(robot: Robot, meas: Measurements, label: str = "", outlier_rows=fro
                 "camera": meas.camera[i], "du_px": float(dp[i, 0]), "dv_px": float(dp[i, 1]),
                 "error_px": float(np.linalg.norm(dp[i, :2])), "dx_mm": "", "dy_mm": "", "dz_mm": "", "error_mm": "",
                 "rx_deg": "", "ry_deg": "", "rz_deg": "", "angle_deg": "", "outlier": int(meas.rows[i]) in outlier_rows,
-                "outside_region_deg": float(far[i])})
+                "outside_region_deg": float(far[i]), "outside_joint": int(worst[i]) + 1 if far[i] > 0 else ""})
             continue
         rows.append({
             "set": label, "pose_id": f"row {int(meas.rows[i])}" if meas.pose_ids is None else meas.pose_ids[i],
@@ -215,5 +216,6 @@ def per_pose(robot: Robot, meas: Measurements, label: str = "", outlier_rows=fro
                 "rx_deg": float(np.degrees(dr[i, 0])), "ry_deg": float(np.degrees(dr[i, 1])),
                 "rz_deg": float(np.degrees(dr[i, 2])), "angle_deg": float(np.degrees(np.linalg.norm(dr[i])))}),
             "outlier": int(meas.rows[i]) in outlier_rows, "outside_region_deg": float(far[i]),
+            "outside_joint": int(worst[i]) + 1 if far[i] > 0 else "",
             **({"camera": "", "du_px": "", "dv_px": "", "error_px": ""} if seen.any() else {})})
     return rows

@@ -352,8 +352,9 @@ class Term:
                 f"{self.remedy.format(j=joint)}")
 
     def never(self, joint: int, parameter: str) -> str:
-        """Why ``parameter`` of joint ``joint`` (1-based), whose basis is zero at every pose, is no parameter."""
-        return f"the {self.name} of joint {joint} has no input at any pose: it is zero, whatever the poses"
+        """Why ``parameter`` of joint ``joint`` (1-based), whose basis is zero at every pose, is no parameter
+        (a term whose input the poses could vary: as :meth:`unvaried` says)."""
+        return self.unvaried(joint, 0)
 
     def plant(self, planted, n: int) -> dict[str, np.ndarray]:
         """Arrays of a simulated truth from the simulation's option (1-based joints)."""

@@ -64,22 +64,39 @@ def predicted_sigma(robot, q: np.ndarray, targets: Sequence[str] | None = None,
     return np.sqrt(var)
 
 
+#: where an uncertainty map draws its joint sets: among those whose TCP lies in the box the measured
+#: points span (the default: where the cell works), or over each joint's calibrated range
+MAP_OVER = ("workspace", "joints")
+#: the measured points' box grows by this share of its size on each side, for the map
+BOX_MARGIN = 0.1
+
+
 @dataclass(frozen=True)
 class UncertaintyMap:
     """Predicted TCP positions (m, 3) mm and their standard uncertainty (m,) mm at joint sets
     drawn over the region the model was calibrated on (each joint's range, in any combination:
-    configurations the poses never took are among them, and show where the model extrapolates);
-    at_poses: the same σ at the calibration poses themselves."""
+    configurations the poses never took are among them, and show where the model extrapolates),
+    kept where their TCP lies in ``box`` ((2, 3) mm, the measured points' box, base frame) with
+    ``over`` ``workspace``; at_poses: the same σ at the calibration poses themselves."""
 
     position: np.ndarray
     sigma: np.ndarray
     at_poses: np.ndarray | None = None
+    over: str = "joints"
+    box: np.ndarray | None = None
 
     def summary(self) -> dict:
-        out = {"points": int(self.sigma.size), **_spread(self.sigma)}
+        out = {"points": int(self.sigma.size), "over": self.over, **_spread(self.sigma)}
+        if self.box is not None:
+            out["box_mm"] = self.box.tolist()
         if self.at_poses is not None:
             out["at_calibration_poses"] = _spread(self.at_poses)
         return out
+
+    def brightest(self, share: float = 0.1) -> np.ndarray:
+        """Where the largest σ lie: the mean position (3,) mm of the top ``share`` of the points."""
+        top = self.sigma >= np.quantile(self.sigma, 1.0 - share)
+        return self.position[top].mean(axis=0)
 
 
 def _spread(sigma: np.ndarray) -> dict:
@@ -87,15 +104,41 @@ def _spread(sigma: np.ndarray) -> dict:
             "max_mm": float(np.max(sigma))}
 
 
+def _in_base(robot, points: np.ndarray) -> np.ndarray:
+    """Points (m, 3) mm of the measuring frame in the robot's base frame."""
+    B = np.linalg.inv(robot.base)
+    return points @ B[:3, :3].T + B[:3, 3]
+
+
 def uncertainty_map(robot, q_low: np.ndarray, q_high: np.ndarray, n: int = 2000, seed: int = 0,
-                    at_poses: np.ndarray | None = None) -> UncertaintyMap:
+                    at_poses: np.ndarray | None = None, box: np.ndarray | None = None) -> UncertaintyMap:
     """The whole model's σ of the TCP at ``n`` joint sets drawn uniformly (seeded) between q_low
-    and q_high (rad), and at_poses: σ already worked out at the calibration poses, kept beside them."""
+    and q_high (rad), and at_poses: σ already worked out at the calibration poses, kept beside them.
+    ``box`` ((2, 3) mm, the robot's base frame): only joint sets whose TCP lies in it (drawn in rounds of
+    candidates; where too few fall in it, the joint ranges' own draw)."""
     rng = np.random.default_rng(seed)
-    q = robot.couple(rng.uniform(np.asarray(q_low, float), np.asarray(q_high, float), (n, len(q_low))))
+    q_low, q_high = np.asarray(q_low, float), np.asarray(q_high, float)
     # a tree's joint sets take its chains in turn: every tip mapped over the same region
-    chains = None if robot.tree is None else [robot.tree.names[i % len(robot.tree.names)] for i in range(n)]
-    return UncertaintyMap(robot.positions(q, chains=chains), predicted_sigma(robot, q, chains=chains), at_poses)
+    names = None if robot.tree is None else robot.tree.names
+
+    def chains(m):
+        return None if names is None else [names[i % len(names)] for i in range(m)]
+
+    if box is not None:
+        kept_q, kept_p = [], []
+        for _ in range(20):  # rounds of candidates: a box a tenth of the reach keeps a few per cent
+            q = robot.couple(rng.uniform(q_low, q_high, (10 * n, len(q_low))))
+            p = robot.positions(q, chains=chains(len(q)))
+            inside = np.all((_in_base(robot, p) >= box[0]) & (_in_base(robot, p) <= box[1]), axis=1)
+            kept_q.append(q[inside])
+            kept_p.append(p[inside])
+            if sum(len(k) for k in kept_q) >= n:
+                break
+        q, p = np.concatenate(kept_q)[:n], np.concatenate(kept_p)[:n]
+        if len(q) >= n // 4:
+            return UncertaintyMap(p, predicted_sigma(robot, q, chains=chains(len(q))), at_poses, "workspace", box)
+    q = robot.couple(rng.uniform(q_low, q_high, (n, len(q_low))))
+    return UncertaintyMap(robot.positions(q, chains=chains(n)), predicted_sigma(robot, q, chains=chains(n)), at_poses)
 
 
 def known_targets(robot, meas) -> list[str] | None:
@@ -103,13 +146,20 @@ def known_targets(robot, meas) -> list[str] | None:
     return meas.targets if meas.targets is not None and all(t in robot.target_names for t in meas.targets) else None
 
 
-def tcp_map(robot, meas, seed: int | None = 0) -> UncertaintyMap | None:
-    """The predicted TCP's σ over the region ``robot`` was calibrated on and at its calibration
-    poses ``meas`` (None without a covariance or a region), the whole model's."""
+def tcp_map(robot, meas, seed: int | None = 0, over: str = "workspace") -> UncertaintyMap | None:
+    """The predicted TCP's σ over the region ``robot`` was calibrated on (``over`` ``workspace``: where its
+    TCP lies in the box the measured points span; ``joints``: anywhere in the joint ranges) and at its
+    calibration poses ``meas`` (None without a covariance or a region), the whole model's."""
     if robot.uncertainty is None or robot.region is None:
         return None
     at_poses = predicted_sigma(robot, meas.q, known_targets(robot, meas), meas.inputs, meas.chain)
-    return uncertainty_map(robot, robot.region.lo, robot.region.hi, seed=seed or 0, at_poses=at_poses)
+    box = None
+    if over == "workspace":
+        points = _in_base(robot, robot.positions(meas.q, chains=meas.chain))  # the TCP at the calibration poses
+        lo, hi = points.min(axis=0), points.max(axis=0)
+        pad = BOX_MARGIN * np.maximum(hi - lo, 1.0)
+        box = np.stack([lo - pad, hi + pad])
+    return uncertainty_map(robot, robot.region.lo, robot.region.hi, seed=seed or 0, at_poses=at_poses, box=box)
 
 
 def region_note(robot, q: np.ndarray, targets: Sequence[str] | None = None,

@@ -75,6 +75,32 @@ def convergence(histories: dict[str, np.ndarray], title: str, ylabel: str = "bes
     return fig
 
 
+def convergence_phases(phases: list[tuple[str, np.ndarray]], title: str, ylabel: str, xlabel: str):
+    """One panel per phase of a fit (the data alone, then with the prior), each its objective against
+    the evaluations on its own log scale: two phases weigh their χ² differently, so one axis would show
+    a step that is no divergence."""
+    from matplotlib.figure import Figure
+    from matplotlib.ticker import MaxNLocator
+
+    phases = [(label, np.asarray(h, float)) for label, h in phases if np.size(h)]
+    fig = Figure(figsize=(7 if len(phases) == 1 else 10, 4), layout="constrained")
+    axes = np.atleast_1d(fig.subplots(1, len(phases)))
+    start = 0
+    for ax, (label, h) in zip(axes, phases):
+        x = start + np.arange(h.size)
+        ax.plot(x, np.maximum(h, 1e-300), lw=1.4, marker="o", ms=3)
+        ax.set_yscale("log")
+        _log_axis(ax.yaxis, h)
+        ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+        ax.set_xlabel(xlabel)
+        ax.set_title(label, fontsize=10)
+        ax.grid(True, which="major", alpha=0.3)
+        start += h.size
+    axes[0].set_ylabel(ylabel)
+    fig.suptitle(title)
+    return fig
+
+
 def iteration_label(methods) -> str:
     """What one step of the x axis is: swarm generations, LM residual evaluations, or both."""
     from ..calibration.registry import METHODS
@@ -129,21 +155,26 @@ def robust_limit(values: np.ndarray) -> float:
     return top
 
 
-def workspace_errors(points: np.ndarray, errors: np.ndarray, title: str, label: str = "|δp| (mm)"):
+def workspace_errors(points: np.ndarray, errors: np.ndarray, title: str, label: str = "|δp| (mm)",
+                     from_zero: bool = True):
     """Where in the workspace the error is: the points (mm) projected on XY, XZ and YZ, coloured
     by a value per point (|δp| mm, or another ``label``).  The colour scale runs to a robust
-    limit (:func:`robust_limit`); the points above it are ringed and counted in the legend."""
+    limit (:func:`robust_limit`); the points above it are ringed and counted in the legend.
+    ``from_zero=False``: it starts at the mirror percentile, so that values that all lie well above
+    zero (an uncertainty map) are told apart."""
     from matplotlib.figure import Figure
     from matplotlib.ticker import MaxNLocator
 
     fig = Figure(figsize=(14, 4.4), layout="constrained")
     axes = fig.subplots(1, 3)
     vmax = robust_limit(errors)
+    vmin = 0.0 if from_zero else min(float(np.percentile(errors, 100.0 - ROBUST_PERCENTILE)), vmax)
+    vmax = vmax if vmax > vmin else vmin + 1e-12
     order = np.argsort(errors)  # the largest drawn last, on top
     points, errors = np.asarray(points)[order], np.asarray(errors)[order]
     above = errors > vmax
     for ax, (i, j) in zip(axes, ((0, 1), (0, 2), (1, 2))):
-        sc = ax.scatter(points[:, i], points[:, j], c=np.minimum(errors, vmax), s=10, cmap="viridis", vmin=0.0,
+        sc = ax.scatter(points[:, i], points[:, j], c=np.clip(errors, vmin, vmax), s=10, cmap="viridis", vmin=vmin,
                         vmax=vmax)
         if above.any():
             ax.scatter(points[above, i], points[above, j], s=46, facecolors="none", edgecolors="tab:red",
@@ -156,8 +187,10 @@ def workspace_errors(points: np.ndarray, errors: np.ndarray, title: str, label: 
         ax.grid(True, alpha=0.3)
     if above.any():
         axes[0].legend(fontsize=8, loc="best")
-    fig.colorbar(sc, ax=list(axes), label=label + (f", scale to the {ROBUST_PERCENTILE:g}th percentile" if
-                                                   above.any() else ""), shrink=0.9)
+    low = f"{100 - ROBUST_PERCENTILE:g}nd"
+    scale = f", scale from the {low} to the {ROBUST_PERCENTILE:g}th percentile" if not from_zero else \
+        f", scale to the {ROBUST_PERCENTILE:g}th percentile" if above.any() else ""
+    fig.colorbar(sc, ax=list(axes), label=label + scale, shrink=0.9)
     fig.suptitle(title)
     return fig
 

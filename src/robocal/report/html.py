@@ -13,6 +13,7 @@ from ..io.atomic import atomic_write
 from ..model.metrics import Metrics, pose_errors, table_rows
 from ..model.parameters import is_angle, is_frame
 from . import figures
+from .advice import as_html, next_steps
 from .header import run_header
 from .tables import (
     FRAME_COLUMNS,
@@ -85,8 +86,10 @@ def _lead(result: CalibrationResult) -> str:
 
 
 def _summary(result: CalibrationResult, d: dict) -> str:
-    rows = f"{result.n_poses} camera rows" if result.unit == "px" else \
-        f"{result.n_poses} poses ({'full pose' if result.full_pose else 'position only'})"
+    meas = result.measurements
+    tracker = meas is None or (meas.camera is None and meas.constraints is None)
+    described = meas.describe() if meas is not None else f"{result.n_poses} poses"
+    rows = f"{described} ({'full pose' if result.full_pose else 'position only'})" if tracker else described
     return (f"<p>Method <b>{html.escape(result.method)}</b> (objective {html.escape(d['objective'])}, seed "
             f"{result.seed}), frames <code>{html.escape(result.frames)}</code>, {rows} "
             f"from <code>{html.escape(result.data)}</code>. "
@@ -123,22 +126,32 @@ def _uncertainty_map(result: CalibrationResult) -> list[str]:
     if m is None:
         return []
     s = m.summary()
+    if m.over == "workspace":
+        box = np.asarray(m.box)
+        where = (f"at {s['points']} joint sets drawn over the calibrated joint ranges whose TCP lies in the box the "
+                 "measured poses span (x {:.0f} to {:.0f}, y {:.0f} to {:.0f}, z {:.0f} to {:.0f} mm, base "
+                 "frame, with a tenth of its size around it)".format(*box.T.ravel()))
+    else:
+        where = (f"at {s['points']} joint sets drawn over the joint ranges the model was calibrated on, in any "
+                 "combination (<code>--map-over joints</code>)")
+    bright = _in_base(result.robot, m.brightest()[None])[0]
     return ["<h2>How well the model knows the TCP</h2><p>The predicted position's standard uncertainty (1σ, rms "
             "radius) from the parameter covariance" + (" and the residual process's variance" if
                                                         result.robot.residual is not None else "")
-            + f", at {s['points']} joint sets drawn over the joint ranges the "
-            f"model was calibrated on, in any combination: median {s['median_mm']:.4f} mm, 95 % below "
-            f"{s['p95_mm']:.4f} mm, largest {s['max_mm']:.4f} mm"
+            + f", {where}: median {s['median_mm']:.4f} mm, 95 % below {s['p95_mm']:.4f} mm, largest "
+            f"{s['max_mm']:.4f} mm"
             + (f"; at the calibration poses themselves median {s['at_calibration_poses']['median_mm']:.4f} mm, "
                f"largest {s['at_calibration_poses']['max_mm']:.4f} mm" if "at_calibration_poses" in s else "")
-            + ". Combinations of joint angles the poses never took lie among them: there the model "
-            "extrapolates, and the map shows it. It is the calibration's own uncertainty (how well these poses "
-            "determine the parameters), not the robot's error; where it is large, more poses there would pin the "
-            "model down. <code>robocal evaluate --uncertainty</code> gives it per pose, outside these ranges too: "
-            "the model is used whole everywhere, and its uncertainty says where it is less known.</p>",
+            + ". The colours run from the 2nd to the 98th percentile, so that the map tells its values apart; the "
+            f"largest tenth lies around x {bright[0]:.0f}, y {bright[1]:.0f}, z {bright[2]:.0f} mm (base frame), "
+            "where more poses would pin the model down most. Combinations of joint angles the poses never took lie "
+            "among the joint sets: there the model extrapolates, and the map shows it. It is the calibration's own "
+            "uncertainty (how well these poses determine the parameters), not the robot's error. <code>robocal "
+            "evaluate --uncertainty</code> gives it per pose, anywhere: the model is used whole everywhere, and its "
+            "uncertainty says where it is less known.</p>",
             _img(figures.workspace_errors(_in_base(result.robot, m.position), m.sigma,
                                           "predicted TCP position uncertainty (base frame)",
-                                          "σ of the predicted position (mm)"))]
+                                          "σ of the predicted position (mm)", from_zero=False))]
 
 
 def _error_figures(result: CalibrationResult) -> list[str]:
@@ -212,20 +225,26 @@ def _exports(result: CalibrationResult) -> list[str]:
                     "camera's optical frame on <code>camera_NAME_optical</code>), and each chain is written beside "
                     "any export as its own robot TOML (<code>NAME.CHAIN.toml</code>) for <code>robocal filter</code> "
                     "and <code>compensate</code>; a kinematics YAML holds one arm, and a tree is not written as one.")
+    from ..io.ur import holds
+
+    yaml = holds(result.robot)
+    kinematics = (" A UR kinematics YAML holds the joints' geometry alone: the measuring frame and the tool are in "
+                  "the robot TOML written beside it." if yaml else "")
     if e.geometric:
-        return [f"<h2>What the exports hold</h2><p>The model is geometry and frames alone: a robot TOML, a URDF and "
-                f"a kinematics YAML carry all of it ({e.whole_rms_mm:.4f} {e.unit} RMS{html.escape(e.at_tool)} "
-                f"{html.escape(e.where)}).{cameras}</p>"]
+        return [f"<h2>What the exports hold</h2><p>The model is geometry and frames alone: a robot TOML and a URDF "
+                f"carry all of it ({e.whole_rms_mm:.4f} {e.unit} RMS{html.escape(e.at_tool)} "
+                f"{html.escape(e.where)}).{kinematics}{cameras}</p>"]
     own = e.geometry_of == "the model's own"
-    return ["<h2>What the exports hold</h2><p>A robot TOML holds the whole model; a URDF or a kinematics YAML only "
-            "geometry and frames" + ("" if own else ": the geometric calibration's, since the model's own geometry was "
-                                     "fitted beside its joint terms, which took their share") +
+    return ["<h2>What the exports hold</h2><p>A robot TOML holds the whole model; a URDF only geometry and frames"
+            + (", a UR kinematics YAML the joints' geometry" if yaml else "")
+            + ("" if own else ": the geometric calibration's, since the model's own geometry was fitted beside its "
+                              "joint terms, which took their share") +
             f". What the receiver then gets, {html.escape(e.where)}:</p>",
             _table(("export", "holds", f"{'reprojection' if e.unit == 'px' else 'position'} RMS ({e.unit})",
                     f"max ({e.unit})"),
                    [("robot TOML (robocal filter, compensate, evaluate)", "the whole model", f"{e.whole_rms_mm:.4f}",
                      f"{e.whole_max_mm:.4f}"),
-                    ("URDF, kinematics YAML (a controller, ROS)",
+                    ("URDF, kinematics YAML (a controller, ROS)" if yaml else "URDF (a controller, ROS)",
                      f"{'' if own else 'the geometric calibration: '}geometry and frames", f"{e.geometry_rms_mm:.4f}",
                      f"{e.geometry_max_mm:.4f}")], left=2),
             "<p>The joint terms and the learned correction reach the robot only through <code>robocal filter</code> "
@@ -317,8 +336,15 @@ def _parameter_tables(result: CalibrationResult, d: dict) -> list[str]:
 def _run_header(result: CalibrationResult, command: str | None) -> str:
     """Who made the report, when, from what: version, date, command, input files with SHA-256,
     robot, poses and the campaign's temperature range."""
-    files = [("data", part) for part in result.data.split(" + ")] + \
-        ([("validation", result.validation.source)] if result.validation else [])
+    from pathlib import Path
+
+    source = result.nominal.source or ""
+    robot_file = [("robot", source)] if source and not source.startswith("built-in") and Path(source).is_file() \
+        else []
+    files = robot_file + [("data", part) for part in result.data.split(" + ")] + \
+        ([("validation", result.validation.source)] if result.validation else []) + \
+        [(f"camera {c.name}", c.path) for c in result.config.cameras] + \
+        ([("markers", result.config.markers)] if result.config.markers else [])
     rows = [("robot", f"{result.nominal.name} ({result.nominal.source or 'given as a Robot'})"),
             ("poses", result.measurements.describe() if result.measurements else str(result.n_poses))]
     meas = result.all_rows or result.measurements
@@ -333,163 +359,64 @@ def _said(result: CalibrationResult) -> list[str]:
 
 
 def _worst(result: CalibrationResult, count: int = 10) -> list[str]:
-    """The poses with the largest errors (validation poses when there are, else calibration ones)."""
+    """The poses with the largest errors (validation poses when there are, else calibration ones): for
+    contact rows with their setup and point or plane, a setup or point most of them share named; the
+    joint a pose lies outside the calibrated region by."""
     rows = result.per_pose()
     if not rows:
         return []
     which = "validation" if any(r["set"] == "validation" for r in rows) else "calibration"
     pixels = result.unit == "px"
+    contact = any(r.get("contact") for r in rows)
     error, parts = ("error_px", ("du_px", "dv_px")) if pixels else ("error_mm", ("dx_mm", "dy_mm", "dz_mm"))
-    rows = sorted((r for r in rows if r["set"] == which and r[error] != ""), key=lambda r: -r[error])[:count]
-    head = ("pose", "row", *(("camera", "marker", "error (px)", "δu", "δv") if pixels else
-                             ("error (mm)", "δx", "δy", "δz")), "flags")
+    rows = [r for r in rows if r["set"] == which and r[error] != ""]
+    worst = sorted(rows, key=lambda r: -r[error])[:count]
+    named = any(r["pose_id"] != f"row {r['row']}" for r in worst)  # else "pose" only repeats "row"
+    head = (*(("pose",) if named else ()), "row", *(("setup", "touched") if contact else ()),
+            *(("camera", "marker", "error (px)", "δu", "δv") if pixels else ("error (mm)", "δx", "δy", "δz")), "flags")
     body = []
-    for r in rows:
+    for r in worst:
+        far = r["outside_region_deg"]
         flags = ", ".join(f for f, on in (("outlier", r["outlier"]),
-                                          (f"{r['outside_region_deg']:.1f}° outside the region",
-                                           r["outside_region_deg"] > 0)) if on)
-        body.append((r["pose_id"] or "—", str(r["row"]), *((r["camera"], r["reflector"]) if pixels else ()),
+                                          (f"{far:.1f}° outside the region (joint {r.get('outside_joint', '?')})",
+                                           far > 0)) if on)
+        body.append((*((r["pose_id"] or "—",) if named else ()), str(r["row"]),
+                     *((str(r["setup"]), r["contact"]) if contact else ()),
+                     *((r["camera"], r["reflector"]) if pixels else ()),
                      f"{r[error]:.4f}", *(f"{r[k]:.4f}" for k in parts), flags))
+    said = _worst_said(worst, rows, contact, error, parts)
     return [f"<h2>The worst {which} {'rows' if pixels else 'poses'}</h2><p>By "
             f"{'reprojection' if pixels else 'position'} error of the calibrated model; "
-            "<code>--poses-out</code> writes every pose.</p>", _table(head, body)]
+            "<code>--poses-out</code> writes every pose.</p>", _table(head, body)] + \
+        [f"<p class='warn'>{html.escape(s)}</p>" for s in said]
 
 
-#: a figure this many times the instrument's floor is the model's, not the instrument's
-FLOOR_GAP = 3.0
-#: the predicted TCP uncertainty over the joint ranges this many times that at the measured poses
-#: asks for poses where it is large
-SPREAD_GAP = 2.0
-#: at most this many suggestions, the most pressing first
-MOST = 3
-
-
-def _headline(result: CalibrationResult) -> tuple[str, float] | None:
-    """The figure the advice weighs: the validation poses' position RMS, else the cross-validated
-    one (what the model does on poses it was not fitted to)."""
-    for key, what in (("validation_after", "on the validation poses"), ("predicted", "cross-validated")):
-        if key in result.metrics:
-            return what, float(result.metrics[key].position["rms"])
-    return None
-
-
-def _floor(result: CalibrationResult) -> float | None:
-    """The instrument's own noise as a position RMS (mm): the figure no model goes below."""
-    row = next((b for b in result.error_budget if b.model.startswith("the instrument's own noise")), None)
-    if row is not None:
-        return row.validation_rms_mm
-    sigma = None if result.measurements is None else result.measurements.sigma_position
-    if sigma is None:
-        return None
-    from ..calibration.select.learned import instrument_noise
-
-    return float(np.sqrt(instrument_noise(sigma)))
-
-
-def _tied_to_cameras(result: CalibrationResult) -> list[str]:
-    """The parameters held by their prior that no pose can tell from where the cameras, the base
-    and the markers are: for a camera on link k, joint k+1's zero and offset along its axis (a turn
-    or a shift along an axis commutes with the joint's own turn, so the camera may take it: MODEL
-    §10), and for Craig's convention the twist and length before that axis; and what the estimate's
-    dependences tie to those or to a frame (the lengths' common scale among them)."""
-    robot = result.robot
-    if not robot.cameras:
-        return []
-    tied = set()
-    for mount in robot.cameras.values():
-        if mount.link and mount.link < robot.n_joints and robot.convention in ("dh", "hayati", "craig"):
-            j = mount.link + 1
-            tied |= {f"theta{j}", f"d{j}"} | ({f"a{j}", f"alpha{j}"} if robot.convention == "craig" else set())
-    at = result.at_estimate
-    groups = [] if at is None else [{name, *related} for name, related in at.dependent.items()]
-    for group in groups * 2:  # twice: a dependence may tie to another that ties to a frame
-        if any(is_frame(n) or n in tied for n in group):  # a camera, the base, a marker: they take it exactly
-            tied |= {n for n in group if not is_frame(n)}
-    return [n for n in result.held if n in tied]
-
-
-def next_steps(result: CalibrationResult) -> list[str]:
-    """At most :data:`MOST` concrete suggestions from the figures the report shows, the most
-    pressing first: physicality, the gap between the model's figure and the instrument's floor,
-    the predicted TCP uncertainty over the calibrated joint ranges, parameters the poses do not
-    pin, outliers, validation poses beyond the data, too few poses.  "Nothing calls for more"
-    only where the figure is near the floor and the uncertainty even over the ranges."""
+def _worst_said(worst: list[dict], rows: list[dict], contact: bool, error: str, parts) -> list[str]:
+    """What the worst rows have in common: most in one setup or at one point (a badly seated artefact
+    is one placement's rows), or the worst one beyond the calibrated region."""
     out = []
-    meas = result.measurements
-    if not result.physical.physical:
-        out.append(f"The calibrated model is not physical: {html.escape(result.physical.listed())} (likely cause: "
-                   f"{html.escape(result.physical.cause)}). Do not load it into a controller: check the nominal model, "
-                   "and measure poses that move the joints these parameters belong to.")
-    headline, floor = _headline(result), _floor(result)
-    if headline is not None and floor is not None and headline[1] > FLOOR_GAP * floor:
-        what, figure = headline
-        if result.model == "geometric":
-            act = ("calibrate with <code>--model auto</code> to try joint terms (compliance, harmonics, backlash, "
-                   "drift) and learned corrections")
-        else:
-            act = ("the model chosen already holds what cross-validation could find; what remains is repeatable "
-                   "error robocal does not model (temperature, a loaded tool, the tracker's own setup) or poses "
-                   "too sparse for it: measure more poses over the working range")
-        out.append(f"The model predicts {figure:.3g} mm RMS {what}, {figure / floor:.0f}× the instrument's own "
-                   f"{floor:.3g} mm: the difference is the model's, not the instrument's. To take more of it, {act}.")
-    m = result.tcp_uncertainty
-    if m is not None and m.at_poses is not None and len(m.at_poses):
-        summary, at = m.summary(), float(np.median(m.at_poses))
-        if summary["median_mm"] > SPREAD_GAP * at:
-            out.append(f"Over the calibrated joint ranges the predicted TCP uncertainty is {summary['median_mm']:.3g} "
-                       f"mm (median; 95 % below {summary['p95_mm']:.3g} mm), {summary['median_mm'] / at:.1f}× that "
-                       "at the measured poses: the model is sure of itself only near them. Measure poses where the "
-                       "uncertainty map is bright before relying on it across the workspace.")
-    tied = _tied_to_cameras(result)
-    if tied:
-        out.append(f"{html.escape(', '.join(tied))} cannot be told from where the cameras, the base and the markers "
-                   "are, nor from the lengths' common scale: the pixels see the same whichever takes the difference, "
-                   "so the prior holds it (MODEL §10). No pose separates them; a camera's pose known by other means "
-                   "(--camera-pose), markers of known offsets or sizes (--markers), or tracker rows would.")
-    held = [n for n in result.held if n not in tied]
-    if held:
-        many = len(held) > 1
-        out.append(f"The poses do not pin {html.escape(', '.join(held))}: {'they are' if many else 'it is'} "
-                   f"held by {'their' if many else 'its'} prior (the nominal value within its width, MODEL §3.1), not "
-                   f"measured. Poses that move {'their' if many else 'its'} joints more widely would measure "
-                   f"{'them' if many else 'it'}.")
-    g, inst = result.goodness_of_fit, result.instrument
-    if result.model == "geometric" and floor is None and ((g is not None and g.misfit()) or (
-            inst is not None and inst.reduced_chi2 and inst.reduced_chi2 > 4)):
-        beyond = "" if inst is None else f" ({inst.reduced_chi2:.3g}× the instrument's noise in χ²)"
-        out.append(f"The geometric model leaves systematic error{beyond}: calibrate with <code>--model auto</code> "
-                   "to try joint terms (compliance, harmonics, backlash, drift) and a residual process.")
-    if result.outliers:
-        ids = ", ".join(str(o.get("pose_id") or f"row {o['row']}") for o in result.outliers[:5])
-        out.append(f"{len(result.outliers)} pose(s) were left out as outliers ({html.escape(ids)}): re-check or "
-                   "re-measure them; <code>--exclude</code> leaves a pose out on purpose.")
-    region = result.robot.region
-    if result.validation is not None and region is not None:
-        far = region.outside(result.validation.q)
-        if result.robot.uncertainty is not None and region.sigma_mm:  # where the model knows less, by its σ
-            from ..model.region import SIGMA_FACTOR
-            from ..model.uncertainty import known_targets, predicted_sigma
-
-            v = result.validation
-            loose = predicted_sigma(result.robot, v.q, known_targets(result.robot, v), v.inputs, v.chain) > \
-                SIGMA_FACTOR * region.sigma_mm
-            far = np.where(loose[:, None], far, 0.0)
-        if np.any(far > 0):
-            j = int(np.argmax(far.max(axis=0)))
-            out.append(f"{int(np.sum(far.max(axis=1) > 0))} validation pose(s) lie outside the joint ranges calibrated "
-                       f"on where the model knows its TCP less well, joint {j + 1} most: measure calibration poses "
-                       "that cover its range.")
-    if meas is not None and meas.n_poses < 5 * len(result.names):
-        out.append(f"{meas.n_poses} poses for {len(result.names)} parameters: about {5 * len(result.names)} would "
-                   "pin them down better.")
-    if out:
-        return out[:MOST]
-    if headline is None or floor is None:
-        return ["No diagnostic calls for more. The instrument's noise is not stated (sx, sy, sz columns, or "
-                "<code>--instrument</code>), so how far the model's figure lies above it is not known."]
-    return [f"Nothing calls for more: the model predicts {headline[1]:.3g} mm RMS {headline[0]}, within "
-            f"{FLOOR_GAP:g}× the instrument's own {floor:.3g} mm, and its predicted TCP uncertainty over the "
-            f"calibrated joint ranges is near that at the measured poses."]
+    if contact and len(worst) >= 4:
+        for key, what in (("setup", "setup"), ("contact", "")):
+            values = [r[key] for r in worst if r[key] != ""]
+            if not values:
+                continue
+            top = max(set(values), key=values.count)
+            share = sum(r[key] == top for r in rows) / len(rows)
+            if values.count(top) >= max(3, 0.5 * len(worst)) and values.count(top) > 2 * share * len(worst):
+                axis = max(parts, key=lambda k: np.mean([abs(r[k]) for r in worst if r[key] == top]))
+                spread = [r[axis] for r in worst if r[key] == top]
+                place = f"{what} {top}".strip()
+                out.append(f"{values.count(top)} of the {len(worst)} worst rows are in {place} ({share:.0%} of the "
+                           f"rows), δ{axis[1]} {min(spread):+.2f} to {max(spread):+.2f} mm: something of that "
+                           f"{'placement' if key == 'setup' else 'point or plane'} (a badly seated artefact, a worn "
+                           "socket) that the rest do not share")
+                break
+    first = worst[0] if worst else None
+    if first is not None and first["outside_region_deg"] > 0:
+        out.append(f"The largest error, {first[error]:.4f} {'px' if error == 'error_px' else 'mm'}, is "
+                   f"{first['pose_id']}, {first['outside_region_deg']:.1f}° outside the joint ranges the "
+                   f"model was calibrated on (joint {first.get('outside_joint', '?')}): there the model extrapolates.")
+    return out
 
 
 def _camera_figures(result: CalibrationResult, where, label: str, after: np.ndarray) -> list[str]:
@@ -526,11 +453,15 @@ def calibration_html(result: CalibrationResult, command: str | None = None) -> s
              f"<style>{_CSS}</style></head><body>", f"<h1>Calibration of {html.escape(result.nominal.name)}</h1>",
              _run_header(result, command), _lead(result), _summary(result, d)]
     parts += _said(result)
-    parts += ["<h2>What to do next</h2>"] + [f"<p class='next'>{s}</p>" for s in next_steps(result)]
+    parts += ["<h2>What to do next</h2>"] + [f"<p class='next'>{as_html(s)}</p>" for s in next_steps(result)]
     parts += _exports(result)
     cols = result.accuracy_columns()
     contact = _contact(result)
-    parts.append("<h2>Accuracy</h2><p>“Before” is the nominal geometry with the registered frames; “after (fit)” "
+    nominal = result.initial.source or result.initial.name
+    ur = nominal.startswith("built-in ur")
+    parts.append(f"<h2>Accuracy</h2><p>“Before” is the nominal geometry ({html.escape(nominal)}"
+                 + (": the drawing's DH, not the factory calibration a UR controller runs, which <code>robocal robots "
+                    "--from-ur</code> reads" if ur else "") + ") with the registered frames; “after (fit)” "
                  "the calibrated model on the poses it was fitted to, which flatters it; "
                  + ("“validation” the poses kept out of the fit. " if result.validation else
                     f"“predicted” what the model does on {html.escape(result.held_out)}, each held out of a refit. ")
@@ -548,7 +479,7 @@ def calibration_html(result: CalibrationResult, command: str | None = None) -> s
     parts += _model_tables(result)
     parts.append("<h2>Convergence</h2>")
     opt = result.optimization
-    drawn, phases, marks = len(opt.history), opt.extra.get("history_phases"), None
+    drawn, phases = len(opt.history), opt.extra.get("history_phases")
     if result.config.spec.swarm is not None:  # a point per generation, each evaluating every particle
         said = [f"one point per generation of the swarm and per residual evaluation of the LM after it "
                 f"({drawn} points; {opt.nfev} objective evaluations in all, a generation evaluating every particle)"]
@@ -556,18 +487,22 @@ def calibration_html(result: CalibrationResult, command: str | None = None) -> s
     else:
         said = [f"{drawn} of the {opt.nfev} residual evaluations are drawn" if drawn < opt.nfev else
                 f"all {drawn} residual evaluations are drawn"]
+    history = np.asarray(opt.history, float)
+    segments = [(f"{result.method}", history)]
     if phases and len(phases) == 2 and phases[1] and sum(phases) <= drawn:
-        marks = {phases[0] - 0.5: "with the prior"}
+        segments = [(f"the data alone ({phases[0]})", history[:phases[0]]),
+                    (f"with the prior ({phases[1]})", history[phases[0]:phases[0] + phases[1]])]
         said.append(f"the first {phases[0]} fit the data alone, for the scale of their noise, the next {phases[1]} fit "
-                    "with the prior weighed by that noise (its χ² is on those weights: the curve steps there)")
+                    "with the prior weighed by that noise: each phase on its own panel and scale, since their χ² "
+                    "are weighed differently")
     if drawn < opt.nfev:
         said.append(f"the other {opt.nfev - drawn}, refits after reweighting by the estimated or the instrument's "
                     "noise, are not (χ² under other weights is another scale), so the last point is not the final "
                     "χ²")
     parts.append(f"<p>{'; '.join(said).capitalize()}.</p>")
-    parts.append(_img(figures.convergence({result.method: opt.history}, f"{result.method}: best objective",
-                                          objective_label(result), figures.iteration_label([result.method]),
-                                          marks)))
+    what = "best objective per generation" if result.config.spec.swarm is not None else "objective per evaluation"
+    parts.append(_img(figures.convergence_phases(segments, f"{result.method}: {what}", objective_label(result),
+                                                 figures.iteration_label([result.method]))))
     parts += _parameter_tables(result, d)
     parts.append("<p>Generated by robocal.</p></body></html>")
     return "\n".join(parts)

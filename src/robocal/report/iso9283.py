@@ -34,6 +34,41 @@ def distance_rows(results: list) -> tuple[list[str], list[list[str]]]:
     return head, rows
 
 
+#: the test conditions an ISO 9283 report states (ISO 9283:1998 §6), in the order shown
+CONDITIONS = (("payload", "load at the TCP (the standard: 100 % of the rated load)"),
+              ("speed", "speed of the moves (100 %, 50 % and 10 % of the rated speed)"),
+              ("warmup", "warm-up before the test"), ("temperature", "ambient temperature"),
+              ("instrument", "measuring system"), ("tcp", "measuring point's offset from the flange"))
+
+
+def parse_conditions(items) -> dict[str, str]:
+    """``KEY=VALUE[,KEY=VALUE…]`` items (repeatable) as an ordered dict; a key is a word."""
+    import re
+
+    from ..exceptions import InputError
+
+    out: dict[str, str] = {}
+    for item in items or ():
+        for part in str(item).split(","):
+            key, eq, value = part.partition("=")
+            key = key.strip().lower()
+            if not eq or not re.fullmatch(r"[a-z][a-z0-9_-]*", key) or not value.strip():
+                raise InputError(f"expected KEY=VALUE (payload=5 kg, speed=100 %, …), got {part.strip()!r}",
+                                 option="conditions")
+            out[key] = value.strip()
+    return out
+
+
+def _conditions(conditions: dict[str, str]) -> str:
+    """The test-conditions block: each stated one, and the standard's that were not stated."""
+    known = dict(CONDITIONS)
+    rows = [[key, known.get(key, ""), value] for key, value in conditions.items()]
+    missing = [key for key, _ in CONDITIONS if key not in conditions]
+    said = (f"<p>Not stated: {', '.join(missing)} (<code>--conditions KEY=VALUE</code>); an ISO 9283 report "
+            "states every one.</p>") if missing else ""
+    return "<h2>Test conditions</h2>" + (_table(["condition", "what", "value"], rows) if rows else "") + said
+
+
 def _table(head, rows) -> str:
     h = "".join(f"<th>{html.escape(c)}</th>" for c in head)
     b = "".join("<tr>" + "".join(f"<td>{html.escape(c)}</td>" for c in r) + "</tr>" for r in rows)
@@ -41,7 +76,7 @@ def _table(head, rows) -> str:
 
 
 def iso9283_html(results: list, sources: list[str], command: str | None = None, requirements=(),
-                 robot: str | None = None) -> str:
+                 robot: str | None = None, conditions: dict[str, str] | None = None) -> str:
     """The report of one or more campaigns side by side, headed like calibrate's (version, date,
     command, each campaign's file with its SHA-256) and, with ``requirements``, the verdict of the
     last campaign against them."""
@@ -76,6 +111,7 @@ def iso9283_html(results: list, sources: list[str], command: str | None = None, 
              run_header(command, "robocal.iso9283", [(f"campaign {r.name}", s) for r, s in zip(results, sources)],
                         rows),
              *verdict,
+             _conditions(conditions or {}),
              f"<p>Campaigns: {campaigns}. Pose accuracy AP is the distance from the commanded pose to the "
              "barycentre of the attained ones; repeatability RP_l = l̄ + 3 S_l about that barycentre (ISO "
              "9283:1998 §7.2); distance accuracy AD and repeatability RD between each pair of poses (§7.3). "
@@ -89,5 +125,5 @@ def iso9283_html(results: list, sources: list[str], command: str | None = None, 
 
 
 def write_iso9283_report(results: list, sources: list[str], path: str | Path, command: str | None = None,
-                         requirements=(), robot: str | None = None) -> None:
-    atomic_write(path, iso9283_html(results, sources, command, requirements, robot))
+                         requirements=(), robot: str | None = None, conditions: dict[str, str] | None = None) -> None:
+    atomic_write(path, iso9283_html(results, sources, command, requirements, robot, conditions))

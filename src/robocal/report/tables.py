@@ -20,7 +20,8 @@ from ..model.terms import reported_unit
 PARAMETER_COLUMNS = ("parameter", "unit", "nominal", "identified", "deviation", "± σ", "prior ± σ", "note")
 #: what the table says of a parameter its prior holds (MODEL §3.1)
 HELD_NOTE = "held by its prior: the poses do not pin it"
-FRAME_COLUMNS = ("frame", "identified xyz (mm)", "identified rpy (deg)", "change from registration", "note")
+FRAME_COLUMNS = ("frame", "in", "identified xyz (mm)", "identified rpy (deg)", "σ xyz (mm); rpy (deg)",
+                 "change from registration", "note")
 
 
 def _number(value: float, angle: bool | None) -> str:
@@ -44,6 +45,12 @@ def _kind(name: str, terms=None) -> tuple[bool | None, str]:
         # a joint term's own unit: degrees of an angle (per its clock), else as identified
         return (True if shown[0].startswith("deg") else None), shown[0]
     return (True, "deg") if is_angle(name) else (False, "mm")
+
+
+def shown_sigma(name: str, sigma: float, terms=None) -> str:
+    """A parameter's σ as every table shows it: "± 0.000519 deg", "± 0.012 mm" (3 significant digits)."""
+    angle, unit = _kind(name, terms)
+    return f"± {math.degrees(sigma) if angle else sigma:.3g} {unit}"
 
 
 def _absorbs(result: CalibrationResult, name: str) -> str:
@@ -102,6 +109,10 @@ def frame_rows(result: CalibrationResult) -> list[tuple[str, ...]]:
         where = "in the measuring frame" if mount.link == 0 else f"on link {mount.link}"
         cameras[f"camera[{name}]"] = "given" if mount.known else where
     estimated = set(n.rsplit("_", 1)[0] for n in result.names if is_frame(n))
+    inside = {"base": "measuring frame", "tool": "flange"}
+    for name, mount in result.robot.cameras.items():
+        inside[f"camera[{name}]"] = f"camera {mount.of}" if mount.of else \
+            "measuring frame" if mount.link == 0 else f"link {mount.link}"
     rows = []
     for frame, (before, after) in frames.items():
         xyz, rpy = transform_to_xyz_rpy(after)
@@ -121,8 +132,29 @@ def frame_rows(result: CalibrationResult) -> list[tuple[str, ...]]:
         rpy_text = ", ".join(_number(v, True) for v in rpy)
         if frame in estimated and not rotation_identified and frame != "base":
             rpy_text = "not identified"
-        rows.append((frame, ", ".join(_number(v, False) for v in xyz), rpy_text, change, note))
+        where = inside.get(frame, "flange" if frame.startswith("tool[") else "")
+        rows.append((frame, where, ", ".join(_number(v, False) for v in xyz), rpy_text, _frame_sigma(result, frame),
+                     change, note))
     return rows
+
+
+def _frame_sigma(result: CalibrationResult, frame: str) -> str:
+    """A frame's standard uncertainties as estimated: x, y, z (mm); rx, ry, rz (deg), "—" where not."""
+    if result.covariance is None:
+        return "—"
+    index = {n: i for i, n in enumerate(result.names)}
+
+    def sigma(axis: str) -> str:
+        i = index.get(f"{frame}_{axis}")
+        if i is None or not np.isfinite(result.covariance[i, i]):
+            return "—"
+        value = float(np.sqrt(max(result.covariance[i, i], 0.0)))
+        return f"{math.degrees(value) if axis.startswith('r') else value:.2g}"
+
+    xyz, rpy = [sigma(a) for a in ("x", "y", "z")], [sigma(a) for a in ("rx", "ry", "rz")]
+    if set(xyz + rpy) == {"—"}:
+        return "—"
+    return ", ".join(xyz) + "; " + ", ".join(rpy)
 
 
 def chain_table(result: CalibrationResult) -> tuple[str, tuple[str, ...], list[tuple[str, ...]]]:
