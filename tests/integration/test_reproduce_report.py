@@ -68,7 +68,11 @@ def test_kou2022_quick_outputs(quick_all):
     assert r["lm"]["metrics"]["after"]["position"]["max"] < 1e-6
     assert isinstance(r["time_reduction_pct"], float)
     text = (d / "summary.md").read_text()
-    assert f"| {r['time_reduction_pct']:.1f} % |" in text
+    assert f"wall time {r['time_reduction_pct']:.1f} % (median of the pairs" in text
+    # the verdict rests on the evaluations saved, which the seeds fix: the same on any machine, under any load
+    evaluations = r["swarms"]["ldpso-bt"]["evaluations"] / r["swarms"]["pso"]["evaluations"]
+    assert r["work_reduction_pct"] == pytest.approx(100 * (1 - evaluations))
+    assert f"| {r['work_reduction_pct']:.1f} % of the objective evaluations" in text
     best = r["swarms"]["pso"]["axis_max_after_best"]
     measured = re.escape("/".join(fmt(best[a], 3) for a in "xyz"))
     assert re.search(r"\| after PSO, best run \(mm\) \| [\d./]+ \| " + measured, text)

@@ -43,11 +43,20 @@ def print_notes(messages, quiet: bool = False) -> None:
         print(f"robocal: note: {one_line(m)}", file=sys.stderr)
 
 
+def _titled(title: str, body):
+    """A table under its title on a line of its own, never folded: a file's path in a title stays whole
+    (rich would break it at the table's width)."""
+    from rich.console import Group
+    from rich.text import Text
+
+    return Group(Text(title, style="italic", no_wrap=True, overflow="ignore"), body)
+
+
 def metrics_table(title: str, columns: dict):
     """A before/after style table: one column per Metrics."""
     from rich.table import Table
 
-    table = Table(title=title)
+    table = Table()
     table.add_column("error")
     for name in columns:
         table.add_column(name, justify="right")
@@ -55,21 +64,21 @@ def metrics_table(title: str, columns: dict):
 
     for label, values in table_rows(columns):
         table.add_row(label, *values)
-    return table
+    return _titled(title, table)
 
 
 def table(title: str, columns, rows, justify: str = "right", text_columns: tuple[int, ...] = ()):
     """A rich table; ``text_columns`` (names, notes) stay left whatever ``justify`` says."""
     from rich.table import Table
 
-    t = Table(title=title)
+    t = Table()
     for i, c in enumerate(columns):
         t.add_column(c, justify="left" if i in text_columns else justify)
     from rich.markup import escape
 
     for r in rows:  # cells are text: tool[NAME] and camera[NAME] are names, not markup
         t.add_row(*(escape(c) if isinstance(c, str) else c for c in r))
-    return t
+    return _titled(title, t)
 
 
 @contextlib.contextmanager

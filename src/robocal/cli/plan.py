@@ -53,7 +53,7 @@ def _print_plan(p, r, poses: int, candidates: int, criterion: str, measure: str,
 
 def plan_cmd(
     robot: str = typer.Argument(..., help="robot file or built-in name"),
-    poses: int = typer.Option(30, "--poses", help="number of poses to measure"),
+    poses: int = typer.Option(30, "--poses", help="number of poses to measure (with --socket: for each socket)"),
     candidates: int = typer.Option(2000, "--candidates", help="random joint sets to choose from"),
     criterion: str = typer.Option("O1", "--criterion", help="O1 | O2 | O3 | O4 | D"),
     measure: str = typer.Option("pose", "--measure", help="pose | position"),
@@ -153,9 +153,10 @@ def _plan_sockets(r, sockets, poses, candidates, seed, jr, out, report, as_json,
               for q, k in zip(p.q, p.socket)]
     document = p.summary()
     _write(lines, document, out, report, as_json, quiet, lambda: (
-        f"{len(p.q)} configurations at {len(places)} socket(s) ({', '.join(map(str, p.reachable))} distinct "
-        f"reaching configurations drawn): log det of the information per parameter {p.value:.3f} against "
-        f"{document['random_median']:.3f} for the median of {len(p.random_values)} random choices; wrote {out}"))
+        f"{len(p.q)} configurations, {len(p.q) // max(len(places), 1)} at each of {len(places)} socket(s) "
+        f"({', '.join(map(str, p.reachable))} distinct reaching configurations drawn): log det of the information "
+        f"per parameter {p.value:.3f} against {document['random_median']:.3f} for the median of "
+        f"{len(p.random_values)} random choices; wrote {out}"))
 
 
 def _write(lines, document, out, report, as_json, quiet, said) -> None:

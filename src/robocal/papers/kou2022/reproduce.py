@@ -131,6 +131,10 @@ def kou2022(out: Path, *, quick: bool = False, runs: int = 10, seed: int = 0, sa
         "lm": entry(lm), "hybrid": entry(hybrid),
     }
     results["time_reduction_pct"] = 100.0 * (1.0 - float(np.median(results["time_ratios"])))
+    results["time_reduction_iqr_pct"] = [100.0 * (1.0 - float(q)) for q in np.percentile(results["time_ratios"],
+                                                                                          [75, 25])]
+    # the saving of work: objective evaluations, which the seed fixes (wall time moves with the machine's load)
+    results["work_reduction_pct"] = 100.0 * (1.0 - stats["ldpso-bt"]["evaluations"] / stats["pso"]["evaluations"])
     _figures(out, robot, sim.measurements, swarm_runs, lm, hybrid)
     write_json(out / "results.json", results)
     atomic_write(out / "summary.md", summary(results))
@@ -158,8 +162,10 @@ def _axes(d: dict) -> str:
 def _published_rows(r: dict) -> list[str]:
     s, P = r["swarms"], PUBLISHED
     red, published_red = r["time_reduction_pct"], P["time_reduction_pct"]
-    red_verdict = ("reproduces it" if abs(red - published_red) <= 10 else "beats it" if red > published_red
+    work = r.get("work_reduction_pct", red)  # the verdict is on the work saved: the seed fixes it, the load not
+    red_verdict = ("reproduces it" if abs(work - published_red) <= 10 else "beats it" if work > published_red
                    else "does not reproduce it")
+    low, high = r.get("time_reduction_iqr_pct", [red, red])
     ratio = s["ldpso-bt"]["fitness_mean"] / s["pso"]["fitness_mean"]
     fitness_verdict = (f"reproduces it (within {100 * SAME_FITNESS:g} %)" if abs(ratio - 1) <= SAME_FITNESS
                        else f"does not reproduce it: LDPSO-BT ends at {fmt(ratio, 3)}× PSO's")
@@ -172,8 +178,9 @@ def _published_rows(r: dict) -> list[str]:
         f"| after LDPSO-BT, best run (mm) | {_published(P['ldpso-bt'], 2)} | "
         f"{_axes(s['ldpso-bt']['axis_max_after_best'])} | "
         f"{verdict_axes(s['ldpso-bt']['axis_max_after_best'], P['ldpso-bt'])} |",
-        f"| LDPSO-BT time saving over PSO | {published_red} % | {red:.1f} % | {red_verdict} (expected from "
-        f"particle counts alone: {fmt(expected, 3)} %) |",
+        f"| LDPSO-BT time saving over PSO | {published_red} % | {work:.1f} % of the objective evaluations; wall "
+        f"time {red:.1f} % (median of the pairs, {low:.0f} to {high:.0f} % over the middle half) | {red_verdict}, on "
+        f"the evaluations (expected from particle counts alone: {fmt(expected, 3)} %) |",
         f"| mean fitness LDPSO-BT vs PSO | “about the same” | ratio {fmt(ratio, 3)} | {fitness_verdict} |",
     ]
 
@@ -192,7 +199,8 @@ def summary(r: dict) -> str:
          else f"run on {r['executor']}, each timed on its own worker.") + " Time is the optimizer's own wall time, "
         "after a",
         f"warm-up that compiled or loaded the kernels ({fmt(r['warm_up_s'], 3)} s, not counted); the time saving is",
-        "the median over the pairs of runs of 1 − t(LDPSO-BT)/t(PSO).", "",
+        "the median over the pairs of runs of 1 − t(LDPSO-BT)/t(PSO); its verdict is on the objective evaluations",
+        "saved, which the seeds fix, since wall time moves with the machine's load.", "",
         "## Published against measured", "",
         "| published figure | paper | robocal | verdict |", "|---|---|---|---|", *_published_rows(r), "",
         "## Swarms over the runs", "",
