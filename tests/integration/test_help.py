@@ -37,3 +37,10 @@ def test_calibrate_s_help_keeps_brackets_and_groups_its_options(run_cli, monkeyp
     assert "RIGHT@LEFT" in out and "--seed" in out
     seed = out[out.index("--seed"):].splitlines()[0]
     assert "seeds" in seed and re.search(r"--seed\s+N\s", seed)
+
+
+@pytest.mark.parametrize("path", ["", "iso9283", "pkm"])
+def test_the_groups_help_shows_no_type_placeholder_either(run_cli, monkeypatch, path):
+    out = _help(run_cli, monkeypatch, path)
+    assert not re.search(r"<(str|bool|int|float|path|list\[[^\]]*\])>", out), out
+    assert "--help" in out

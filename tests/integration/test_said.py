@@ -58,3 +58,25 @@ def test_export_is_repeatable_and_each_file_says_what_its_receiver_gets(tmp_path
         assert f"robocal: note: wrote {p}" in err
     code, _, err = run_cli("calibrate", "kr5-arc", path, "--export", out[0], "--export", out[0])
     assert code == 2 and "--export" in err and err.count("\n") == 1
+
+
+def test_auto_under_quiet_says_what_matters_in_three_lines_at_most(tmp_path, run_cli):
+    """The IRB 120 under --model auto: a term that gravity never loads (joint 1 turns about the
+    vertical) is one choice, said once, and --quiet leaves the notes out; the headline's "next" is
+    the report's own advice."""
+    sim = simulate(load_robot("irb120"), 100, deviations="uniform:0.3,0.003", seed=2, noise=0.02, measure="position")
+    path = tmp_path / "irb.csv"
+    save_measurements(sim.measurements, path)
+    code, out, err = run_cli("calibrate", "irb120", path, "--model", "auto", "--quiet")
+    assert code == 0, err
+    said = [line for line in (out + err).splitlines() if line.strip()]
+    assert len(said) <= 3, said
+    assert sum("gravity1_" in line for line in said) <= 1
+    code, out, err = run_cli("calibrate", "irb120", path, "--report", tmp_path / "r.html")
+    nexts = [line[len("next: "):] for line in out.splitlines() if line.startswith("next: ")]
+    assert 1 <= len(nexts) <= 3
+    import html
+
+    page = html.unescape(" ".join((tmp_path / "r.html").read_text().split()))
+    assert all(" ".join(n.split())[:60].replace("`", "") in page.replace("<code>", "").replace("</code>", "")
+               for n in nexts)

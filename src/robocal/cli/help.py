@@ -42,13 +42,30 @@ def _placeholder(param) -> str:
     return f"{name}..." if param.nargs == -1 else name
 
 
+def _flag_help(command, panel: bool) -> None:
+    """--help shown as the flag it is (no placeholder), in the Output panel where there are panels."""
+    own = command.get_help_option
+
+    def help_option(ctx):
+        option = own(ctx)
+        if option is not None:
+            option.metavar = ""
+            option.rich_help_panel = "Output" if panel else None
+        return option
+
+    command.get_help_option = help_option
+
+
 def tidy(command) -> None:
     """Every command below ``command`` (a click group) made to read as the module docstring says."""
     from rich.markup import escape
 
     if command.help:
         command.help = escape(command.help)
-    if hasattr(command, "commands"):  # a group
+    if hasattr(command, "commands"):  # a group: its own options (--version, --help), then its commands
+        for param in command.params:
+            param.metavar = _placeholder(param)
+        _flag_help(command, False)
         for sub in command.commands.values():
             tidy(sub)
         return
@@ -57,16 +74,7 @@ def tidy(command) -> None:
         rank = {panel: i for i, panel in enumerate(PANELS)}
         options.sort(key=lambda p: rank.get(_PANEL_OF.get(p.name, ""), len(rank) - 1.5))
         command.params = [p for p in command.params if p.param_type_name != "option"] + options
-    own = command.get_help_option
-
-    def help_option(ctx, own=own, panel=len(options) > FEW):  # --help is a flag like the others
-        option = own(ctx)
-        if option is not None:
-            option.metavar = ""
-            option.rich_help_panel = "Output" if panel else None
-        return option
-
-    command.get_help_option = help_option
+    _flag_help(command, len(options) > FEW)
     for param in command.params:
         if getattr(param, "help", None):
             param.help = escape(param.help)

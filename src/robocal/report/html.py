@@ -232,8 +232,8 @@ def _exports(result: CalibrationResult) -> list[str]:
                   "the robot TOML written beside it." if yaml else "")
     if e.geometric:
         return [f"<h2>What the exports hold</h2><p>The model is geometry and frames alone: a robot TOML and a URDF "
-                f"carry all of it ({e.whole_rms_mm:.4f} {e.unit} RMS{html.escape(e.at_tool)} "
-                f"{html.escape(e.where)}).{kinematics}{cameras}</p>"]
+                f"carry all of it, {e.whole_rms_mm:.4f} {e.unit} RMS{html.escape(e.at_tool)} "
+                f"{html.escape(e.where)}.{kinematics}{cameras}</p>"]
     own = e.geometry_of == "the model's own"
     return ["<h2>What the exports hold</h2><p>A robot TOML holds the whole model; a URDF only geometry and frames"
             + (", a UR kinematics YAML the joints' geometry" if yaml else "")

@@ -66,7 +66,9 @@ def _conditions(conditions: dict[str, str]) -> str:
     missing = [key for key, _ in CONDITIONS if key not in conditions]
     said = (f"<p>Not stated: {', '.join(missing)} (<code>--conditions KEY=VALUE</code>); an ISO 9283 report "
             "states every one.</p>") if missing else ""
-    return "<h2>Test conditions</h2>" + (_table(["condition", "what", "value"], rows) if rows else "") + said
+    head = "".join(f"<th>{c}</th>" for c in ("condition", "what", "value"))
+    body = "".join("<tr>" + "".join(f"<td class='l'>{html.escape(c)}</td>" for c in r) + "</tr>" for r in rows)
+    return "<h2>Test conditions</h2>" + (f"<table><tr>{head}</tr>{body}</table>" if rows else "") + said
 
 
 def _table(head, rows) -> str:

@@ -215,7 +215,10 @@ def ladder_rows(result: CalibrationResult) -> list[tuple[str, ...]]:
         else:
             val = ("— (folds only)",)
         last = "chosen" if r.model == result.model else "screened: not tuned in full" if r.screened else ""
-        rows.append((r.model, f"{r.cv_rms_mm:.4f}", str(r.n_params), *val, last))
+        learned = [t for t in ("residual", "trees") if t in r.model.split("+")]
+        # a learned correction's own fit is no count of parameters: say it rides on the parametric ones
+        count = f"{r.n_params} + {' + '.join(learned)}" if learned else str(r.n_params)
+        rows.append((r.model, f"{r.cv_rms_mm:.4f}", count, *val, last))
     return rows
 
 
