@@ -680,16 +680,17 @@ def test_krl_status_in_every_spelling_frames_untouched_spline_frames_read(tmp_pa
 
 
 def test_targets_reached_through_a_function_or_a_path_correction_are_left_and_named(tmp_path, planted):
-    """RAPID's Offs() and RelTool() and the \\Corr switch, URScript's pose_add(): the motion's target
-    changes as the program runs, so the target is left as written and the function named."""
+    """RAPID's Offs() and RelTool() of values the program computes, the \\Corr switch, URScript's pose_add()
+    of a variable: the motion's target changes as the program runs, so the target is left as written and
+    the function named (of literal values, they take the target's correction: the tests above)."""
     g = ind.geometry("irb120")
     rng = np.random.default_rng(4)
     q = _taught(rng, [(-150, 150), (-60, 70), (-80, 50), (-150, 150), (20, 110), (-350, 350)], 4)
     world = [ind.pose(g, qi) for qi in q]
     text = ctl.rapid_program(world, [ctl.abb_config("irb120", g, qi) for qi in q], [], np.eye(4), np.eye(4))
-    text = text.replace("MoveJ p2,", "MoveL Offs(p2,0,0,50),").replace("MoveJ p3,v500,fine,gun\\WObj:=table;",
+    text = text.replace("MoveJ p2,", "MoveL Offs(p2,0,0,dz),").replace("MoveJ p3,v500,fine,gun\\WObj:=table;",
                                                                        "MoveJ p3,v500,fine,gun\\WObj:=table;\n    "
-                                                                       "MoveL RelTool(p3,0,0,-20),v500,fine,gun"
+                                                                       "MoveL RelTool(p3,0,0,-2*dz),v500,fine,gun"
                                                                        "\\WObj:=table;")
     text = text.replace("MoveJ p4,v500,fine,gun", "MoveL p4,v500\\Corr,fine,gun")
     (tmp_path / "m.mod").write_text(text)
@@ -702,7 +703,7 @@ def test_targets_reached_through_a_function_or_a_path_correction_are_left_and_na
     assert status["p3"][0] == "unsupported" and "RelTool()" in status["p3"][1]
     assert status["p4"][0] == "unsupported" and "\\Corr" in status["p4"][1]
     script = "def prog():\n  X = p[0.4, -0.2, 0.3, 3.14, 0.0, 0.0]\n  Y = p[0.4, 0.2, 0.3, 3.14, 0.0, 0.0]\n" \
-             "  movel(X)\n  movel(pose_add(X, p[0, 0, 0.05, 0, 0, 0]))\n  movel(Y)\nend\n"
+             "  movel(X)\n  movel(pose_add(X, d))\n  movel(Y)\nend\n"
     (tmp_path / "p.script").write_text(script)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -783,3 +784,142 @@ def test_a_written_program_is_stamped_its_configuration_changes_said_and_its_ang
             written = np.radians([float(v) for v in b])
             R, Q = rpy_to_matrix(written), rpy_to_matrix(np.radians(np.round(np.degrees(written), own)))
             assert np.degrees(np.arccos(np.clip((np.trace(R @ Q.T) - 1) / 2, -1, 1))) > ANGLE_KEEP_DEG - 1e-4
+
+
+# --- offset motions: a taught point reached directly and through a literal offset ----------------
+
+def _reached_error(g_nom, g_acc, sent, want, start, base, tool):
+    """mm: where the calibrated robot lands when the controller (its nominal inverse from ``start``) goes
+    to ``sent``, from ``want`` (world poses)."""
+    q = ind.inverse(g_nom, sent, start, tool=tool, base=base)
+    return float(np.linalg.norm(ind.pose(g_acc, q, base=base, tool=tool)[:3, 3] - want[:3, 3]))
+
+
+def test_rapid_offs_and_reltool_motions_take_their_targets_correction_and_say_what_it_leaves(tmp_path, run_cli):
+    """p1 is reached directly and through Offs(p1, 0, 0, 50), p2 through RelTool(p2, 0, 0, -40 \\Rz:=20) and
+    directly, p3 through Offs(p3, d, 0, 0) with d a variable: p1 and p2 are corrected; where each offset
+    motion lands on the planted robot (the independent controller's inverse of the written offset, the
+    manual's Offs: + d in the work object, RelTool: T · Trans(d) · Rz) is the remaining error robocal
+    says, and it is far below the uncorrected one; p3 is left, its offset in the controller."""
+    rng = np.random.default_rng(4)
+    nominal, accurate = _robots(tmp_path, "irb120", PEDESTAL)
+    g_nom, g_acc = ind.geometry("irb120"), ind.geometry("irb120", PLANTED)
+    tool = ctl.frame([0.0, 25.0, 140.0], [0.0, -30.0, 0.0])
+    wobj = PEDESTAL @ ctl.frame([450.0, -100.0, 120.0], [0.0, 0.0, 90.0])
+    box = [(-100, 100), (-40, 50), (-60, 30), (-100, 100), (30, 100), (-150, 150)]
+    q = _taught(rng, box, 3)
+    world = [ind.pose(g_nom, qi, base=PEDESTAL, tool=tool) for qi in q]
+    cfs = [ctl.abb_config("irb120", g_nom, qi, PEDESTAL) for qi in q]
+    text = ctl.rapid_program([np.linalg.inv(wobj) @ T for T in world], cfs, [], tool, wobj)
+    motions = ["    MoveL Offs(p1, 0, 0, 50), v100, fine, gun\\WObj:=table;",
+               "    MoveL RelTool(p2, 0, 0, -40 \\Rz:=20), v100, fine, gun\\WObj:=table;",
+               "    MoveL Offs(p3, d, 0, 0), v100, fine, gun\\WObj:=table;"]
+    text = text.replace("  ENDPROC", "\n".join(motions) + "\n  ENDPROC").replace(
+        "  PROC main()", "  VAR num d := 20;\n  PROC main()")
+    (tmp_path / "cell.mod").write_text(text)
+    code, _, err = run_cli("filter", accurate, tmp_path / "cell.mod", "--nominal", nominal, "--out",
+                           tmp_path / "out.mod", "--summary", tmp_path / "s.json")
+    assert code == 3, err  # p3 left
+    rows = {r["target"]: r for r in json.loads((tmp_path / "s.json").read_text())["targets"]}
+    assert rows["p1"]["status"] == rows["p2"]["status"] == "ok"
+    assert rows["p3"]["status"] == "unsupported" and "Offs()" in rows["p3"]["reason"]
+    new = ctl.read_rapid((tmp_path / "out.mod").read_text())
+
+    def in_world(v):
+        T = ctl.frame(v[:3], [0, 0, 0])
+        T[:3, :3] = Rotation.from_quat([v[4], v[5], v[6], v[3]]).as_matrix()
+        return wobj @ T
+
+    rel = ctl.frame([0, 0, -40.0], [0, 0, 20.0])
+    cases = {"p1": (lambda T: _shifted(wobj, T, [0, 0, 50.0]), 0), "p2": (lambda T: T @ rel, 1)}
+    for name, (moved, k) in cases.items():
+        (motion,) = rows[name]["offset_motions"]
+        want, sent = moved(world[k]), moved(in_world(new[name]))
+        remaining = _reached_error(g_nom, g_acc, sent, want, q[k], PEDESTAL, tool)
+        uncorrected = _reached_error(g_nom, g_acc, want, want, q[k], PEDESTAL, tool)
+        # (robocal's from the corrected pose, this from its numbers as written: 3 decimals of mm, 8 of a quaternion)
+        assert motion["remaining_mm"] == pytest.approx(remaining, abs=2e-3)
+        assert motion["uncorrected_mm"] == pytest.approx(uncorrected, abs=2e-4)
+        # the target's correction carries most of the way; what it leaves grows with the offset (the planted
+        # 0.1° of joint 2 over 50 mm is 0.1 mm), and is said where it passes 0.01 mm
+        assert remaining < 0.5 * uncorrected and uncorrected > 0.3
+        assert (f"{name}: its offset motion" in err) == (remaining > 0.01)
+
+
+def _shifted(wobj: np.ndarray, T: np.ndarray, d) -> np.ndarray:
+    """Offs: the pose moved by d in the work object's axes, its orientation kept (world poses)."""
+    out = np.array(T, float)
+    out[:3, 3] = T[:3, 3] + wobj[:3, :3] @ np.asarray(d, float)
+    return out
+
+
+def test_urscript_pose_trans_and_pose_add_of_literals_take_their_targets_correction(tmp_path, planted):
+    """A waypoint reached directly, through pose_trans(wp, p[…]) (wp · D) and through pose_add(wp, p[…])
+    (position + d, rotation R_wp · R_d, the URScript manual's): the waypoint is corrected, and where each
+    offset motion lands (the independent controller's inverse, from the taught joints) is the remaining
+    error robocal says."""
+    rng = np.random.default_rng(8)
+    g_nom, g_acc = ind.geometry("ur10"), ind.geometry("ur10", PLANTED)
+    qi = _taught(rng, [(-90, 90), (-120, -60), (60, 120), (-120, -60), (60, 120), (-90, 90)], 1)[0]
+    T = ind.pose(g_nom, qi)
+    rv = Rotation.from_matrix(T[:3, :3]).as_rotvec()
+    pose = ", ".join(f"{v:.7f}" for v in (*(T[:3, 3] / 1000.0), *rv))
+    joints = ", ".join(f"{v:.7f}" for v in qi)
+    text = "\n".join(["def prog():", f"  global wp_p = p[{pose}]", f"  global wp_q = [{joints}]",
+                      "  movej(get_inverse_kin(wp_p, qnear=wp_q))",
+                      "  movel(pose_trans(wp_p, p[0, 0, -0.05, 0, 0, 0.2]))",
+                      "  movel(pose_add(wp_p, p[0.03, 0, 0.01, 0, 0, 0.1]))", "end", ""])
+    (tmp_path / "prog.script").write_text(text)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        result = filter_program(planted["ur10"], tmp_path / "prog.script", "ur10")
+    (c,) = [c for c in result.corrections if c.target.name == "wp_p"]
+    assert c.corrected and [o["text"].split("(")[0] for o in c.offsets] == ["pose_trans", "pose_add"]
+    m = re.search(r"wp_p = p\[([^\]]*)\]", result.text)
+    v = [float(x) for x in m.group(1).split(",")]
+    written = ctl.frame([1000 * x for x in v[:3]], [0, 0, 0])
+    written[:3, :3] = Rotation.from_rotvec(v[3:]).as_matrix()
+    D_trans = ctl.frame([0, 0, -50.0], [0, 0, 0])
+    D_trans[:3, :3] = Rotation.from_rotvec([0, 0, 0.2]).as_matrix()
+
+    def add(P):
+        out = np.array(P)
+        out[:3, 3] = P[:3, 3] + [30.0, 0.0, 10.0]
+        out[:3, :3] = P[:3, :3] @ Rotation.from_rotvec([0, 0, 0.1]).as_matrix()
+        return out
+
+    for motion, moved in zip(c.offsets, (lambda P: P @ D_trans, add)):
+        remaining = _reached_error(g_nom, g_acc, moved(written), moved(T), qi, np.eye(4), np.eye(4))
+        assert motion["remaining_mm"] == pytest.approx(remaining, abs=2e-3)
+        assert motion["remaining_mm"] < 0.5 * motion["uncorrected_mm"]
+
+
+@pytest.mark.parametrize("motion", [
+    "J P[4] 100% CNT0 ACC100 TB .10sec,P-SPS Tool_Offset,PR[11] Offset,PR[12] ;",
+    "J P[4] 100% CNT0 ACC100 Offset,PR[12] TB .10sec,P-SPS Tool_Offset,PR[11] ;",
+    "J P[4:approach]  100%  CNT0   Tool_Offset , PR[ 11 ]   Offset , PR[12:shift] ;",
+    "L P[4] 500mm/sec FINE TB 0.10sec , P-SPS\n   :  Offset,PR[12] ;",
+    "J P[4] 100% CNT0 ACC100 Skip,LBL[3] Tool_Offset,PR[11] ;",
+])
+def test_a_fanuc_point_a_motion_offsets_by_a_register_is_left_however_the_line_is_spaced(tmp_path, motion):
+    """The offsets live in the controller's PR[11] and PR[12]: P[4] is left as written, with why, whatever
+    the options' order and spacing, wrapped or not."""
+    rng = np.random.default_rng(3)
+    g_nom = ind.geometry("irb120")
+    q = _taught(rng, [(-90, 90), (-40, 50), (-60, 30), (-90, 90), (30, 100), (-150, 150)], 4)
+    poses = [ind.pose(g_nom, qi) for qi in q]
+    text = ctl.fanuc_program(poses, ["N U T, 0, 0, 0"] * 4, [], uf=0, ut=0)
+    lines = text.split("\r\n")
+    at = lines.index("/POS")
+    body = [f"{k + 1:4d}:{line}" for k, line in enumerate(motion.replace("\n", "\r\n").split("\r\n"))]
+    body = [b if not b.split(":", 1)[1].lstrip().startswith(":") else "    " + b.split(":", 1)[1].lstrip()
+            for b in body]
+    lines[at:at] = body
+    program = tmp_path / "OFF.LS"
+    program.write_bytes("\r\n".join(lines).encode())
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        result = filter_program("irb120", program, "irb120")
+    (c,) = [c for c in result.corrections if c.target.name.startswith("P[4]")]
+    assert c.status == "unsupported" and ("Offset" in c.reason or "Tool_Offset" in c.reason), c.reason
+    assert "changes it as the program runs" in c.reason

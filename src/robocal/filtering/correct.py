@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..cell.frames import Cell, frame_gap, make_cell
+from ..exceptions import Note
 from ..inverse.configuration import arm_configuration
 from ..inverse.local import SINGULAR_CONDITION, solve_ik
 from ..inverse.solve import controller_joints
@@ -38,6 +39,9 @@ from .program import Program, Target
 
 #: the round trip (nominal inverse, calibrated forward) must land within these (mm, deg)
 CHECK_MM, CHECK_DEG = 0.01, 0.001
+#: an offset motion that lands farther than this from where the program means is flagged (mm): the correction
+#: it takes along is its target's, and the calibration's error changes over the offset
+OFFSET_FLAG_MM = 0.01
 #: a correction beyond this (mm) is not a calibration's: two different robots or tools
 LARGE_CORRECTION_MM = 20.0
 #: a joint target's correction that turns a joint by more than this (deg) is not a calibration's
@@ -71,6 +75,10 @@ class Correction:
     user: str | None = None
     #: the TCP the target was solved for (:attr:`robocal.cell.frames.Cell.label`), None where none was
     tcp: str | None = None
+    #: the motions that reach it through a literal offset (:class:`~.program.Offset`), each with where it lands
+    #: on the calibrated robot once the target is corrected: ``line``, ``text``, ``remaining_mm``, ``remaining_deg``
+    #: (from where the program means) and ``uncorrected_mm`` (the same without the correction)
+    offsets: list = field(default_factory=list)
 
     @property
     def corrected(self) -> bool:
@@ -91,7 +99,8 @@ class Correction:
                                "joints_deg": num(self.joints_deg)},
                 "check": {"mm": num(self.check_mm), "deg": num(self.check_deg)},
                 "config_before": _plain(self.config_before), "config_after": _plain(self.config_after),
-                "joints_before_deg": deg(self.q_nominal), "joints_after_deg": deg(self.q)}
+                "joints_before_deg": deg(self.q_nominal), "joints_after_deg": deg(self.q),
+                **({"offset_motions": list(self.offsets)} if self.offsets else {})}
 
 
 def _plain(config: dict) -> dict:
@@ -265,8 +274,30 @@ def _poses(program: Program, language: Language, cell: Cell, members, hints, see
             continue
         out[i] = Correction(t, "ok", "corrected", pose=new_prog[j], q=J_acc[j], moved_mm=float(moved_mm[j]),
                             turned_deg=float(turned_deg[j]), joints_deg=float(moved_deg[j]),
-                            config_after=language.encode(J_acc[j], _facts(arm_acc, j), t.config), **common)
+                            config_after=language.encode(J_acc[j], _facts(arm_acc, j), t.config),
+                            offsets=_offset_motions(cell, users[k], T_prog[k], new_prog[j], q_acc[j], q_nom[k],
+                                                    t.offsets) if t.offsets else [], **common)
     return out
+
+
+def _offset_motions(cell: Cell, user, intended: np.ndarray, written: np.ndarray, q_target: np.ndarray,
+                    q_taught: np.ndarray, offsets: list) -> list[dict]:
+    """Where each offset motion of a corrected target lands on the calibrated robot: the controller goes to
+    the offset of the written (corrected) target, by its own inverse from the target's joints; the
+    distance from the offset of the intended one is what the correction, the target's, leaves there
+    (mm, deg).  Beside it, the same without the correction."""
+    n = len(offsets)
+    users = [user] * n
+    want = cell.goal(users, np.stack([o.apply(intended) for o in offsets]))
+    sent = cell.goal(users, np.stack([o.apply(written) for o in offsets]))
+    out = []
+    for goal, start in ((sent, q_target), (want, q_taught)):
+        sol = solve_ik(cell.nominal, goal[:, :3, 3], goal[:, :3, :3], np.tile(start, (n, 1)))
+        out.append((frame_gap(cell.from_accurate(cell.accurate.fk(sol.q)), want), sol.status))
+    (mm, deg), status = out[0]
+    before = out[1][0][0]
+    return [{"line": o.line, "text": o.text, "remaining_mm": float(mm[k]), "remaining_deg": float(deg[k]),
+             "uncorrected_mm": float(before[k]), "solved": status[k]} for k, o in enumerate(offsets)]
 
 
 def _joints(program: Program, language: Language, cell: Cell, members) -> dict[int, Correction]:
@@ -360,6 +391,17 @@ def summary_notes(corrections: list[Correction], notes: list[str]) -> list[str]:
                   default=None)
     hint = ("check that --nominal is the model this controller runs and that the calibrated model is of the same "
             "robot, with the same tool")
+    moved = [(c, o) for c in corrections if c.corrected for o in c.offsets]
+    flagged = [(c, o) for c, o in moved if o["remaining_mm"] > OFFSET_FLAG_MM or o["solved"] != "ok"]
+    for c, o in flagged:
+        notes.append(f"{c.target.name}: its offset motion {o['text']} (line {o['line']}) takes the target's correction "
+                     f"and lands {o['remaining_mm']:.4f} mm, {o['remaining_deg']:.4f}° from where the program means "
+                     f"(uncorrected: {o['uncorrected_mm']:.3f} mm): the calibration's error changes over the offset")
+    if moved and len(flagged) < len(moved):
+        largest = max(o["remaining_mm"] for c, o in moved if (c, o) not in flagged)
+        notes.append(Note(f"{len(moved) - len(flagged)} offset motion(s) (Offs, RelTool, pose_trans, pose_add of "
+                          f"literal values) take their targets' corrections and land within {OFFSET_FLAG_MM:g} mm of "
+                          f"where the program means (largest {largest:.4f} mm)"))
     kinematic = [c for c in corrections if c.status not in ("frame", "unsupported")]
     if kinematic and not any(c.corrected for c in corrections):
         notes.append(f"no target could be corrected: {hint}")

@@ -83,6 +83,32 @@ class ProgramFile:
     out_suffix: str | None = None
 
 
+@dataclass(frozen=True)
+class Offset:
+    """A motion that reaches a target through an offset of literal values, which the controller adds
+    to the target as the program runs: RAPID ``Offs`` (``kind`` ``frame``: the position moved by D's
+    translation in the target's own frame, its orientation kept), ``RelTool`` and URScript
+    ``pose_trans`` (``tool``: T · D, about the tool), URScript ``pose_add`` (``add``: the position
+    moved by D's translation, the rotation R · R_D).  D: 4×4, mm; ``line`` the motion's; ``text`` as
+    written."""
+
+    kind: str
+    D: np.ndarray
+    line: int
+    text: str
+
+    def apply(self, T: np.ndarray) -> np.ndarray:
+        """The pose (…, 4, 4) the motion goes to for the target T (…, 4, 4), both in the target's frame."""
+        T = np.asarray(T, float)
+        if self.kind == "tool":
+            return T @ self.D
+        out = np.array(T, copy=True)
+        out[..., :3, 3] = T[..., :3, 3] + self.D[:3, 3]
+        if self.kind == "add":
+            out[..., :3, :3] = T[..., :3, :3] @ self.D[:3, :3]
+        return out
+
+
 @dataclass
 class Target:
     """A target of a program: ``name`` (the variable, or ``line N`` for an inline one), the file
@@ -93,7 +119,9 @@ class Target:
     cf4 cf6 cfx, FANUC's CONFIG string); ``hint`` the joints a pose was taught at or is to be
     solved near (a PolyScope waypoint's NAME_q, URScript's qnear; controller values, rad);
     ``tool`` and ``user`` the names of the frames it is taught in (None: the program names none);
-    ``unsupported``: why it cannot be corrected (a position register, an offset, a relative motion)."""
+    ``unsupported``: why it cannot be corrected (a position register, an offset, a relative motion);
+    ``offsets``: the motions that reach it through an offset of literal values (:class:`Offset`): the
+    target is corrected and they take its correction."""
 
     name: str
     line: int
@@ -108,6 +136,7 @@ class Target:
     tool: str | None = None
     user: str | None = None
     unsupported: str | None = None
+    offsets: list = field(default_factory=list)
 
 
 @dataclass

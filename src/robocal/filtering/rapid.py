@@ -10,7 +10,9 @@ default ``wobj0``): the targets it reaches are in them.  ``tooldata`` gives a TC
 (``[robhold,[[x,y,z],[q]],…]``), ``wobjdata`` a work object (``uframe · oframe``); ``tool0`` is the
 flange and ``wobj0`` the world.  A stationary tool (tooldata robhold FALSE), a work object the
 robot holds or a mechanical unit moves (robhold TRUE, ufprog FALSE), a target computed by a
-function (``Offs``, ``RelTool``) and a target the motions reach in two frames are flagged.
+function of values the program computes and a target the motions reach in two frames are flagged.
+``Offs(p, dx, dy, dz)`` and ``RelTool(p, dx, dy, dz [\\Rx:=…] [\\Ry:=…] [\\Rz:=…])`` of literal numbers
+are offset motions of ``p`` (:class:`~.program.Offset`): ``p`` is corrected and they take its correction.
 
 Configuration: cf1, cf4, cf6 are the quadrants ⌊q/90°⌋ of axes 1, 4 and 6; cfx is 4 × (wrist
 centre behind axis 1) + 2 × (wrist centre behind the lower arm) + (axis 5 negative).
@@ -29,13 +31,14 @@ from ..exceptions import InputError
 from ..inverse.configuration import TOLERANCE_RAD
 from ..inverse.solve import Request
 from ..math.se3 import homogeneous
-from ..math.so3 import quaternion_matrix
+from ..math.so3 import quaternion_matrix, rot_x, rot_y, rot_z
 from .language import DECIMALS, Language, keep_on_boundary, quaternion, set_number, set_text
 from .program import (
     NUMBER,
     SPACED_NUMBER,
     Field,
     Lines,
+    Offset,
     Program,
     ProgramFile,
     Target,
@@ -97,6 +100,48 @@ _OPTIONAL = re.compile(r"\\\w+(?:\s*:=\s*[\w\[\]]+)?")
 _NAME = re.compile(r"[A-Za-z_]\w*")
 
 
+#: RelTool's own optional arguments, kept away from the motion's switches while they are read
+_SHIELD = "\u00b6"
+
+
+def _protected(arguments: str) -> str:
+    """A motion's arguments with the backslashes inside its RelTool(…) calls shielded (``\\Rz:=25`` is
+    RelTool's, not the motion's)."""
+    return re.sub(r"RelTool\s*\([^;]*?\)", lambda m: m.group().replace("\\", _SHIELD), arguments, flags=re.I)
+
+
+def _offset(argument: str, line: int) -> tuple[str, Offset] | None:
+    """``Offs(NAME, dx, dy, dz)`` or ``RelTool(NAME, dx, dy, dz [\\Rx:=a] [\\Ry:=b] [\\Rz:=c])`` of literal
+    numbers (mm, deg): the target's name and the offset; None for anything else (a variable offset
+    changes the target as the program runs)."""
+    m = re.fullmatch(r"\s*(Offs|RelTool)\s*\((.*)\)\s*", argument, re.I | re.S)
+    if m is None:
+        return None
+    parts = split_top(m.group(2))
+    if len(parts) != 4 or not _NAME.fullmatch(parts[0].strip()):
+        return None
+    last, _, rest = parts[3].partition(_SHIELD)
+    values = [p.strip() for p in (*parts[1:3], last)]
+    if not all(re.fullmatch(NUMBER, v) for v in values):
+        return None
+    d = np.array([float(v) for v in values])
+    R = np.eye(3)
+    if m.group(1).lower() == "offs":
+        if rest:
+            return None
+        kind = "frame"
+    else:
+        kind, angles = "tool", {"rx": 0.0, "ry": 0.0, "rz": 0.0}
+        for option in filter(None, (_SHIELD + rest).split(_SHIELD)):
+            o = re.fullmatch(r"\s*(Rx|Ry|Rz)\s*:=\s*(" + NUMBER + r")\s*", option, re.I)
+            if o is None:
+                return None
+            angles[o.group(1).lower()] = math.radians(float(o.group(2)))
+        # ABB: about the tool's x, then its y, then its z (each about the axes the last one left)
+        R = rot_x(angles["rx"]) @ rot_y(angles["ry"]) @ rot_z(angles["rz"])
+    return parts[0].strip(), Offset(kind, homogeneous(R, d), line, argument.strip().replace(_SHIELD, "\\"))
+
+
 def _arguments(arguments: str) -> tuple[list[str], str | None, str | None, list[str]]:
     """The positional arguments of a motion (aggregates as AGGREGATE), its tool (the last positional
     one), its work object (``\\WObj:=``) and its optional arguments robocal does not take as
@@ -136,16 +181,21 @@ def read(path: Path, frames_file: Path | None = None) -> Program:
             del program.users[m.group(1)]
     uses: dict[str, list] = {}
     spans = []
+    offsets: dict[str, list[Offset]] = {}
     for m in _MOVE.finditer(code):
-        positional, tool, wobj, odd = _arguments(m.group(2))
+        positional, tool, wobj, odd = _arguments(_protected(m.group(2)))
         line = lines.of(m.start())
         why = None if not odd else f"its motion (line {line}) has \\{odd[0]}, which robocal does not take as " \
             "leaving the target as written" + (" (a path correction written as the program runs)"
                                                if odd[0].lower() == "corr" else "")
         reach = positional[:2] if m.group(1).lower().startswith("movec") else positional[:1]
         for a in reach:
+            offset = _offset(a, line)
             if _NAME.fullmatch(a):
                 uses.setdefault(a.lower(), []).append((tool, wobj, line, why))
+            elif offset is not None:  # Offs(p10, 0, 0, 50): p10 is corrected, and the motion takes its correction
+                uses.setdefault(offset[0].lower(), []).append((tool, wobj, line, why))
+                offsets.setdefault(offset[0].lower(), []).append(offset[1])
             elif a != AGGREGATE:
                 program.targets.append(Target(f"line {line}", line, "pose", {},
                                               unsupported=f"the target {a.strip()} is computed as the program runs"))
@@ -156,6 +206,8 @@ def read(path: Path, frames_file: Path | None = None) -> Program:
                                            "changes it as the program runs"))
         spans.append((m.start(2), m.end(2), tool, wobj, line, why))
     _targets(code, program, spans, uses, lines)
+    for t in program.targets:
+        t.offsets = offsets.get(t.name.lower(), [])
     declared = {t.name.lower() for t in program.targets}
     for name, used in uses.items():  # a motion to a target this module does not hold: said, never skipped
         if name not in declared:

@@ -10,7 +10,9 @@ joints Q: Q is the branch hint of X, never a target itself.  PolyScope exports a
 no hint is solved nearest the previous target.  ``#`` starts a comment.
 
 Frames: ``set_tcp(p[…])`` sets the TCP of the motions after it; ``pose_trans(F, X)`` with ``F`` a
-pose variable (a PolyScope feature) puts the target X in the user frame F.  A target the motions
+pose variable (a PolyScope feature) puts the target X in the user frame F.  ``pose_trans(X, p[…])``
+with X a pose some motion also goes to, and ``pose_add(X, p[…])``, are offset motions of X
+(:class:`~.program.Offset`): X is corrected and they take its correction.  A target the motions
 reach through any other computation is flagged.
 """
 
@@ -28,6 +30,7 @@ from .program import (
     SPACED_NUMBER,
     Field,
     Lines,
+    Offset,
     Program,
     ProgramFile,
     Target,
@@ -88,6 +91,7 @@ class _Reader:
                     self.literals.setdefault(name, []).append((kind, m.end() + lit.start(), m.end() + lit.end()))
         self.uses: dict[str, list] = {}  # variable → [(tool, user, hint, line)]
         self.through: dict[str, str] = {}  # variable → how a motion reaches it through a computation
+        self.offsets: dict[str, list] = {}  # variable → the motions that reach it through a literal offset
 
     def tool_at(self, index: int) -> str | None:
         before = [i for i, (at, _) in enumerate(self.tcps) if at < index]
@@ -138,9 +142,16 @@ class _Reader:
             return
         if call and call.group(1) == "pose_trans":
             args, starts = _call_arguments(self.code, at + call.end() - 1)
-            if len(args) == 2 and _NAME.fullmatch(args[0]) and self.feature(args[0]):
+            # a pose variable some motion goes to itself is a target (the literal its offset), else a feature
+            if len(args) == 2 and _NAME.fullmatch(args[0]) and args[0] not in self.direct and \
+                    self.feature(args[0]):
                 self.motion_target(args[1], starts[1], tool, args[0], hint)
                 return
+        offset = self.offset(arg, at, line)
+        if offset is not None:  # pose_trans(X, p[…]), pose_add(X, p[…]): X is corrected, the motion takes it along
+            self.uses.setdefault(offset[0], []).append((tool, user, hint, line))
+            self.offsets.setdefault(offset[0], []).append(offset[1])
+            return
         self.flag(arg.split("(")[0].strip() or arg, at, "the target is computed as the program runs")
         call = re.match(r"(\w+)\s*\(", arg)
         if call:  # pose_add(X, d), pose_trans(X, d) with X no feature: X is reached only through it
@@ -148,6 +159,20 @@ class _Reader:
                 if _NAME.fullmatch(name):
                     self.through.setdefault(name, f"a motion reaches it through {call.group(1)}() (line {line}), "
                                                   "which changes it as the program runs")
+
+    def offset(self, arg: str, at: int, line: int):
+        """``pose_trans(X, p[…])`` (about X's tool: X · D) or ``pose_add(X, p[…])`` (X's position moved by D's, its
+        rotation R_X · R_D) with X a target variable and D a literal pose: (X, the :class:`Offset`), else None."""
+        call = re.match(r"(pose_trans|pose_add)\s*\(", arg)
+        if call is None:
+            return None
+        args, _ = _call_arguments(self.code, at + call.end() - 1)
+        if len(args) != 2 or not _NAME.fullmatch(args[0]) or not POSE.fullmatch(args[1]) or \
+                (call.group(1) == "pose_trans" and args[0] not in self.direct):
+            return None
+        p, R = _pose_of([f.value for f in fields_in(args[1])])
+        return args[0], Offset("tool" if call.group(1) == "pose_trans" else "add", homogeneous(R, p), line,
+                               arg.strip())
 
     def joints_of(self, text: str | None, at: int | None):
         """A hint: joints written inline or a variable assigned a joint list once."""
@@ -174,6 +199,9 @@ class _Reader:
         return True
 
     def read(self) -> Program:
+        self.direct = {arg for m in _MOVE.finditer(self.code)  # the variables a motion goes to as they are
+                       for arg in _call_arguments(self.code, m.end() - 1)[0][:2] if _NAME.fullmatch(arg)} | \
+            set(re.findall(r"get_inverse_kin\s*\(\s*([A-Za-z_]\w*)\s*[,)]", self.code))
         for m in _MOVE.finditer(self.code):
             args, starts = _call_arguments(self.code, m.end() - 1)
             for arg, at in list(zip(args, starts))[:2 if m.group(1) == "movec" else 1]:
@@ -189,6 +217,7 @@ class _Reader:
             hints = [u[2] for u in used if u[2] is not None]
             pair = self.joints_of(name[:-2] + "_q", None) if name.endswith("_p") else None
             t.hint = hints[0] if hints else pair
+            t.offsets = self.offsets.get(name, [])
             if name in self.through:
                 t.unsupported = self.through[name]
             elif self.changed(name):
