@@ -4,6 +4,8 @@ import json
 import os
 import subprocess
 import sys
+import time
+import warnings
 
 import pytest
 
@@ -173,26 +175,23 @@ def test_idle_cores_now_sees_busy_processes_the_minute_average_has_not_yet():
 
 @pytest.mark.skipif(not numba_installed(), reason="numba (fast extra) not installed")
 def test_a_cold_cache_runs_numpy_and_compiles_for_the_next_process(tmp_path):
-    """The first process after install finds numba's cache empty: it runs numpy (no compiling in
-    its time) and starts the compile in the background; the next process runs the kernels."""
+    """The first process after install finds no compile recorded: it runs numpy (no compiling in its
+    time) and starts the compile in the background, once; the next process, the compile recorded, runs
+    the kernels."""
     import time
 
-    env = {"NUMBA_CACHE_DIR": str(tmp_path / "cache"), "TMPDIR": str(tmp_path)}  # its own cache and lock
+    env = {"NUMBA_CACHE_DIR": str(tmp_path / "cache")}  # its own cache, lock and record
     ask = ("import json, time\nfrom robocal.model.compiled import resolve\nt = time.perf_counter()\n"
            "b = resolve('auto')\nprint(json.dumps({'backend': b, 's': time.perf_counter() - t}))")
     first = json.loads(_python(ask, env).splitlines()[-1])
     assert first["backend"] == "numpy" and first["s"] < 5.0  # asked, not compiled
-    lock = tmp_path / f"robocal-compile-{os.getuid()}.lock"
-    assert lock.exists()
+    (folder,) = (tmp_path / "cache" / "robocal").glob("compile-*")
+    assert (folder / "lock").exists() and oct((folder / "lock").stat().st_mode)[-3:] == "600"
     assert json.loads(_python(ask, env).splitlines()[-1])["backend"] == "numpy"  # still compiling: no second one
     deadline = time.time() + 55
-    while time.time() < deadline:
-        names = {p.name.split("-")[0] for p in (tmp_path / "cache").rglob("*.nbi")}
-        if {"kernels.objective", "kernels.objective_joints", "kernels.apply_right_jacobian_inv",
-                "kernels.objective_parallel"} <= names:
-            break
+    while time.time() < deadline and not (folder / "compiled").exists():
         time.sleep(0.5)
-    time.sleep(1.0)  # the last index written
+    assert not (folder / "lock").exists()
     assert json.loads(_python(ask, env).splitlines()[-1])["backend"] == "numba"
 
 
@@ -212,3 +211,87 @@ def test_a_study_worker_runs_what_its_parent_resolved(monkeypatch):
     compiled.pin("numpy")
     assert resolve("auto") == "numpy" and resolve("numpy") == "numpy"
     assert "backend" in inspect.signature(engine.run_batch).parameters
+
+
+def test_the_compile_lock_is_taken_once_by_simultaneous_starts_and_never_through_a_link(tmp_path):
+    """Four processes started together, five times over: one takes the lock each time (O_EXCL); a
+    planted link in the lock's place is removed, not followed, and its target left as it was; a lock
+    left by a compile that died long ago is taken over."""
+    from robocal.model.compiled import COMPILE_LOCK_S, take_lock
+
+    code = ("import sys, time\nfrom robocal.model.compiled import take_lock\nstart = float(sys.argv[2])\n"
+            "time.sleep(max(0.0, start - time.time()))\nprint(take_lock(sys.argv[1]))")
+    for trial in range(5):
+        folder = tmp_path / f"t{trial}"
+        folder.mkdir()
+        start = time.time() + 1.5
+        runs = [subprocess.Popen([sys.executable, "-c", code, str(folder), str(start)], stdout=subprocess.PIPE,
+                                 text=True) for _ in range(4)]
+        said = [r.communicate()[0].strip() for r in runs]
+        assert said.count("True") == 1, said
+    folder = tmp_path / "linked"
+    folder.mkdir()
+    victim = tmp_path / "victim.txt"
+    victim.write_text("keep me")
+    (folder / "lock").symlink_to(victim)
+    assert take_lock(folder)
+    assert victim.read_text() == "keep me" and not (folder / "lock").is_symlink()
+    assert not take_lock(folder)  # held
+    old = time.time() - 2 * COMPILE_LOCK_S
+    os.utime(folder / "lock", (old, old))
+    assert take_lock(folder)  # a dead compile's
+
+
+def test_a_failed_compile_is_said_once_and_not_started_again(tmp_path, monkeypatch):
+    """A compile that fails (an unwritable numba cache) records why; the processes after it run numpy,
+    say so once, and start no compile until something it depends on changes."""
+    from robocal.calibration import precompile
+    from robocal.exceptions import RobocalWarning
+    from robocal.model import compiled
+
+    folder = tmp_path / "state"
+    folder.mkdir()
+    monkeypatch.setattr(compiled, "state_folder", lambda package=None: folder)
+    monkeypatch.setattr(compiled, "fingerprint", lambda: "robocal x, numba y")
+
+    def broken():
+        raise PermissionError("cannot write numba's cache in /opt/site-packages/robocal/__pycache__")
+
+    monkeypatch.setattr(precompile, "compile_kernels", broken)
+    with pytest.raises(PermissionError):
+        precompile.main(str(folder))
+    assert not (folder / "lock").exists() and "PermissionError" in (folder / "failed").read_text()
+    started = []
+    monkeypatch.setattr(compiled, "compile_in_background", lambda f=None: started.append(f) or True)
+    for expected in (1, 0):  # said the first time, not again
+        compiled.kernels_compiled.cache_clear()
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            assert compiled.kernels_compiled() is False
+        said = [str(w.message) for w in caught if issubclass(w.category, RobocalWarning)]
+        assert len(said) == expected and (not said or "could not be compiled (PermissionError" in said[0])
+    assert started == []
+    monkeypatch.setattr(compiled, "fingerprint", lambda: "robocal x, numba z")  # numba changed: tried again
+    compiled.kernels_compiled.cache_clear()
+    assert compiled.kernels_compiled() is False and started == [folder]
+    compiled.kernels_compiled.cache_clear()
+
+
+def test_no_writable_cache_folder_means_numpy_and_each_install_has_its_own(tmp_path, monkeypatch):
+    from robocal.exceptions import RobocalWarning
+    from robocal.model import compiled
+
+    blocker = tmp_path / "not-a-folder"
+    blocker.write_text("")
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(blocker))
+    assert compiled.state_folder() is None
+    compiled.kernels_compiled.cache_clear()
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        assert compiled.kernels_compiled() is False
+    assert any("no writable cache folder" in str(w.message) for w in caught if issubclass(w.category, RobocalWarning))
+    compiled.kernels_compiled.cache_clear()
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path / "cache"))
+    one, two = compiled.state_folder(tmp_path / "a" / "robocal"), compiled.state_folder(tmp_path / "b" / "robocal")
+    assert one != two and one.parent == two.parent == tmp_path / "cache" / "robocal"
+    assert oct(one.stat().st_mode)[-3:] == "700"

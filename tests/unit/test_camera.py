@@ -46,6 +46,32 @@ def test_opencv_filestorage_files_written_by_opencv_are_read(tmp_path, rng, suff
     assert (got.width, got.height, got.name) == (1280, 960, "cam")
 
 
+@pytest.mark.parametrize("suffix", [".yaml", ".json"])
+def test_a_quoted_hash_and_a_flow_mapping_as_filestorage_writes_them_are_read(tmp_path, rng, suffix):
+    """cv2.FileStorage writes a camera named "cam#2" quoted (no comment in it) and a matrix written as a flow
+    mapping on one line or two ({ rows:3, cols:3, dt:d, data:[ … ] })."""
+    cam = _random_camera(rng)
+    path = tmp_path / f"flow{suffix}"
+    fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_WRITE)
+    fs.write("camera_name", "cam#2")
+    fs.write("image_width", 1280)
+    fs.startWriteStruct("camera_matrix", cv2.FileNode_MAP | cv2.FileNode_FLOW, "opencv-matrix")
+    fs.write("rows", 3)
+    fs.write("cols", 3)
+    fs.write("dt", "d")
+    fs.startWriteStruct("data", cv2.FileNode_SEQ | cv2.FileNode_FLOW)
+    for v in cam.matrix.ravel():
+        fs.write("", float(v))
+    fs.endWriteStruct()
+    fs.endWriteStruct()
+    fs.write("distortion_coefficients", cam.distortion.reshape(1, 5))
+    fs.release()
+    got = load_camera(path)
+    assert got.name == "cam#2" and got.width == 1280
+    np.testing.assert_allclose(got.matrix, cam.matrix, rtol=1e-15)
+    np.testing.assert_allclose(got.distortion, cam.distortion, rtol=1e-15)
+
+
 ROS = """image_width: 640
 image_height: 480
 camera_name: wrist_cam
@@ -169,3 +195,28 @@ def test_detected_corners_are_in_opencvs_pixel_convention(tmp_path):
         found = find_markers(tmp_path / "m.png", detector("DICT_4x4_50"))
         edges = np.array([[col, row], [col + side, row], [col + side, row + side], [col, row + side]]) - 0.5
         np.testing.assert_allclose(found[7], edges, atol=0.02)
+
+
+@pytest.mark.parametrize("corners", [
+    [[0, 0], [1, 1], [2, 2], [3, 3]],  # on one line
+    [[5, 5], [5, 5], [5, 5], [5, 5]],  # one point
+    [[0, 0], [1, 0], [float("nan"), 1], [0, 1]],  # a corner OpenCV could not place
+    [[0, 0], [1e-300, 0], [2e-300, 1e-300], [0, 1e-300]],  # vanishingly small
+])
+def test_a_degenerate_detection_has_no_centre_and_raises_nothing(corners):
+    from robocal.io.detect import centre
+
+    assert centre(np.array(corners, float)) is None
+
+
+@pytest.mark.parametrize("name", ["../outside.png", "/etc/hostname", "sub/../../outside.png"])
+def test_detect_refuses_an_image_named_outside_its_folder(tmp_path, run_cli, name):
+    folder = tmp_path / "images"
+    folder.mkdir()
+    (tmp_path / "outside.png").write_bytes(b"")
+    log = tmp_path / "log.csv"
+    log.write_text(f"image,q1,q2,q3,q4,q5,q6\n{name},0,10,20,30,40,50\n")
+    code, _, err = run_cli("detect", folder, "--joints", log, "--camera", "wall", "--aruco", "4X4_50", "--out",
+                           tmp_path / "rows.csv")
+    assert code == 2 and "outside the images' folder" in err and "row 2" in err and len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "rows.csv").exists()

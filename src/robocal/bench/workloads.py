@@ -144,9 +144,9 @@ def w1_first_run(repeats: int = 3) -> list[Row]:
             out = subprocess.run([sys.executable, "-c", _FIRST_RUN], capture_output=True, text=True, check=True,
                                  env=env).stdout
             first.append(json.loads(out.splitlines()[-1]))
-            for lock in Path(d).glob("robocal-compile-*.lock"):  # the background compile: not in the next timing
-                try:
-                    os.killpg(int(lock.read_text()), signal.SIGTERM)
+            for pid in (Path(d) / "cache").glob("robocal/compile-*/pid"):  # the background compile: not in the
+                try:  # next timing
+                    os.killpg(int(pid.read_text()), signal.SIGTERM)
                 except (OSError, ValueError):
                     pass
         out = subprocess.run([sys.executable, "-c", _NAIVE.format(k=prob.k)], capture_output=True, text=True,

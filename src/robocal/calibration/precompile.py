@@ -36,5 +36,32 @@ def compile_kernels() -> None:
             parallel.compile(signature)
 
 
+def main(folder: str | None = None) -> None:
+    """Compile, and record the outcome in the compile's state folder (``folder``; see
+    :func:`robocal.model.compiled.state_folder`): success, or the failure with its one-line reason,
+    which later processes say once instead of starting the compile again; then drop the lock."""
+    import os
+
+    from ..model.compiled import COMPILED, FAILED, LOCK, fingerprint, record
+
+    try:
+        compile_kernels()
+    except BaseException as exc:  # an unwritable numba cache, a numba that cannot compile: said once, later
+        if folder is not None:
+            record(folder, FAILED, f"{fingerprint()}\n{type(exc).__name__}: {' '.join(str(exc).split())[:300]}")
+        raise
+    else:
+        if folder is not None:
+            record(folder, COMPILED, fingerprint())
+    finally:
+        if folder is not None:
+            try:
+                os.unlink(os.path.join(folder, LOCK))
+            except OSError:
+                pass
+
+
 if __name__ == "__main__":
-    compile_kernels()
+    import sys
+
+    main(sys.argv[1] if len(sys.argv) > 1 else None)

@@ -182,7 +182,9 @@ def calibrate_cmd(
     pixel_noise: float | None = typer.Option(None, "--pixel-noise", help="σ of the camera rows' pixels, px (default: "
                                              "estimated)"),
     column: list[str] | None = typer.Option(None, "--column", help="map file columns: FILE=ROBOCAL[,FILE=ROBOCAL…]"),
-    joint_unit: str | None = typer.Option(None, "--joint-unit", help="deg | rad (default: deg, checked)"),
+    joint_unit: str | None = typer.Option(None, "--joint-unit", help="deg | rad (default: deg; radians read as "
+                                          "degrees, and degrees as radians, are told by the robot's joint limits "
+                                          "and refused)"),
     length_unit: str | None = typer.Option(None, "--length-unit", help="mm | m (default: mm, checked)"),
     delimiter: str = delimiter_option(),
     decimal: str = decimal_option(),

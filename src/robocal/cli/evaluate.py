@@ -28,7 +28,9 @@ def evaluate_cmd(
     frames: str = typer.Option("auto", "--frames", help="auto | none | base | base+tool: fit frames first (auto, as "
                                "in calibrate: registered when the data are not in the model's frame, and said)"),
     column: list[str] | None = typer.Option(None, "--column", help="map file columns: FILE=ROBOCAL[,FILE=ROBOCAL…]"),
-    joint_unit: str | None = typer.Option(None, "--joint-unit", help="deg | rad (default: deg, checked)"),
+    joint_unit: str | None = typer.Option(None, "--joint-unit", help="deg | rad (default: deg; radians read as "
+                                          "degrees, and degrees as radians, are told by the robot's joint limits "
+                                          "and refused)"),
     length_unit: str | None = typer.Option(None, "--length-unit", help="mm | m (default: mm)"),
     delimiter: str = delimiter_option(),
     decimal: str = decimal_option(),

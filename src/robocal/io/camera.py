@@ -7,7 +7,8 @@ OpenCV's distortion (``distortion_coefficients``, ``dist_coeffs``, ``distCoeffs`
 k1 k2 p1 p2 [k3]; the plumb-bob model, others refused), and the image size (``image_width``,
 ``image_height``, or ``width``, ``height``).  A matrix is a mapping with ``rows``, ``cols`` and
 ``data`` (OpenCV's ``!!opencv-matrix``, ROS's layout) or a flat list.  Enough YAML for these files:
-mappings by indentation, flow lists (over several lines), tags and the ``%YAML`` directive.
+mappings by indentation, flow lists and flow mappings (over several lines), quoted scalars (a ``#``
+in quotes is no comment), tags and the ``%YAML`` directive.
 """
 
 from __future__ import annotations
@@ -38,25 +39,87 @@ def _scalar(text: str):
         return text
 
 
+def _uncommented(raw: str) -> str:
+    """A line without its comment: ``#`` at its start or after a space, outside quotes (``"cam#2"`` is a name)."""
+    quote = None
+    for i, c in enumerate(raw):
+        if quote:
+            quote = None if c == quote else quote
+        elif c in "'\"":
+            quote = c
+        elif c == "#" and (i == 0 or raw[i - 1] in " \t"):
+            return raw[:i].rstrip()
+    return raw.rstrip()
+
+
+def _open(text: str) -> int:
+    """How many flow collections (``[``, ``{``) ``text`` leaves open, outside quotes."""
+    depth, quote = 0, None
+    for c in text:
+        if quote:
+            quote = None if c == quote else quote
+        elif c in "'\"":
+            quote = c
+        else:
+            depth += {"[": 1, "{": 1, "]": -1, "}": -1}.get(c, 0)
+    return depth
+
+
+def _split_top(text: str) -> list[str]:
+    """``text`` split at the commas outside brackets, braces and quotes."""
+    parts, depth, quote, last = [], 0, None, 0
+    for i, c in enumerate(text):
+        if quote:
+            quote = None if c == quote else quote
+        elif c in "'\"":
+            quote = c
+        elif c in "[{":
+            depth += 1
+        elif c in "]}":
+            depth -= 1
+        elif c == "," and depth == 0:
+            parts.append(text[last:i])
+            last = i + 1
+    return [p for p in (*parts, text[last:]) if p.strip()]
+
+
+def _flow(value: str, source: str, number: int):
+    """A flow list ``[a, b]`` or a flow mapping ``{rows: 3, data: [ … ]}`` (as cv2.FileStorage writes one,
+    ``rows:3`` without a space), or a scalar."""
+    value = re.sub(r"^!!?[\w:.-]+\s*", "", value.strip())
+    if value.startswith("["):
+        return [_flow(v, source, number) for v in _split_top(value.strip()[1:-1])]
+    if value.startswith("{"):
+        out = {}
+        for item in _split_top(value.strip()[1:-1]):
+            key, colon, rest = item.partition(":")
+            if not colon or not re.fullmatch(r"[A-Za-z_][\w-]*", key.strip()):
+                raise InputError(f"cannot read {item.strip()!r} in a mapping (expected key: value)", source=source,
+                                 where=f"line {number}")
+            out[key.strip()] = _flow(rest, source, number)
+        return out
+    return _scalar(value)
+
+
 def _yaml(text: str, source: str) -> dict:
-    """The nested mappings, flow lists and scalars of a camera YAML (see the module docstring)."""
+    """The nested mappings, flow lists and mappings and scalars of a camera YAML (see the module docstring)."""
     lines, pending = [], ""
     for number, raw in enumerate(text.splitlines(), 1):
-        line = raw.split("#", 1)[0].rstrip() if not raw.lstrip().startswith("%") else ""
-        if pending:  # a flow list over several lines
+        line = _uncommented(raw) if not raw.lstrip().startswith("%") else ""
+        if pending:  # a flow list or mapping over several lines
             pending += " " + line.strip()
-            if pending.count("[") <= pending.count("]"):
+            if _open(pending) <= 0:
                 lines.append((number, pending))
                 pending = ""
             continue
         if not line.strip() or line.strip() in ("---", "..."):
             continue
-        if "[" in line and line.count("[") > line.count("]"):
+        if _open(line) > 0:
             pending = line
             continue
         lines.append((number, line))
     if pending:
-        raise InputError("a list is not closed (expected ']')", source=source)
+        raise InputError("a list or mapping is not closed (expected ']' or '}')", source=source)
     root: dict = {}
     stack: list[tuple[int, dict]] = [(-1, root)]
     for number, line in lines:
@@ -71,9 +134,8 @@ def _yaml(text: str, source: str) -> dict:
         if value == "":
             parent[key] = {}
             stack.append((indent, parent[key]))
-        elif value.startswith("["):
-            inner = value.strip()[1:-1]
-            parent[key] = [_scalar(v) for v in inner.split(",") if v.strip()]
+        elif value.startswith(("[", "{")):
+            parent[key] = _flow(value, source, number)
         else:
             parent[key] = _scalar(value)
     return root

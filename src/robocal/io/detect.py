@@ -202,10 +202,15 @@ def centre(corners: np.ndarray) -> np.ndarray | None:
     p0, p1, p2, p3 = corners
     d1, d2 = p2 - p0, p3 - p1
     A = np.column_stack([d1, -d2])
-    if not abs(np.linalg.det(A)) > 1e-9 * max(float(np.sum(d1 * d1) + np.sum(d2 * d2)), 1e-300):
+    if not np.all(np.isfinite(A)) or \
+            not abs(np.linalg.det(A)) > 1e-9 * max(float(np.sum(d1 * d1) + np.sum(d2 * d2)), 1e-300):
         return None
-    t = np.linalg.solve(A, p1 - p0)[0]
-    return p0 + t * d1
+    try:
+        t = np.linalg.solve(A, p1 - p0)[0]
+    except np.linalg.LinAlgError:  # singular after all: no crossing
+        return None
+    out = p0 + t * d1
+    return out if np.all(np.isfinite(out)) else None
 
 
 @dataclass(frozen=True)
@@ -239,8 +244,12 @@ def detect_campaign(folder: str | Path, log: JointLog, camera: str, dictionary_n
     w = csv.writer(out, lineterminator="\n")
     w.writerow(["pose_id", *(f"q{i + 1}" for i in range(n)), "u", "v", "camera", "marker"])
     rows, empty, names, ids_found, degenerate = 0, [], set(), set(), 0
+    inside = folder.resolve()
     for image, q, line in zip(log.images, log.q, log.rows):
         path = folder / image
+        if Path(image).is_absolute() or ".." in Path(image).parts or inside not in path.resolve().parents:
+            raise InputError(f"image {image!r} is outside the images' folder {folder}: the log names images in it "
+                             "(a name, or a path below it)", source=log.source, where=f"row {line}, column 'image'")
         if not path.is_file():
             raise InputError(f"image {image!r} is not in {folder}", source=log.source, where=f"row {line}")
         found = find_markers(path, found_by) if board is None else find_board(path, found_by)

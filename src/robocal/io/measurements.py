@@ -184,6 +184,8 @@ class ReadOptions:
     #: the robot's coupled joints (:class:`robocal.model.coupled.CoupledJoint` as (joint, sources,
     #: factors, offset) tuples): a file gives every joint or only the free ones
     coupled: tuple = ()
+    #: the robot's joint limits ((low, high) per joint, rad; mm where a joint slides), for the unit check
+    limits: tuple | None = None
 
     def __post_init__(self) -> None:
         if self.joint_unit is not None:
@@ -204,7 +206,8 @@ def robot_fields(robot) -> dict:
     slide = tuple(bool(p) for p in robot.prismatic)
     return dict(n_joints=robot.n_joints, robot_label=robot.source, prismatic=slide if any(slide) else None,
                 chains=() if robot.tree is None else robot.tree.names,
-                coupled=tuple((c.joint, c.sources, c.factors, c.offset) for c in robot.coupled))
+                coupled=tuple((c.joint, c.sources, c.factors, c.offset) for c in robot.coupled),
+                limits=tuple((float(lo), float(hi)) for lo, hi in robot.limits))
 
 
 def euler_rotation(angles_deg: np.ndarray, sequence: str = "xyz") -> np.ndarray:
@@ -331,6 +334,7 @@ def read_pose_table(text: str, *, source: str, options: ReadOptions = ReadOption
         elif options.joint_unit is None and len(q) >= 3 and turn.size and 0 < np.abs(turn).max() <= math.pi + 1e-9:
             raise InputError("all joint values lie within ±π: they look like radians; files give joints in degrees "
                              "(state the joint unit with `joint_unit` rad if they are)", source=source)
+        _check_unit_against_limits(table, q, slide, options)
         q[:, slide] *= scale
         if coupled:
             q = _coupled_joints(table, q, coupled, full_options, short)
@@ -492,6 +496,39 @@ def _chains(table: CsvTable, options: ReadOptions, source: str) -> list[str] | N
             raise InputError(f"chain {c!r} is not one of {', '.join(options.chains)}", source=source,
                              where=f"row {int(line)}, column 'chain'")
     return chain
+
+
+#: a campaign's joint values, read in degrees, that all lie within this (deg) are radians read as degrees
+RADIAN_LIKE_DEG = 2 * math.pi + 1e-9
+#: a joint whose limits span more than this (deg) would be moved further than RADIAN_LIKE_DEG by any campaign
+ROOMY_JOINT_DEG = 90.0
+
+
+def _check_unit_against_limits(table: CsvTable, q: np.ndarray, slide: np.ndarray, options: ReadOptions) -> None:
+    """Joint values (deg as read) in the wrong unit, told by the robot's limits (one line naming the joint
+    unit): radians read as degrees (every value within ±2π "degrees" where the joints' limits span far
+    more), degrees read as radians (most rows beyond the limits, every one within them as degrees)."""
+    if options.limits is None or len(q) < 5 or options.n_joints is None or q.shape[1] != options.n_joints:
+        return
+    turn = ~slide
+    lim = np.degrees(np.array(options.limits, float))[turn]
+    values = q[:, turn]
+    if not values.size:
+        return
+    roomy = np.isfinite(lim).all(axis=1) & (lim[:, 1] - lim[:, 0] > ROOMY_JOINT_DEG)
+    if options.joint_unit is None and roomy.any() and np.abs(values).max() <= RADIAN_LIKE_DEG:
+        raise InputError(f"every joint value lies within ±{RADIAN_LIKE_DEG:.4f}, where the robot's joints turn "
+                         f"through {np.max(lim[roomy, 1] - lim[roomy, 0]):.0f}°: they look like radians read as "
+                         "degrees; state the joint unit (`joint_unit` rad)", source=table.source)
+    if options.joint_unit == "rad":
+        margin = 5.0  # deg: a pose taught at a limit, read back a little beyond it
+        beyond = np.any((values < lim[:, 0] - margin) | (values > lim[:, 1] + margin), axis=1)
+        written = np.radians(values)  # the numbers as the file has them, read as degrees
+        fits = np.all((written >= lim[:, 0] - margin) & (written <= lim[:, 1] + margin), axis=1)
+        if beyond.mean() > 0.5 and fits.mean() > 0.95:
+            raise InputError(f"{int(beyond.sum())} of {len(values)} rows lie beyond the robot's joint limits read as "
+                             "radians, and every one within them read as degrees: they look like degrees; leave "
+                             "`joint_unit` rad out", source=table.source)
 
 
 def _coupled_joints(table: CsvTable, q: np.ndarray, coupled, options: ReadOptions, short: bool) -> np.ndarray:

@@ -69,6 +69,20 @@ DELIMITERS = {",": ",", ";": ";", "tab": "\t", "\t": "\t", "space": " "}
 DECIMALS = (".", ",")
 
 
+def _robot_file(text: str) -> str | None:
+    """What kind of robot file ``text`` is (``TOML``, ``URDF``, ``UR kinematics YAML``), or None: its first
+    lines that are not blank or comments tell."""
+    lines = [x.strip() for x in text.lstrip("\ufeff").splitlines() if x.strip() and not x.strip().startswith("#")]
+    head = " ".join(lines[:5])
+    if lines and (lines[0].startswith("<?xml") or "<robot" in head):
+        return "URDF"
+    if lines and lines[0].startswith("kinematics:"):
+        return "UR kinematics YAML"
+    if re.search(r"^\s*(\[\[joint\]\]|convention\s*=|name\s*=\s*\")", "\n".join(lines[:10]), re.M):
+        return "TOML"
+    return None
+
+
 def read_csv(text: str, *, source: str, columns: Mapping[str, str] | None = None, delimiter: str = ",",
              decimal: str = ".") -> CsvTable:
     """Parse CSV text with a header row; blank lines are skipped, a byte-order mark ignored.
@@ -79,6 +93,10 @@ def read_csv(text: str, *, source: str, columns: Mapping[str, str] | None = None
     """
     if not text.strip():
         raise InputError("file is empty", source=source)
+    robot = _robot_file(text)
+    if robot:
+        raise InputError(f"is a robot file ({robot}), not a table of rows: give it as the robot (the first "
+                         "argument), and the measurements after it", source=source)
     sep = DELIMITERS[delimiter]
     if decimal == "," and sep == ",":
         raise InputError("decimal commas need another cell separator (--delimiter ';')", option="decimal")
