@@ -50,11 +50,11 @@ class FilterResult:
 
     def outputs(self, out: str | Path, stamp: list[str] | None = None) -> list[tuple[Path, bytes]]:
         """(path, bytes) of every file to write for ``--out``: the program, and its companions beside it;
-        ``stamp``: comment lines at the top of the program's module or routine where a target changed and
+        ``stamp``: comment lines at the top of the program's module or routine where a number changed and
         the language has comment lines (:func:`~.language.stamped`)."""
         out = Path(out)
         texts = list(self.texts)
-        if stamp and any(c.corrected for c in self.corrections):
+        if stamp and any(text != f.text for text, f in zip(texts, self.program.files)):  # a number changed
             texts[0] = stamped(texts[0], self.language, stamp)
         return [(out if f.out_suffix is None else out.with_suffix(f.out_suffix), encode(text, f.encoding))
                 for f, text in zip(self.program.files, texts)]
