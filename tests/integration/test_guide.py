@@ -163,12 +163,41 @@ def _flat(text: str) -> str:
     return " ".join(text.split())
 
 
-@pytest.mark.parametrize("page", [p for p in PAGES if runnable(p)], ids=lambda p: p.name)
-def test_every_guide_command_runs(page, workdir, run_cli):
+def parts(page: Path) -> list[tuple[str, str]]:
+    """A page cut at its ``##`` and ``###`` sections, each run in a folder of its own: (title, text) in
+    order, the text before the first section with the first.  A section that builds on the files of
+    the one before says ``<!-- guide-test: continues -->`` under its heading and runs with it; one that
+    builds on another's says ``<!-- guide-test: after TITLE -->`` and runs that section's blocks first."""
+    text = page.read_text(encoding="utf-8")
+    cut = [m.start() for m in re.finditer(r"^###? ", text, re.M)]
+    pieces = [text[a:b] for a, b in zip([0, *cut], [*cut, len(text)])]
+    out: list[list[str]] = []
+    for piece in pieces:
+        head = piece.split("\n```", 1)[0]
+        if out and ("guide-test: continues" in head or not out[-1][1].strip()):
+            out[-1][1] += piece
+            continue
+        title = piece.splitlines()[0].lstrip("# ").strip() if piece.startswith("#") else "top"
+        after = re.search(r"<!--\s*guide-test:\s*after\s+(.+?)\s*-->", head)
+        if after:
+            earlier = next((t for t in out if t[0] == after.group(1)), None)
+            assert earlier is not None, f"{page.name}: section {title!r} is after {after.group(1)!r}, which it is not"
+            piece = earlier[1] + piece
+        out.append([title, piece])
+    kinds = ("bash",) if page.name == "README.md" else ("bash", "python")  # the README's Python: test_readme.py
+    return [(title, piece) for title, piece in out if any(lang in kinds for _, lang, _ in BLOCK.findall(piece))]
+
+
+GUIDE_PARTS = [(p, title) for p in PAGES if runnable(p) for title, _ in parts(p)]
+
+
+@pytest.mark.parametrize("page,part", GUIDE_PARTS, ids=lambda x: x.name if isinstance(x, Path) else
+                         re.sub(r"\W+", "-", x.lower()).strip("-")[:40])
+def test_every_guide_command_runs(page, part, workdir, run_cli):
     ran = 0
     printed = ""  # what the last bash block run printed
-    text = page.read_text(encoding="utf-8")
-    for lang, body, notes in blocks(page):
+    text = dict(parts(page))[part]
+    for notes, lang, body in BLOCK.findall(text):
         if lang == "text" and "guide-test: output" in notes:
             for line in body.splitlines():
                 if line.strip() and line.strip() != "…":
@@ -198,7 +227,7 @@ def test_every_guide_command_runs(page, workdir, run_cli):
         for figure in figures:
             assert figure in printed, f"{page.name}: {figure} is quoted, the commands print otherwise"
             assert figure in after, f"{page.name}: {figure} is listed for checking but not quoted after its block"
-    assert ran, f"{page.name}: no command to run"
+    assert ran, f"{page.name} ({part}): no command to run"
 
 
 def run(line: str, parse_only_: bool, code: int, page: Path, run_cli) -> tuple[int, str]:

@@ -15,14 +15,16 @@ def new_figure(width: float, height: float, ncols: int = 1):
     """A Figure and its axes, outside pyplot's registry."""
     from matplotlib.figure import Figure
 
-    fig = Figure(figsize=(width, height))
+    fig = Figure(figsize=(width, height), layout="constrained")
     axes = fig.subplots(1, ncols)
     return fig, axes
 
 
 def png_bytes(fig) -> bytes:
+    """The figure as PNG; a figure laid out by its engine is drawn once (a tight bounding box would
+    draw it twice to measure it)."""
     buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=110, bbox_inches="tight")
+    fig.savefig(buf, format="png", dpi=110, bbox_inches=None if fig.get_layout_engine() is not None else "tight")
     return buf.getvalue()
 
 
