@@ -141,12 +141,18 @@ def test_krl_without_its_config_dat_flags_the_targets_and_exits_3(tmp_path, run_
 
 # --- ABB: a pedestal, a work object and a tool of the module ----------------------------------
 
-def test_rapid_on_a_pedestal_with_work_object_and_tool(tmp_path):
-    rng = np.random.default_rng(11)
+def _abb_cell(tmp_path):
+    """An IRB 120 on the pedestal, its nominal and planted robot files and geometries, a gun tool and a
+    table work object (world frames, mm)."""
     nominal, accurate = _robots(tmp_path, "irb120", PEDESTAL)
-    g_nom, g_acc = ind.geometry("irb120"), ind.geometry("irb120", PLANTED)
     tool = ctl.frame([0.0, 25.0, 140.0], [0.0, -30.0, 0.0])
     wobj = PEDESTAL @ ctl.frame([450.0, -100.0, 120.0], [0.0, 0.0, 90.0])
+    return nominal, accurate, ind.geometry("irb120"), ind.geometry("irb120", PLANTED), tool, wobj
+
+
+def test_rapid_on_a_pedestal_with_work_object_and_tool(tmp_path):
+    rng = np.random.default_rng(11)
+    nominal, accurate, g_nom, g_acc, tool, wobj = _abb_cell(tmp_path)
     box = [(-150, 150), (-60, 70), (-80, 50), (-150, 150), (20, 110), (-350, 350)]
     q = _taught(rng, box, 16)
     q[1::2, 4] *= -1.0
@@ -802,10 +808,7 @@ def test_rapid_offs_and_reltool_motions_take_their_targets_correction_and_say_wh
     manual's Offs: + d in the work object, RelTool: T · Trans(d) · Rz) is the remaining error robocal
     says, and it is far below the uncorrected one; p3 is left, its offset in the controller."""
     rng = np.random.default_rng(4)
-    nominal, accurate = _robots(tmp_path, "irb120", PEDESTAL)
-    g_nom, g_acc = ind.geometry("irb120"), ind.geometry("irb120", PLANTED)
-    tool = ctl.frame([0.0, 25.0, 140.0], [0.0, -30.0, 0.0])
-    wobj = PEDESTAL @ ctl.frame([450.0, -100.0, 120.0], [0.0, 0.0, 90.0])
+    nominal, accurate, g_nom, g_acc, tool, wobj = _abb_cell(tmp_path)
     box = [(-100, 100), (-40, 50), (-60, 30), (-100, 100), (30, 100), (-150, 150)]
     q = _taught(rng, box, 3)
     world = [ind.pose(g_nom, qi, base=PEDESTAL, tool=tool) for qi in q]

@@ -18,6 +18,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ..exceptions import InputError
+from ..io.table import split_top  # noqa: F401  (the languages' readers take it from here)
 
 #: a number token, whole: not the tail of a name (P1), nor cut short by a letter or a dot (1.5x)
 NUMBER = r"(?<![\w.])[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?(?![\w.])"
@@ -183,21 +184,6 @@ def blank_comments(text: str, marker: str) -> str:
             body = body[:cut] + " " * (len(body) - cut)
         out.append(body + newline)
     return "".join(out)
-
-
-def split_top(text: str) -> list[str]:
-    """``text`` split at the commas outside parentheses and brackets."""
-    parts, depth, last = [], 0, 0
-    for i, c in enumerate(text):
-        if c in "([":
-            depth += 1
-        elif c in ")]":
-            depth -= 1
-        elif c == "," and depth == 0:
-            parts.append(text[last:i])
-            last = i + 1
-    parts.append(text[last:])
-    return parts
 
 
 class Lines:

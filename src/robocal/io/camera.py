@@ -23,6 +23,7 @@ import numpy as np
 from ..exceptions import InputError
 from ..model.camera import DISTORTION, Camera
 from .atomic import read_text
+from .table import split_top
 
 MATRIX_KEYS = ("camera_matrix", "cameraMatrix", "K", "k", "intrinsic_matrix")
 DISTORTION_KEYS = ("distortion_coefficients", "dist_coeffs", "distCoeffs", "distortion", "D", "d")
@@ -65,33 +66,15 @@ def _open(text: str) -> int:
     return depth
 
 
-def _split_top(text: str) -> list[str]:
-    """``text`` split at the commas outside brackets, braces and quotes."""
-    parts, depth, quote, last = [], 0, None, 0
-    for i, c in enumerate(text):
-        if quote:
-            quote = None if c == quote else quote
-        elif c in "'\"":
-            quote = c
-        elif c in "[{":
-            depth += 1
-        elif c in "]}":
-            depth -= 1
-        elif c == "," and depth == 0:
-            parts.append(text[last:i])
-            last = i + 1
-    return [p for p in (*parts, text[last:]) if p.strip()]
-
-
 def _flow(value: str, source: str, number: int):
     """A flow list ``[a, b]`` or a flow mapping ``{rows: 3, data: [ … ]}`` (as cv2.FileStorage writes one,
     ``rows:3`` without a space), or a scalar."""
     value = re.sub(r"^!!?[\w:.-]+\s*", "", value.strip())
     if value.startswith("["):
-        return [_flow(v, source, number) for v in _split_top(value.strip()[1:-1])]
+        return [_flow(v, source, number) for v in split_top(value.strip()[1:-1], quotes=True) if v.strip()]
     if value.startswith("{"):
         out = {}
-        for item in _split_top(value.strip()[1:-1]):
+        for item in filter(str.strip, split_top(value.strip()[1:-1], quotes=True)):
             key, colon, rest = item.partition(":")
             if not colon or not re.fullmatch(r"[A-Za-z_][\w-]*", key.strip()):
                 raise InputError(f"cannot read {item.strip()!r} in a mapping (expected key: value)", source=source,

@@ -69,6 +69,26 @@ DELIMITERS = {",": ",", ";": ";", "tab": "\t", "\t": "\t", "space": " "}
 DECIMALS = (".", ",")
 
 
+def split_top(text: str, quotes: bool = False) -> list[str]:
+    """``text`` split at the commas outside parentheses, brackets and braces (and, with ``quotes``, outside
+    quoted text), every part kept, empty ones too."""
+    parts, depth, quote, last = [], 0, None, 0
+    for i, c in enumerate(text):
+        if quote:
+            quote = None if c == quote else quote
+        elif quotes and c in "'\"":
+            quote = c
+        elif c in "([{":
+            depth += 1
+        elif c in ")]}":
+            depth -= 1
+        elif c == "," and depth == 0:
+            parts.append(text[last:i])
+            last = i + 1
+    parts.append(text[last:])
+    return parts
+
+
 def _robot_file(text: str) -> str | None:
     """What kind of robot file ``text`` is (``TOML``, ``URDF``, ``UR kinematics YAML``), or None: its first
     lines that are not blank or comments tell."""

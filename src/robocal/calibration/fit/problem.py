@@ -408,7 +408,17 @@ class Problem:
 
     def residual_jacobian(self, x: np.ndarray) -> np.ndarray:
         """Exact ∂(whitened residuals)/∂x, (n_residuals, k_active), Fortran-ordered as MINPACK wants:
-        each block's rows where :meth:`residuals` puts them."""
+        each block's rows where :meth:`residuals` puts them.  The last one is kept: the statistics
+        after a fit ask for it at the estimate again (a copy is returned, a solver may scale it)."""
+        key = np.asarray(x, float).tobytes()
+        last = self.__dict__.get("_last_jacobian")
+        if last is not None and last[0] == key:
+            return last[1].copy(order="F")
+        out = self._residual_jacobian(x)
+        self.__dict__["_last_jacobian"] = (key, out)
+        return out.copy(order="F")
+
+    def _residual_jacobian(self, x: np.ndarray) -> np.ndarray:
         at = self.evaluate(x, jacobian=True)
         k, m = at.J.shape[0], at.J.shape[1]
         out = np.empty((k, self.n_residuals))
