@@ -15,7 +15,7 @@ def new_figure(width: float, height: float, ncols: int = 1):
     """A Figure and its axes, outside pyplot's registry."""
     from matplotlib.figure import Figure
 
-    fig = Figure(figsize=(width, height), layout="constrained")
+    fig = Figure(figsize=(width, height))
     axes = fig.subplots(1, ncols)
     return fig, axes
 
