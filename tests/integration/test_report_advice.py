@@ -47,3 +47,19 @@ def test_a_model_at_its_floor_is_not_told_to_do_more():
     assert figure < FLOOR_GAP * 0.02 * np.sqrt(3)
     advice = next_steps(res)
     assert not any("the difference is the model's" in a for a in advice), advice
+
+
+def test_the_exports_paragraph_offers_a_ur_yaml_for_a_ur_arm_only():
+    """A UR kinematics YAML is offered where a UR-type arm's joints fit it (the UR10), never for a KR5 or
+    the Panda's seven joints; and it says the frames are in the TOML beside it."""
+    from robocal.io.measurements import load_measurements
+    from robocal.io.robotfile import load_robot
+    from robocal.report.html import _exports
+
+    meas = load_measurements(UR10, n_joints=6)
+    ur = " ".join(_exports(_fit("ur10", meas.subset(np.arange(0, 300)), "lm", frames="base+tool")))
+    assert "UR kinematics YAML holds the joints' geometry alone" in ur and "robot TOML written beside it" in ur
+    sim = simulate(load_robot("kr5-arc"), 40, deviations="uniform:0.3,0.003", seed=1, noise=0.02)
+    kr5 = " ".join(_exports(_fit("kr5-arc", sim.measurements, "lm")))
+    assert "YAML" not in kr5
+

@@ -225,9 +225,12 @@ def _exports(result: CalibrationResult) -> list[str]:
                     "camera's optical frame on <code>camera_NAME_optical</code>), and each chain is written beside "
                     "any export as its own robot TOML (<code>NAME.CHAIN.toml</code>) for <code>robocal filter</code> "
                     "and <code>compensate</code>; a kinematics YAML holds one arm, and a tree is not written as one.")
+    from ..inverse.closed_form import form_of
+    from ..inverse.equivalent import dh_equivalent
     from ..io.ur import holds
 
-    yaml = holds(result.robot)
+    # a UR kinematics YAML is for a UR-type arm (axes 2, 3 and 4 parallel: the "offset" closed form) it can hold
+    yaml = holds(result.robot) and form_of(dh_equivalent(result.nominal))[0] == "offset"
     kinematics = (" A UR kinematics YAML holds the joints' geometry alone: the measuring frame and the tool are in "
                   "the robot TOML written beside it." if yaml else "")
     if e.geometric:
