@@ -410,13 +410,15 @@ class Problem:
         """Exact ∂(whitened residuals)/∂x, (n_residuals, k_active), Fortran-ordered as MINPACK wants:
         each block's rows where :meth:`residuals` puts them.  The last one is kept: the statistics
         after a fit ask for it at the estimate again (a copy is returned, a solver may scale it)."""
+        return self._jacobian_at(x).copy(order="F")
+
+    def _jacobian_at(self, x: np.ndarray) -> np.ndarray:
+        """The kept Jacobian at x (computed where it is another x): not to be written to."""
         key = np.asarray(x, float).tobytes()
         last = self.__dict__.get("_last_jacobian")
-        if last is not None and last[0] == key:
-            return last[1].copy(order="F")
-        out = self._residual_jacobian(x)
-        self.__dict__["_last_jacobian"] = (key, out)
-        return out.copy(order="F")
+        if last is None or last[0] != key:
+            last = self.__dict__["_last_jacobian"] = (key, self._residual_jacobian(x))
+        return last[1]
 
     def _residual_jacobian(self, x: np.ndarray) -> np.ndarray:
         at = self.evaluate(x, jacobian=True)
@@ -444,7 +446,9 @@ class Problem:
 
     def map_jacobian(self, x: np.ndarray) -> np.ndarray:
         """∂(:meth:`map_residuals`)/∂x: the data's rows, then one row per prior (1/σ_i at i)."""
-        J = self.residual_jacobian(x)
         if not self.has_prior:
-            return J
-        return np.asfortranarray(np.vstack([J, self.prior.jacobian(self.n_params)]))
+            return self.residual_jacobian(x)
+        J, P = self._jacobian_at(x), self.prior.jacobian(self.n_params)
+        out = np.empty((J.shape[0] + P.shape[0], J.shape[1]), order="F")  # one copy, in MINPACK's order
+        out[:J.shape[0]], out[J.shape[0]:] = J, P
+        return out
