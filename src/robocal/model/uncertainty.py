@@ -104,8 +104,8 @@ def _spread(sigma: np.ndarray) -> dict:
             "max_mm": float(np.max(sigma))}
 
 
-def _in_base(robot, points: np.ndarray) -> np.ndarray:
-    """Points (m, 3) mm of the measuring frame in the robot's base frame."""
+def in_base(robot, points: np.ndarray) -> np.ndarray:
+    """Points (…, 3) mm of the measuring frame in the robot's base frame."""
     B = np.linalg.inv(robot.base)
     return points @ B[:3, :3].T + B[:3, 3]
 
@@ -129,7 +129,8 @@ def uncertainty_map(robot, q_low: np.ndarray, q_high: np.ndarray, n: int = 2000,
         for _ in range(20):  # rounds of candidates: a box a tenth of the reach keeps a few per cent
             q = robot.couple(rng.uniform(q_low, q_high, (10 * n, len(q_low))))
             p = robot.positions(q, chains=chains(len(q)))
-            inside = np.all((_in_base(robot, p) >= box[0]) & (_in_base(robot, p) <= box[1]), axis=1)
+            local = in_base(robot, p)
+            inside = np.all((local >= box[0]) & (local <= box[1]), axis=1)
             kept_q.append(q[inside])
             kept_p.append(p[inside])
             if sum(len(k) for k in kept_q) >= n:
@@ -155,7 +156,7 @@ def tcp_map(robot, meas, seed: int | None = 0, over: str = "workspace") -> Uncer
     at_poses = predicted_sigma(robot, meas.q, known_targets(robot, meas), meas.inputs, meas.chain)
     box = None
     if over == "workspace":
-        points = _in_base(robot, robot.positions(meas.q, chains=meas.chain))  # the TCP at the calibration poses
+        points = in_base(robot, robot.positions(meas.q, chains=meas.chain))  # the TCP at the calibration poses
         lo, hi = points.min(axis=0), points.max(axis=0)
         pad = BOX_MARGIN * np.maximum(hi - lo, 1.0)
         box = np.stack([lo - pad, hi + pad])

@@ -11,6 +11,7 @@ import numpy as np
 
 from ..calibration.result import CalibrationResult
 from ..model.parameters import is_frame
+from ..model.uncertainty import in_base
 
 #: a figure this many times the instrument's floor is the model's, not the instrument's
 FLOOR_GAP = 3.0
@@ -95,7 +96,7 @@ def next_steps(result: CalibrationResult) -> list[str]:
         if summary["median_mm"] > SPREAD_GAP * at:
             where = "Over the measured poses' workspace" if m.over == "workspace" else \
                 "Over the calibrated joint ranges"
-            x, y, z = _base(result, m.brightest())
+            x, y, z = in_base(result.robot, m.brightest())
             out.append(f"{where} the predicted TCP uncertainty is {summary['median_mm']:.3g} mm (median; 95 % "
                        f"below {summary['p95_mm']:.3g} mm), {summary['median_mm'] / at:.1f}× that at the measured "
                        "poses: the model is sure of itself only near them. Its largest tenth lies around x "
@@ -151,12 +152,6 @@ def next_steps(result: CalibrationResult) -> list[str]:
     return [f"Nothing calls for more: the model predicts {headline[1]:.3g} mm RMS {headline[0]}, within "
             f"{FLOOR_GAP:g}× the instrument's own {floor:.3g} mm, and its predicted TCP uncertainty over the "
             f"calibrated joint ranges is near that at the measured poses."]
-
-
-def _base(result: CalibrationResult, point: np.ndarray) -> np.ndarray:
-    """A point (mm) of the measuring frame in the robot's base frame."""
-    base = result.robot.base
-    return base[:3, :3].T @ (np.asarray(point, float) - base[:3, 3])
 
 
 def as_html(text: str) -> str:

@@ -12,6 +12,7 @@ from ..calibration.result import CalibrationResult
 from ..io.atomic import atomic_write
 from ..model.metrics import Metrics, pose_errors, table_rows
 from ..model.parameters import is_angle, is_frame
+from ..model.uncertainty import in_base
 from . import figures
 from .advice import as_html, next_steps
 from .header import run_header
@@ -115,12 +116,6 @@ def _norms(robot, meas) -> np.ndarray:
     return np.linalg.norm(dp, axis=1)
 
 
-def _in_base(robot, points: np.ndarray) -> np.ndarray:
-    """Points (m, 3) mm of the measuring frame in the robot's base frame."""
-    B = np.linalg.inv(robot.base)
-    return points @ B[:3, :3].T + B[:3, 3]
-
-
 def _uncertainty_map(result: CalibrationResult) -> list[str]:
     m = result.tcp_uncertainty
     if m is None:
@@ -134,7 +129,7 @@ def _uncertainty_map(result: CalibrationResult) -> list[str]:
     else:
         where = (f"at {s['points']} joint sets drawn over the joint ranges the model was calibrated on, in any "
                  "combination (<code>--map-over joints</code>)")
-    bright = _in_base(result.robot, m.brightest()[None])[0]
+    bright = in_base(result.robot, m.brightest())
     return ["<h2>How well the model knows the TCP</h2><p>The predicted position's standard uncertainty (1σ, rms "
             "radius) from the parameter covariance" + (" and the residual process's variance" if
                                                         result.robot.residual is not None else "")
@@ -149,7 +144,7 @@ def _uncertainty_map(result: CalibrationResult) -> list[str]:
             "uncertainty (how well these poses determine the parameters), not the robot's error. <code>robocal "
             "evaluate --uncertainty</code> gives it per pose, anywhere: the model is used whole everywhere, and its "
             "uncertainty says where it is less known.</p>",
-            _img(figures.workspace_errors(_in_base(result.robot, m.position), m.sigma,
+            _img(figures.workspace_errors(in_base(result.robot, m.position), m.sigma,
                                           "predicted TCP position uncertainty (base frame)",
                                           "σ of the predicted position (mm)", from_zero=False))]
 
@@ -178,14 +173,14 @@ def _error_figures(result: CalibrationResult) -> list[str]:
     if where.constraints is not None:  # a contact row measured no point: the calibrated model's is drawn
         points = np.where(where.constraints.rows[:, None],
                           result.robot.positions(where.q, where.targets, where.inputs, where.chain), points)
-    in_base = _in_base(result.robot, points)
+    placed = in_base(result.robot, points)
     parts.append(f"<h2>Where the error is</h2><p>Measured points of the {label} poses in the robot's base frame "
                  + ("(where a row touched a point or plane, the calibrated model's tool point), " if
                     where.constraints is not None else "")
                  + "coloured by the calibrated model's position error (the colour scale runs to the "
                  f"{figures.ROBUST_PERCENTILE:g}th percentile, so that a few large errors do not darken the rest; the "
                  "points above it are ringed in red, and the largest are drawn on top).</p>")
-    parts.append(_img(figures.workspace_errors(in_base, after, f"{label} poses after calibration (base frame)")))
+    parts.append(_img(figures.workspace_errors(placed, after, f"{label} poses after calibration (base frame)")))
     parts += _uncertainty_map(result)
     geometric = result.geometric or (result.robot if result.robot.geometric else None)
     others = {}
