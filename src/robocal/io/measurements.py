@@ -519,7 +519,8 @@ def _check_unit_against_limits(table: CsvTable, q: np.ndarray, slide: np.ndarray
     if options.joint_unit is None and roomy.any() and np.abs(values).max() <= RADIAN_LIKE_DEG:
         raise InputError(f"every joint value lies within ±{RADIAN_LIKE_DEG:.4f}, where the robot's joints turn "
                          f"through {np.max(lim[roomy, 1] - lim[roomy, 0]):.0f}°: they look like radians read as "
-                         "degrees; state the joint unit (`joint_unit` rad)", source=table.source)
+                         "degrees; state the joint unit (`joint_unit` rad, or deg where a campaign really keeps "
+                         "every joint that near zero)", source=table.source)
     if options.joint_unit == "rad":
         margin = 5.0  # deg: a pose taught at a limit, read back a little beyond it
         beyond = np.any((values < lim[:, 0] - margin) | (values > lim[:, 1] + margin), axis=1)
