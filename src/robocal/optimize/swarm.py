@@ -239,15 +239,13 @@ def ipso(objective: Objective, lower, upper, *, particles: int, iterations: int,
     v ← K (v + c1 r1 (pbest − x) + c2 r2 (gbest − x)), K from φ = c1 + c2 (paper: 0.7298;
     settings :data:`robocal.presets.wen2019.IPSO`).  start: a position for particle 0 (else
     its Halton point)."""
-    from scipy.stats import qmc
+    from .halton import halton
 
     t0 = time.perf_counter()
     rng = np.random.default_rng(seed)
     lower, upper = np.asarray(lower, float), np.asarray(upper, float)
-    halton = qmc.Halton(d=lower.size, scramble=halton_scramble, seed=rng if halton_scramble else None)
-    if not halton_scramble:
-        halton.fast_forward(1)  # the unscrambled sequence starts at the origin
-    h = halton.random(2 * particles)
+    # scipy.stats.qmc.Halton's numbers (the unscrambled sequence skips its origin)
+    h = halton(2 * particles, lower.size, rng) if halton_scramble else halton(2 * particles, lower.size, start=1)
     half = 0.5 * (upper - lower)
     x0 = lower + h[:particles] * (upper - lower)
     v0 = -half + h[particles:] * 2 * half

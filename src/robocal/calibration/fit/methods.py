@@ -171,8 +171,6 @@ def run_swarm(search: Problem, config: CalibrationConfig, progress: Progress | N
             from ...optimize import kernels
 
             kernels.warm_up()
-        if config.spec.halton:
-            from scipy.stats import qmc  # noqa: F401  (its import is not the swarm's time)
     with stage("optimize"):
         return config.spec.swarm(objective, lower, upper, **kw)
 
