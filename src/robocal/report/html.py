@@ -246,7 +246,10 @@ def _exports(result: CalibrationResult) -> list[str]:
                      f"{'' if own else 'the geometric calibration: '}geometry and frames", f"{e.geometry_rms_mm:.4f}",
                      f"{e.geometry_max_mm:.4f}")], left=2),
             "<p>The joint terms and the learned correction reach the robot only through <code>robocal filter</code> "
-            "(its programs) and <code>robocal compensate</code> (its commands).</p>"]
+            "(its programs) and <code>robocal compensate</code> (its commands)."
+            + (" Each chain's own robot TOML holds the geometric calibration: the tree's joint terms load its trunk "
+               "with every arm, which one chain cannot hold." if result.robot.tree is not None else "")
+            + f"{kinematics}{cameras}</p>"]
 
 
 def _model_tables(result: CalibrationResult) -> list[str]:
