@@ -31,7 +31,6 @@ import numpy as np
 from ..exceptions import InputError, RobocalWarning
 from ..math.se3 import invert
 from ..math.so3 import matrix_to_rpy
-from ..model import urdf
 from ..model.robot import Robot
 from .urdf_xml import (
     JOINT_TYPES,
@@ -54,6 +53,7 @@ from .urdf_xml import (
     _path,
     _set_origin,
     _tree,
+    geometry_row,
     measuring_frame,
     mimics,
 )
@@ -92,15 +92,8 @@ def parse_urdf(text: str, *, source: str = "<urdf>", base_link: str | None = Non
         fixed = np.eye(4)
         for j in path[(movable[n - 1] + 1 if n else k):k]:
             fixed = fixed @ j.origin
-        joint = path[k]
-        T = fixed @ joint.origin
-        row = np.zeros(urdf.WIDTH)
-        row[urdf.X:urdf.Z + 1] = T[:3, 3]
-        row[urdf.ROLL:urdf.YAW + 1] = matrix_to_rpy(T[:3, :3])
-        row[urdf.AX:urdf.AZ + 1] = joint.axis
-        row[urdf.PRISMATIC] = joint.kind == "prismatic"
-        rows.append(row)
-        limits.append(joint.limits)
+        rows.append(geometry_row(path[k], fixed))
+        limits.append(path[k].limits)
         folded.append(fixed)
     tail = np.eye(4)
     for j in path[movable[-1] + 1:]:

@@ -46,6 +46,7 @@ from .urdf_xml import (
     _path,
     _set_origin,
     _tree,
+    geometry_row,
     measuring_frame,
     mimics,
 )
@@ -90,15 +91,8 @@ def parse_urdf_tree(text: str, *, source: str = "<urdf>", base_link: str | None 
     by_name = {j.name: j for path in paths.values() for j in path}
     rows, limits = [], []
     for name in order:
-        joint = by_name[name]
-        T = folded_of[name] @ joint.origin
-        row = np.zeros(urdf.WIDTH)
-        row[urdf.X:urdf.Z + 1] = T[:3, 3]
-        row[urdf.ROLL:urdf.YAW + 1] = matrix_to_rpy(T[:3, :3])
-        row[urdf.AX:urdf.AZ + 1] = joint.axis
-        row[urdf.PRISMATIC] = joint.kind == "prismatic"
-        rows.append(row)
-        limits.append(joint.limits)
+        rows.append(geometry_row(by_name[name], folded_of[name]))
+        limits.append(by_name[name].limits)
     tree = TreeSpec(tuple(parent_of[n] for n in order), chains)
     record = UrdfChain(text, base, ",".join(tips), tuple(order), tuple(folded_of[n] for n in order), lead,
                        tuple(j.name for j in first[:common]), np.eye(4), "", {})

@@ -110,6 +110,18 @@ def _joint(element: ET.Element, source: str) -> _Joint:
                   axis / (np.linalg.norm(axis) or 1.0), limits, element)
 
 
+def geometry_row(joint: _Joint, fixed: np.ndarray) -> np.ndarray:
+    """A movable joint's row of the urdf convention: its origin with the fixed joints before it folded in
+    (``fixed``, mm), its axis and its kind."""
+    T = fixed @ joint.origin
+    row = np.zeros(urdf.WIDTH)
+    row[urdf.X:urdf.Z + 1] = T[:3, 3]
+    row[urdf.ROLL:urdf.YAW + 1] = matrix_to_rpy(T[:3, :3])
+    row[urdf.AX:urdf.AZ + 1] = joint.axis
+    row[urdf.PRISMATIC] = joint.kind == "prismatic"
+    return row
+
+
 def mimics(joints: list[_Joint], source: str):
     """The coupled joints (:mod:`robocal.model.coupled`) of a robot's movable ``joints`` (in the data's
     order) that ``<mimic joint= multiplier= offset=>`` another of them (offset rad, or m for a slide)."""
