@@ -49,6 +49,15 @@ class Estimate:
     def replace(self, **changes) -> Estimate:
         return replace(self, **changes)
 
+    def refitted(self, problem: Problem, step: OptimizeResult, why: str) -> Estimate:
+        """This estimate carried on by ``step``, a refit of ``problem`` (new weights, widths, a shared
+        error): the optimizer's account extended with why, its history kept (χ² under other weights is
+        another scale), the re-expression gap as it was."""
+        merged = self.optimization.then(step, method=self.optimization.method,
+                                        message=f"{self.optimization.message}; {why}: {step.message}",
+                                        history=self.optimization.history)
+        return Estimate(problem, merged, step.x, self.reexpression_gap_mm)
+
 
 def settings(config: CalibrationConfig) -> dict:
     """The swarm settings of a run: the paper's, overridden by the config."""

@@ -61,9 +61,7 @@ def weigh_shared(est: Estimate, config: CalibrationConfig, noise: NoiseEstimate
                         sigma_position=problem.setup.sigma_position if stated else own)
         problem = setup.problem(problem.names)
         lm = _refit(problem, est.x, config)
-        est = Estimate(problem, est.optimization.then(lm, method=est.optimization.method, message=(
-            f"{est.optimization.message}; a pose's camera rows weighed as sharing an error (ρ {ratio:.3g}): "
-            f"{lm.message}"), history=est.optimization.history), lm.x, est.reexpression_gap_mm)
+        est = est.refitted(problem, lm, f"a pose's camera rows weighed as sharing an error (ρ {ratio:.3g})")
         found = estimate_ratio(problem.errors(est.x)[0], problem.meas)
         if lm.status != "converged" or found is None or abs(found[0] / ratio - 1.0) <= SETTLED:
             break

@@ -40,9 +40,7 @@ def weigh_instrument(est: Estimate, config: CalibrationConfig,
                 break
             problem = replace(problem.setup, instrument=weights).problem(problem.names)
             lm = fit_lm(problem, est.x, config)
-            est = Estimate(problem, est.optimization.then(lm, method=est.optimization.method, message=(
-                f"{est.optimization.message}; weighed by the instrument's σ: {lm.message}"),
-                history=est.optimization.history), lm.x, est.reexpression_gap_mm)
+            est = est.refitted(problem, lm, "weighed by the instrument's σ")
             est, noise = reweigh(est, config)
             if lm.status != "converged":
                 break
@@ -66,9 +64,7 @@ def weigh_kinds(est: Estimate, config: CalibrationConfig, noise: NoiseEstimate) 
             break
         problem = replace(problem.setup, instrument=weights, sigma_position=weights.ref).problem(problem.names)
         lm = fit_lm(problem, est.x, config)
-        est = Estimate(problem, est.optimization.then(lm, method=est.optimization.method, message=(
-            f"{est.optimization.message}; each kind of rows weighed by its σ: {lm.message}"),
-            history=est.optimization.history), lm.x, est.reexpression_gap_mm)
+        est = est.refitted(problem, lm, "each kind of rows weighed by its σ")
         if lm.status != "converged":
             break
     weights = est.problem.setup.instrument
@@ -110,9 +106,7 @@ def reweigh(est: Estimate, config: CalibrationConfig) -> tuple[Estimate, NoiseEs
                 step = fit_lm(problem, est.x, config)
             refits += 1
             # χ² under new weights is another scale: the history stays that of the first weights
-            est = Estimate(problem, est.optimization.then(step, method=est.optimization.method, message=(
-                f"{est.optimization.message}; reweighted (σp {sigmas[0]:.3g} mm): {step.message}"),
-                history=est.optimization.history), step.x, est.reexpression_gap_mm)
+            est = est.refitted(problem, step, f"reweighted (σp {sigmas[0]:.3g} mm)")
             if step.status != "converged" or confirmed(problem, est.x, target, model):
                 break
     return est, NoiseEstimate(sigmas[0], sigmas[1] if full else None, source, refits)

@@ -107,9 +107,7 @@ def size_widths(est: Estimate, config: CalibrationConfig, noise: NoiseEstimate, 
         setup = replace(problem.setup.with_prior(prior.merged(Prior(widths))), sized=dict(widths))
         problem = setup.problem(problem.names)
         step = _refit(problem, x, config)
-        est = Estimate(problem, est.optimization.then(step, method=est.optimization.method, message=(
-            f"{est.optimization.message}; prior widths sized by the data: {step.message}"),
-            history=est.optimization.history), step.x, est.reexpression_gap_mm)
+        est = est.refitted(problem, step, "prior widths sized by the data")
         est, noise = reweigh(est, config)
         if step.status != "converged":
             break
