@@ -45,17 +45,16 @@ from .urdf_xml import (
     _default_tip,
     _dh_split,
     _fixed_joint,
-    _folded_origin,
     _indent,
     _num,
-    _origin,
     _parse_xml,
     _path,
     _set_origin,
     _tree,
+    fixed_between,
     geometry_row,
-    measuring_frame,
     mimics,
+    rewritten,
 )
 
 
@@ -153,11 +152,7 @@ def whole_model_file(text: str, path: str | Path) -> Path | None:
 
 def _from_file(robot: Robot, tool_at_tip: bool = False) -> ET.Element:
     chain: UrdfChain = robot.urdf
-    root = _parse_xml(chain.text, robot.source)
-    joints = {j.get("name"): j for j in root.findall("joint")}
-    for name, fixed, g in zip(chain.joints, chain.folded, robot.geometry):
-        _set_origin(joints[name], invert(fixed) @ _folded_origin(g), "\n    ")
-    measuring_frame(root, joints, chain, robot)
+    root, joints = rewritten(robot)
     _write_targets(robot, root, joints, chain, tool_at_tip)
     return root
 
@@ -195,13 +190,7 @@ def _write_targets(robot: Robot, root: ET.Element, joints: dict, chain: UrdfChai
 
 def _fixed_before(root: ET.Element, flange: str, link: str, source: str) -> np.ndarray:
     """The fixed transform from the flange link down to ``link`` (mm)."""
-    by_child = {j.find("child").get("link"): j for j in root.findall("joint")}
-    T = np.eye(4)
-    while link != flange:
-        j = by_child[link]
-        T = _origin(j.find("origin"), source, j.get("name")) @ T
-        link = j.find("parent").get("link")
-    return T
+    return fixed_between({j.find("child").get("link"): j for j in root.findall("joint")}, flange, link, source)
 
 
 def _from_dh(robot: Robot) -> ET.Element:

@@ -41,14 +41,14 @@ from .urdf_xml import (
     _folded_origin,
     _indent,
     _num,
-    _origin,
     _parse_xml,
     _path,
     _set_origin,
     _tree,
+    fixed_between,
     geometry_row,
-    measuring_frame,
     mimics,
+    rewritten,
 )
 
 
@@ -130,31 +130,17 @@ def tree_urdf(robot: Robot) -> ET.Element:
 
 def _from_file(robot: Robot) -> ET.Element:
     record: UrdfChain = robot.urdf
-    root = _parse_xml(record.text, robot.source)
-    joints = {j.get("name"): j for j in root.findall("joint")}
-    for name, fixed, g in zip(record.joints, record.folded, robot.geometry):
-        _set_origin(joints[name], invert(fixed) @ _folded_origin(g), "\n    ")
-    measuring_frame(root, joints, record, robot)
+    root, joints = rewritten(robot)
     by_child = {j.find("child").get("link"): j for j in root.findall("joint")}
     child_of = {name: joints[name].find("child").get("link") for name in record.joints}
     for chain, path in robot.tree.chains.items():
         tip = chain  # a chain read from a URDF is named after its tip link
-        tail = _fixed_from(by_child, child_of[record.joints[path[-1]]], tip, robot.source)
+        tail = fixed_between(by_child, child_of[record.joints[path[-1]]], tip, robot.source)
         _put(root, by_child, tip, f"{TARGET}_{tip}", invert(tail) @ robot.targets.get(chain, tail))
     for name, mount in robot.cameras.items():
         parent = _camera_parent(robot, mount, lambda k: child_of[record.joints[k - 1]])
         _put(root, by_child, parent, f"camera_{name}_optical", mount.pose)
     return root
-
-
-def _fixed_from(by_child: dict, top: str, link: str, source: str) -> np.ndarray:
-    """The fixed joints' transform (mm) from link ``top`` down to ``link``."""
-    T = np.eye(4)
-    while link != top:
-        j = by_child[link]
-        T = _origin(j.find("origin"), source, j.get("name")) @ T
-        link = j.find("parent").get("link")
-    return T
 
 
 def _camera_parent(robot: Robot, mount, link_after) -> str:

@@ -110,6 +110,30 @@ def _joint(element: ET.Element, source: str) -> _Joint:
                   axis / (np.linalg.norm(axis) or 1.0), limits, element)
 
 
+def rewritten(robot: Robot) -> tuple[ET.Element, dict]:
+    """The URDF a robot was read from, its movable joints' origins set to the robot's geometry (the
+    fixed joints before each folded back out) and its base on ``measuring_frame``: (root, joint name →
+    element) for the writer to add the rest."""
+    record: UrdfChain = robot.urdf
+    root = _parse_xml(record.text, robot.source)
+    joints = {j.get("name"): j for j in root.findall("joint")}
+    for name, fixed, g in zip(record.joints, record.folded, robot.geometry):
+        _set_origin(joints[name], invert(fixed) @ _folded_origin(g), "\n    ")
+    measuring_frame(root, joints, record, robot)
+    return root, joints
+
+
+def fixed_between(by_child: dict, top: str, link: str, source: str) -> np.ndarray:
+    """The fixed joints' transform (mm) from link ``top`` down to ``link`` (``by_child``: each link's
+    joint element, by its child link)."""
+    T = np.eye(4)
+    while link != top:
+        j = by_child[link]
+        T = _origin(j.find("origin"), source, j.get("name")) @ T
+        link = j.find("parent").get("link")
+    return T
+
+
 def geometry_row(joint: _Joint, fixed: np.ndarray) -> np.ndarray:
     """A movable joint's row of the urdf convention: its origin with the fixed joints before it folded in
     (``fixed``, mm), its axis and its kind."""
