@@ -139,3 +139,19 @@ follows_offset = 2.5
     path.write_text(text)
     code, _, err = run_cli("evaluate", path, data)
     assert code == 2 and "has 3 joints (2 free, the 1 coupled ones computed)" in err, err
+
+
+def test_goals_for_a_robot_with_a_coupled_joint_are_refused_not_solved_freely(tmp_path, run_cli):
+    """Inverse kinematics would move the coupled torso joint off its coupling (a pose the robot cannot
+    take): compensate refuses on one line and writes nothing; a learned correction of a tree is refused."""
+    path, robot = _nominal(tmp_path)
+    goals = tmp_path / "goals.csv"
+    goals.write_text("x,y,z\n500,100,800\n")
+    code, _, err = run_cli("compensate", path, path, goals, "--tip-link", "left_hand", "--out", tmp_path / "c.csv")
+    assert code == 2 and "follows others" in err and "inverse kinematics" in err and len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "c.csv").exists()
+    rng = np.random.default_rng(3)
+    data = tmp_path / "d.csv"
+    hw.write_rows(hw.plant(rng), hw.joint_sets(rng, 20), rng, 0.3, data)
+    code, _, err = run_cli("calibrate", path, data, "--tip-link", TIPS, "--model", "trees")
+    assert code == 2 and "learned corrections run along one chain" in err
