@@ -11,6 +11,7 @@ from __future__ import annotations
 import functools
 import importlib.util
 import os
+from pathlib import Path
 
 from .exceptions import RobocalWarning
 
@@ -31,17 +32,32 @@ def numba_installed() -> bool:
 PARALLEL_MIN_WORK = 200_000
 
 
+def _own_running() -> int:
+    """Threads of this process running or waiting for a core (Linux): this one, and a compiled
+    kernel's helper threads spinning a moment after their work (OpenMP's wait policy)."""
+    count = 0
+    for stat in Path("/proc/self/task").glob("*/stat"):
+        try:
+            # the state follows the command's closing parenthesis
+            count += stat.read_text(encoding="ascii", errors="replace").rsplit(")", 1)[1].split()[0] == "R"
+        except (OSError, IndexError):
+            pass
+    return max(count, 1)
+
+
 def _runnable_now(looks: int = 5, interval: float = 0.005) -> int | None:
-    """Threads running or waiting for a core right now, this one included: the least of a few
-    looks at Linux's count of runnable tasks (/proc/loadavg) over ``looks × interval`` s, since
-    a helper thread that spins a moment after its work counts as running; None elsewhere."""
+    """Threads of other processes running or waiting for a core right now, plus this one: the
+    least of a few looks at Linux's count of runnable tasks (/proc/loadavg) less this process's
+    own over ``looks × interval`` s (this process's helper threads that spin a moment after a
+    kernel are its own, free once it waits on its workers); None elsewhere."""
     import time
 
     counts = []
     try:
         for i in range(looks):
             with open("/proc/loadavg", encoding="ascii") as f:
-                counts.append(int(f.read().split()[3].split("/")[0]))
+                total = int(f.read().split()[3].split("/")[0])
+            counts.append(max(total - _own_running(), 0) + 1)
             if i + 1 < looks:
                 time.sleep(interval)
     except (OSError, ValueError, IndexError):
@@ -143,18 +159,30 @@ class blas_threads:
         return False
 
 
-def _worker_start() -> None:
+def _worker_start(modules: tuple[str, ...] = ()) -> None:
     """In a worker of :class:`worker_pool`: Ctrl-C is the parent's to handle (it says so once and
-    ends the pool), and BLAS runs on one thread (the workers share the cores out already)."""
+    ends the pool), BLAS runs on one thread (the workers share the cores out already), and the
+    modules its pieces will need are imported now (``modules``: scikit-learn's trees take a
+    second to import, which each worker would otherwise pay at its first piece)."""
+    import importlib
     import signal
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    for module in modules:
+        try:
+            importlib.import_module(module)
+        except ImportError:  # the piece that needs it says so, where it runs
+            pass
     try:
         from threadpoolctl import threadpool_limits
 
         threadpool_limits(1)
     except ImportError:
         pass
+
+
+def _started() -> None:
+    """A worker's first piece: nothing, so that it starts (and imports) while the parent works."""
 
 
 def _workers_allowed() -> int:
@@ -176,10 +204,14 @@ class worker_pool:
     same results either way, in order.
 
     The environment variable ``ROBOCAL_WORKERS`` caps the workers (``1``: none), read when a
-    pool opens.  ``robocal bench`` times ``--model auto`` with and without them (W6)."""
+    pool opens.  ``robocal bench`` times ``--model auto`` with and without them (W6).
 
-    def __init__(self, workers: int = 8):
+    ``prepare``: modules each worker imports as it starts; the workers start when the pool opens,
+    so a pool opened before the parent's own work has them ready by the first piece."""
+
+    def __init__(self, workers: int = 8, prepare: tuple[str, ...] = ()):
         self.workers = workers
+        self.prepare = tuple(prepare)
         self._pool = None
 
     def __enter__(self) -> worker_pool:
@@ -192,7 +224,10 @@ class worker_pool:
             from concurrent.futures import ProcessPoolExecutor
 
             self._pool = ProcessPoolExecutor(n, mp_context=multiprocessing.get_context("fork"),
-                                             initializer=_worker_start)
+                                             initializer=_worker_start, initargs=(self.prepare,))
+            if self.prepare:
+                for _ in range(n):  # each submission starts a worker while none is idle
+                    self._pool.submit(_started)
         return self
 
     def map(self, fn, items) -> list:

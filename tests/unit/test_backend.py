@@ -173,6 +173,34 @@ def test_idle_cores_now_sees_busy_processes_the_minute_average_has_not_yet():
             p.wait()
 
 
+@pytest.mark.skipif(not os.path.exists("/proc/self/task"), reason="Linux's threads of a process")
+def test_this_process_s_own_spinning_threads_are_not_another_s_work():
+    """A helper thread of this process that runs (as a kernel's OpenMP threads spin a moment after
+    their work) is counted as this process's: the workers it is about to wait on take its core."""
+    import threading
+
+    import numpy as np
+
+    import robocal.backend as backend
+
+    stop = threading.Event()
+
+    def spin():  # a large product releases the interpreter lock: the thread runs beside this one
+        a = np.ones((300, 300))
+        while not stop.is_set():
+            a @ a
+
+    thread = threading.Thread(target=spin)
+    thread.start()
+    try:
+        seen = max(backend._own_running() for _ in range(50))
+    finally:
+        stop.set()
+        thread.join()
+    assert seen >= 2
+    assert backend._own_running() >= 1
+
+
 @pytest.mark.skipif(not numba_installed(), reason="numba (fast extra) not installed")
 def test_a_cold_cache_runs_numpy_and_compiles_for_the_next_process(tmp_path):
     """The first process after install finds no compile recorded: it runs numpy (no compiling in its

@@ -267,13 +267,14 @@ def fit_model(inputs: Inputs, config: CalibrationConfig, progress=None, stages=N
         config = choice.config
         geometric, geometric_cv = choice.fit, choice.cv
     rung_config = CalibrationConfig.build(config, backend="numpy")
-    if choice is None:
-        say(0, work, f"model 1/{steps}: geometric, fit and {K_FOLDS} folds")
-        geometric = fit_parametric(inputs, config, term_spec((), meas, config), progress)
-        geometric_cv = cross_validate(geometric, config)
-    ladder.append((Candidate((), "", geometric, geometric_cv.errors), geometric_cv))
-    parametric = ladder[0][0]
-    with worker_pool() as pool:
+    # the workers start (and import the trees' library) while geometry is fitted here
+    with worker_pool(prepare=("sklearn.ensemble",) if residuals else ()) as pool:
+        if choice is None:
+            say(0, work, f"model 1/{steps}: geometric, fit and {K_FOLDS} folds")
+            geometric = fit_parametric(inputs, config, term_spec((), meas, config), progress)
+            geometric_cv = cross_validate(geometric, config)
+        ladder.append((Candidate((), "", geometric, geometric_cv.errors), geometric_cv))
+        parametric = ladder[0][0]
         while True:
             trials = rungs([with_term(parametric.terms, t) for t in trial_order if t not in parametric.terms],
                            parametric, pool)

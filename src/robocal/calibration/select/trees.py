@@ -105,46 +105,56 @@ CURVE_PATIENCE = 50
 
 
 def curve(piece) -> np.ndarray:
-    """An inner fold: the held-out squared error (summed over the outputs) after each tree, up to
+    """An inner fold's output: the held-out squared error after each tree, up to
     :data:`MAX_TREES`; an output whose first :data:`CURVE_FIRST` trees pass their minimum by
-    :data:`CURVE_PATIENCE` stops there, its curve staying at its last value."""
+    :data:`CURVE_PATIENCE` stops there, its curve staying at its last value.  One output a piece:
+    the outputs are fitted independently, and eighteen pieces share two workers evenly where six
+    (an inner fold's three outputs each) left one idle a third of the time."""
     q_train, y_train, q_test, y_test, leaf, seed = piece
-    out = np.zeros(MAX_TREES)
+    out = np.empty(MAX_TREES)
     with _one_thread():
-        for a in range(y_train.shape[1]):
-            model = _regressor(leaf, CURVE_FIRST, seed)
-            model.set_params(warm_start=True)
-            for trees in (CURVE_FIRST, MAX_TREES):
-                model.set_params(max_iter=trees)
-                model.fit(q_train, y_train[:, a])
-                staged = np.array(list(model.staged_predict(q_test)))  # (trees, m)
-                sq = np.sum((staged - y_test[None, :, a]) ** 2, axis=1)
-                if model.n_iter_ < trees or model.n_iter_ - int(np.argmin(sq)) > CURVE_PATIENCE:
-                    break
-            out[:len(sq)] += sq
-            out[len(sq):] += sq[-1]
+        model = _regressor(leaf, CURVE_FIRST, seed)
+        model.set_params(warm_start=True)
+        for trees in (CURVE_FIRST, MAX_TREES):
+            model.set_params(max_iter=trees)
+            model.fit(q_train, y_train)
+            staged = np.array(list(model.staged_predict(q_test)))  # (trees, m)
+            sq = np.sum((staged - y_test[None, :]) ** 2, axis=1)
+            if model.n_iter_ < trees or model.n_iter_ - int(np.argmin(sq)) > CURVE_PATIENCE:
+                break
+    out[:len(sq)] = sq
+    out[len(sq):] = sq[-1]
     return out
 
 
 def inner_pieces(q: np.ndarray, e: np.ndarray, groups: np.ndarray | None = None,
                  seed: int | None = 0) -> tuple[list[int], list[tuple]]:
     """The leaf sizes the inner cross-validation tries on the positions e (m, 3) mm at q, and its
-    pieces of work (:func:`curve`, one per leaf size and inner fold; groups: the pose of each row,
-    rows of one pose stay in one fold).  Leaves above a quarter of a fold's training poses are not
-    tried."""
+    pieces of work (:func:`curve`, one per leaf size, inner fold and output; groups: the pose of
+    each row, rows of one pose stay in one fold).  Leaves above a quarter of a fold's training
+    poses are not tried."""
     q, e = np.asarray(q, float), np.asarray(e, float)[:, :3]
     smallest = len(q) - -(-len(q) // INNER_FOLDS)
     leaves = [leaf for leaf in LEAF_SIZES if leaf <= max(smallest // 4, LEAF_SIZES[0])]
     groups = np.arange(len(q)) if groups is None else np.unique(groups, return_inverse=True)[1]
     folds = group_folds(groups, INNER_FOLDS, seed)
     train = [np.setdiff1d(np.arange(len(q)), test) for test in folds]
-    return leaves, [(q[tr], e[tr], q[te], e[te], leaf, seed) for leaf in leaves for tr, te in zip(train, folds)]
+    return leaves, [(q[tr], e[tr, a], q[te], e[te, a], leaf, seed) for leaf in leaves for tr, te in zip(train, folds)
+                    for a in range(e.shape[1])]
 
 
 def settings_of(leaves: list[int], curves: list[np.ndarray]) -> Settings:
     """The leaf size and number of trees of the lowest inner cross-validated error: the curves of
-    :func:`inner_pieces`' pieces summed over the inner folds."""
-    total = np.array([sum(curves[i * INNER_FOLDS:(i + 1) * INNER_FOLDS]) for i in range(len(leaves))])
+    :func:`inner_pieces`' pieces summed over the outputs, then over the inner folds (in that
+    order: the sums are the same to the last bit whatever the pieces' grouping)."""
+    outputs = len(curves) // (len(leaves) * INNER_FOLDS)
+    folds = []
+    for f in range(len(leaves) * INNER_FOLDS):
+        summed = np.zeros(MAX_TREES)
+        for c in curves[f * outputs:(f + 1) * outputs]:
+            summed += c
+        folds.append(summed)
+    total = np.array([sum(folds[i * INNER_FOLDS:(i + 1) * INNER_FOLDS]) for i in range(len(leaves))])
     best_leaf, best_trees = np.unravel_index(np.argmin(total), total.shape)
     return Settings(leaves[best_leaf], int(best_trees) + 1)
 
@@ -179,12 +189,12 @@ def _ensembles(q, y, leaf: int, trees: int | None, seed) -> tuple[list[Ensemble]
 
 
 def _fold_piece(piece):
-    """An outer fold: the position trees fitted on the training poses, their raw prediction at
-    every pose (m, 3) and their joint importance (3, n)."""
-    q_train, e_train, q_all, settings, seed = piece
-    models = _fitted(q_train, e_train, settings.leaf, settings.trees, seed)
+    """An outer fold's output: its trees fitted on the training poses, their raw prediction at
+    every pose (m,) and their joint importance (1, n).  One output a piece (see :func:`curve`)."""
+    q_train, y_train, q_all, settings, seed = piece
+    models = _fitted(q_train, y_train[:, None], settings.leaf, settings.trees, seed)
     with _one_thread():  # predicting too: two workers' OpenMP threads spinning took a fold from 0.3 s to 3 s
-        predicted = np.stack([m.predict(q_all) for m in models], 1)
+        predicted = models[0].predict(q_all)
     return predicted, _importance(models)
 
 
@@ -211,15 +221,15 @@ class TreeCandidate:
         them, and their number is set by early stopping on a held-out fifth of the poses (drawn
         with the seed): one fit, where an inner cross-validation took nine."""
         q, e = np.asarray(q, float), np.asarray(e, float)
-        pieces = [(q, e[:, :3], self.settings.leaf, self.settings.trees, seed)]
+        # one output a piece; the orientations' (early stopping) first, as the longer
+        outputs = ([3, 4, 5] if e.shape[1] == 6 else []) + [0, 1, 2]
+        parts = dict(zip(outputs, pool.map(_ensembles_piece, [
+            (q, e[:, a:a + 1], self.settings.leaf, self.settings.trees if a < 3 else None, seed) for a in outputs])))
+        ensembles = [parts[a][0][0] for a in sorted(parts)]
+        importance = np.vstack([parts[a][1] for a in sorted(parts)])
         hyper = self.settings.to_dict()
         if e.shape[1] == 6:
-            pieces.append((q, e[:, 3:], self.settings.leaf, None, seed))
-        parts = pool.map(_ensembles_piece, pieces)
-        ensembles = [ens for part in parts for ens in part[0]]
-        importance = np.vstack([part[1] for part in parts])
-        if e.shape[1] == 6:
-            hyper["trees_orientation"] = [ens.n_trees for ens in parts[1][0]]
+            hyper["trees_orientation"] = [ens.n_trees for ens in ensembles[3:]]
         taken = np.sqrt(np.mean(np.stack([ens.predict(q) for ens in ensembles], 1) ** 2, axis=0))
         keep = np.sort(np.random.default_rng(seed).permutation(len(q))[:MAX_SUPPORT])
         return TreeResidual(tuple(ensembles), q[keep].copy(), self.scale, self.reach, self.inside, self.prior,
@@ -249,10 +259,11 @@ def fit_trees(q: np.ndarray, e: np.ndarray, folds: list[tuple[np.ndarray, np.nda
     q, e = np.asarray(q, float), np.asarray(e, float)[:, :3]
     every = np.arange(len(q))
     trains = [np.setdiff1d(every, test) for test, _ in folds]
-    done = pool.map(_fold_piece, [(q[train], e_train[:, :3], q, settings, seed)
-                                  for train, (_, e_train) in zip(trains, folds)])
-    raw = [d[0] for d in done]
-    scale = metric_scale(q, np.mean([d[1] for d in done], axis=0))
+    parts = iter(pool.map(_fold_piece, [(q[train], e_train[:, a], q, settings, seed)
+                                        for train, (_, e_train) in zip(trains, folds) for a in range(3)]))
+    done = [[next(parts) for _ in range(3)] for _ in folds]
+    raw = [np.stack([p[0] for p in fold], 1) for fold in done]
+    scale = metric_scale(q, np.mean([np.vstack([p[1] for p in fold]) for fold in done], axis=0))
     distances = [nearest(q[test], q[train], scale) for train, (test, _) in zip(trains, folds)]
     reach = float(np.percentile(np.concatenate(distances), REACH_QUANTILE))
     errors = np.array(held_out, float, copy=True)
