@@ -143,3 +143,34 @@ def test_a_scikit_learn_that_lays_its_trees_out_otherwise_fails_loudly_at_fit_ti
     del shifted._baseline_prediction
     with pytest.raises(RuntimeError, match="lays out its fitted trees otherwise"):
         Ensemble.of_sklearn(shifted, q)
+
+
+def test_a_learned_correction_s_bound_holds_everywhere_and_the_map_that_uses_it_is_unchanged(rng, monkeypatch):
+    """The bound on |δp| a correction can add (which lets the uncertainty map skip the correction
+    where a candidate's TCP cannot be in the box): never exceeded, near or far from the data, for
+    trees, a process and the two stacked; the map is the one the correction everywhere gives."""
+    from robocal.io.robotfile import load_robot
+    from robocal.model.uncertainty import uncertainty_map
+
+    q = rng.uniform(-2, 2, (200, 6))
+    trees = _model(q, rng)
+    process = ResidualModel(q[:20], (Block(rng.normal(size=(20, 3)), np.full(6, 0.7), 1.0, np.full(3, 0.05),
+                                           np.full(3, 0.2), noise=0.1),))
+    every = np.vstack([rng.uniform(-2, 2, (3000, 6)), q + rng.normal(0, 0.01, q.shape)])
+    for model in (trees, process, Stacked(trees.with_inside(0.0), process)):
+        assert np.max(np.linalg.norm(model.predict(every)[:, :3], axis=1)) <= model.position_bound() * (1 + 1e-12)
+    # the trees' bound is each tree's largest leaf: a pose can reach most of it
+    raw = np.max(np.linalg.norm(trees.raw(every), axis=1))
+    assert trees.position_bound() < 6 * raw
+    robot = load_robot("ur10").replace(residual=trees)
+    from robocal.model.uncertainty import in_base
+
+    points = in_base(robot, robot.positions(q))
+    box = np.stack([points.min(axis=0), points.min(axis=0) + 0.4 * np.ptp(points, axis=0)])
+    low, high = np.full(6, -2.0), np.full(6, 2.0)
+    kept = uncertainty_map(robot, low, high, n=300, seed=4, box=box)
+    monkeypatch.setattr(TreeResidual, "position_bound", lambda self: np.inf)  # every candidate corrected
+    every_one = uncertainty_map(robot, low, high, n=300, seed=4, box=box)
+    assert kept.over == "workspace" and len(kept.position) == 300
+    np.testing.assert_allclose(kept.position, every_one.position, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(kept.sigma, every_one.sigma, rtol=1e-12)

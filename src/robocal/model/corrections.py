@@ -54,6 +54,10 @@ class Stacked:
             out[:, :d.shape[1]] += d
         return out
 
+    def position_bound(self) -> float:
+        """The largest |δp| (mm) the two parts add anywhere."""
+        return self.trees.position_bound() + self.process.position_bound()
+
     def position_variance(self, q: np.ndarray) -> np.ndarray:
         return self.trees.position_variance(q) + np.nan_to_num(self.process.position_variance(q))
 

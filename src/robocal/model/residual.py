@@ -86,6 +86,10 @@ class Block:
         mean = k @ self.alpha * self.y_scale + self.y_mean
         return mean if not np.isfinite(self.noise) else fade(self.explained(X, k))[:, None] * mean
 
+    def bound(self) -> np.ndarray:
+        """The largest |correction| (t,) anywhere: the kernel is at most c², the fade at most 1."""
+        return np.abs(self.y_mean) + self.amplitude * np.sum(np.abs(self.alpha), axis=0) * np.abs(self.y_scale)
+
     def explained(self, X: np.ndarray, k: np.ndarray) -> np.ndarray:
         """1 − var/c² (m,) at the poses whose kernel rows against X are k (m, N): the posterior
         variance given the LOCAL most correlated training poses."""
@@ -181,6 +185,10 @@ class ResidualModel:
             chunk = q[start:start + 4096]
             out[start:start + 4096] = fade(block.explained(self.X, block._cross(self.X, chunk)))
         return out
+
+    def position_bound(self) -> float:
+        """The largest |δp| (mm) the correction adds anywhere."""
+        return float(np.linalg.norm(self.blocks[0].bound()[:3]))
 
     def position_variance(self, q: np.ndarray) -> np.ndarray:
         """The posterior variance of the position correction at q (m,) mm², summed over its three

@@ -96,6 +96,14 @@ class Ensemble:
         """The sum of the trees at X (m, n) rad."""
         return self.per_tree(X).sum(axis=1) + self.baseline
 
+    def bound(self) -> float:
+        """The largest |prediction| anywhere: |baseline| plus each tree's largest |leaf| (a pose
+        ends in one leaf a tree); all the leaves' sum where the trees' nodes are not in order."""
+        leaf = np.where(self.feature < 0, np.abs(self.value), 0.0)
+        ordered = len(self.roots) and self.roots[0] == 0 and np.all(np.diff(self.roots) > 0)
+        largest = np.maximum.reduceat(leaf, self.roots) if ordered else leaf
+        return abs(self.baseline) + float(np.sum(largest))
+
     @property
     def n_trees(self) -> int:
         return len(self.roots)
@@ -251,6 +259,10 @@ class TreeResidual:
         """δ (m, 3 or 6) at commanded joints q (m, n) rad, faded outside the data."""
         q = np.atleast_2d(np.asarray(q, float))
         return self.weight(q)[:, None] * self.raw(q)
+
+    def position_bound(self) -> float:
+        """The largest |δp| (mm) the correction adds anywhere (it fades, never grows)."""
+        return float(np.sqrt(sum(e.bound() ** 2 for e in self.ensembles[:3])))
 
     def position_variance(self, q: np.ndarray) -> np.ndarray:
         """The trace (m,) mm² of the position correction's error covariance at q: ``inside``

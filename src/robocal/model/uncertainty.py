@@ -125,10 +125,18 @@ def uncertainty_map(robot, q_low: np.ndarray, q_high: np.ndarray, n: int = 2000,
         return None if names is None else [names[i % len(names)] for i in range(m)]
 
     if box is not None:
+        # a learned correction is costly on every candidate and moves none by more than its bound:
+        # the model without it says which candidates cannot be in the box
+        bound = 0.0 if robot.residual is None else robot.residual.position_bound()
+        plain = robot if robot.residual is None else robot.replace(residual=None)
         kept_q, kept_p = [], []
         for _ in range(20):  # rounds of candidates: a box a tenth of the reach keeps a few per cent
             q = robot.couple(rng.uniform(q_low, q_high, (10 * n, len(q_low))))
-            p = robot.positions(q, chains=chains(len(q)))
+            p = plain.positions(q, chains=chains(len(q)))
+            if plain is not robot:
+                local = in_base(robot, p)
+                near = np.all((local >= box[0] - bound) & (local <= box[1] + bound), axis=1)
+                q, p = q[near], robot.positions(q[near])
             local = in_base(robot, p)
             inside = np.all((local >= box[0]) & (local <= box[1]), axis=1)
             kept_q.append(q[inside])
