@@ -81,14 +81,43 @@ def geometry(name: str, deviations: dict[str, float] | None = None) -> dict[str,
     return g
 
 
+def _rz_each(t: np.ndarray) -> np.ndarray:
+    """Rz(t) for each angle of t (m,): (m, 4, 4)."""
+    c, s = np.cos(t), np.sin(t)
+    R = np.zeros((len(t), 4, 4))
+    R[:, 0, 0], R[:, 0, 1], R[:, 1, 0], R[:, 1, 1] = c, -s, s, c
+    R[:, 2, 2] = R[:, 3, 3] = 1.0
+    return R
+
+
+def poses(g: dict[str, np.ndarray], Q: np.ndarray, base=np.eye(4), tool=np.eye(4)) -> np.ndarray:
+    """:func:`pose` at each row of Q (m, n) rad: (m, 4, 4), the same product for all the rows at once."""
+    Q = np.atleast_2d(np.asarray(Q, dtype=float))
+    T = np.broadcast_to(np.asarray(base, dtype=float), (len(Q), 4, 4))
+    for i in range(Q.shape[1]):
+        link = _trans(0, 0, g["d"][i]) @ _trans(g["a"][i], 0, 0) @ _rx(g["alpha"][i]) @ _ry(g["beta"][i])
+        T = T @ _rz_each(Q[:, i] + g["theta"][i]) @ link
+    return T @ tool
+
+
 def pose(g: dict[str, np.ndarray], q: np.ndarray, base=np.eye(4), tool=np.eye(4)) -> np.ndarray:
     """T = base · Π Rz(q+θ) Tz(d) Tx(a) Rx(α) Ry(β) · tool, one 4×4 product per joint (hayati;
     β = 0 is standard DH)."""
-    T = np.array(base, dtype=float)
-    for i, qi in enumerate(q):
-        T = T @ _rz(qi + g["theta"][i]) @ _trans(0, 0, g["d"][i]) @ _trans(g["a"][i], 0, 0) @ _rx(g["alpha"][i]) \
-            @ _ry(g["beta"][i])
-    return T @ tool
+    return poses(g, np.asarray(q, dtype=float)[None], base, tool)[0]
+
+
+def reach(f, q: np.ndarray, target: np.ndarray, iterations: int = 40, tol: float = 1e-9) -> np.ndarray:
+    """Joints from q where f (a map of joint sets (m, n) to points (m, 3)) is on ``target``: the
+    least-norm Gauss–Newton step on forward differences (1e-7 rad), the point and its six
+    neighbours in one call a step."""
+    q = np.array(q, dtype=float)
+    steps = np.vstack([np.zeros(len(q)), np.eye(len(q)) * 1e-7])
+    for _ in range(iterations):
+        at = f(q + steps) - target
+        if np.max(np.abs(at[0])) < tol:
+            break
+        q = q - np.linalg.pinv(((at[1:] - at[0]) / 1e-7).T) @ at[0]
+    return q
 
 
 def campaign(name: str, deviations: dict[str, float], n: int, rng: np.random.Generator, *, noise: float,
@@ -102,7 +131,7 @@ def campaign(name: str, deviations: dict[str, float], n: int, rng: np.random.Gen
     q = rng.uniform(lim[:, 0], lim[:, 1], (n, 6))
     q_real = q + (0.0 if joint_error is None else joint_error(q))
     g = geometry(name, deviations)
-    T = np.array([pose(g, qi, base, tool) for qi in q_real])
+    T = poses(g, q_real, base, tool)
     position = T[:, :3, 3] + rng.normal(0.0, noise, (n, 3))
     rotation = None
     if measure == "pose":

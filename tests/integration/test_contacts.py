@@ -35,18 +35,12 @@ def _ball(x):
 
 def _reach(g, goal, rng, lim):
     """Joints (rad) that put the true ball on ``goal`` (mm), or None: scipy from a random start."""
-    def miss(q):
-        return ind.pose(g, q, tool=_ball(TOOL_TRUE))[:3, 3] - goal
+    def ball(Q):
+        return ind.poses(g, Q, tool=_ball(TOOL_TRUE))[:, :3, 3]
 
     for _ in range(20):  # the least-norm Gauss–Newton step on finite differences, from a random start
-        q = rng.uniform(lim[:, 0], lim[:, 1])
-        for _ in range(40):
-            e = miss(q)
-            if np.max(np.abs(e)) < 1e-9:
-                break
-            J = np.column_stack([(miss(q + h) - e) / 1e-7 for h in np.eye(6) * 1e-7])
-            q = q - np.linalg.pinv(J) @ e
-        if np.max(np.abs(miss(q))) < 1e-7 and np.all((q >= lim[:, 0]) & (q <= lim[:, 1])):
+        q = ind.reach(ball, rng.uniform(lim[:, 0], lim[:, 1]), goal)
+        if np.max(np.abs(ball(q) - goal)) < 1e-7 and np.all((q >= lim[:, 0]) & (q <= lim[:, 1])):
             return q
     return None
 
@@ -107,7 +101,7 @@ def planted(tmp_path_factory):
     q, label, setup = _campaign(g, rng, setups=6, per=12)
     lim = np.radians(ind.LIMITS_DEG[NAME]) * 0.8
     fresh = rng.uniform(lim[:, 0], lim[:, 1], (200, 6))
-    truth = np.array([ind.pose(g, qi, tool=_ball(TOOL_TRUE))[:3, 3] for qi in fresh])
+    truth = ind.poses(g, fresh, tool=_ball(TOOL_TRUE))[:, :3, 3]
     return {"g": g, "nominal": nominal, "q": q, "label": label, "setup": setup, "fresh": fresh, "truth": truth,
             "rng": rng, "folder": folder}
 
@@ -268,15 +262,7 @@ def test_planned_socket_configurations_beat_random_ones(planted, run_cli, tmp_pa
     assert plan.value > np.median(plan.random_values)
 
     def seated(q0, goal):  # the true robot from a configuration, its ball pushed into the socket
-        q = np.array(q0, float)
-        for _ in range(30):
-            e = ind.pose(g, q, tool=_ball(TOOL_TRUE))[:3, 3] - goal
-            if np.max(np.abs(e)) < 1e-9:
-                break
-            J = np.column_stack([(ind.pose(g, q + h, tool=_ball(TOOL_TRUE))[:3, 3] - goal - e) / 1e-7
-                                 for h in np.eye(6) * 1e-7])
-            q = q - np.linalg.pinv(J) @ e
-        return q
+        return ind.reach(lambda Q: ind.poses(g, Q, tool=_ball(TOOL_TRUE))[:, :3, 3], q0, goal, iterations=30)
 
     def rigid_error(q_rows, sockets_of, seed):
         noise = np.random.default_rng(seed)

@@ -57,6 +57,9 @@ if TYPE_CHECKING:
 #: counts as 100 mm, so 0.01° weighs like 0.017 mm, about the ratio of a laser tracker's
 #: position noise to its 6-DOF probe's orientation noise.  Wen et al. (2019) do not give k.
 DEFAULT_K = 1.0e4
+#: evaluations with the Jacobian a setup and those made from it keep (a hundred thousand full poses'
+#: columns take about 120 MB each)
+KEEP_EVALUATIONS = 2
 
 
 @dataclass(frozen=True, eq=False)
@@ -85,6 +88,11 @@ class Setup:
     #: the prior kinds whose width the data sized, and that width (file units: mm, deg;
     #: :mod:`robocal.calibration.fit.widths`)
     sized: Mapping[str, float] = field(default_factory=dict)
+    #: the model and its Jacobian columns at the last few solutions, shared by the setups made from
+    #: this one (another noise, prior or width: the model's own Jacobian is theirs too; a setup of
+    #: other measurements or another space is told apart by identity): the statistics after a fit
+    #: ask for it at the estimate under several weightings (:meth:`Problem.evaluate`)
+    evaluated: dict = field(default_factory=dict, repr=False, compare=False)
 
     @property
     def full_pose(self) -> bool:
@@ -276,13 +284,21 @@ class Problem:
         residual block reads (:class:`~robocal.calibration.fit.blocks.Evaluation`)."""
         full = self.full(X)
         if jacobian:
+            key = (id(self.space), id(self.meas), self.active.tobytes(), np.asarray(X, float).tobytes())
+            kept = self.setup.evaluated.get(key)
+            if kept is not None and kept[0] is self.space and kept[1] is self.meas:
+                return kept[2]
             J, R, p = self.space.jacobian_columns(full, self.meas.q, self.target_idx, frames=self._frames_active,
                                                   joints=self.joints, active=self.active,
                                                   session=self._session, chain=self.chain_index)  # (k, m, 6)
-            at = Evaluation(np.asarray(X, float), p, R, J)
+            at = Evaluation(np.array(X, float), p, R, J)  # its own copy: it is kept
             if self.views is not None:
                 at.frames, at.Jf = self.space.camera_frame_columns(full, self.meas.q, self._camera_index, self.joints,
                                                                    active=self.active)
+            kept = self.setup.evaluated
+            while len(kept) >= KEEP_EVALUATIONS:  # the oldest first: a dict keeps its order
+                kept.pop(next(iter(kept)))
+            kept[key] = (self.space, self.meas, at)  # the objects held: their ids stay theirs
             return at
         R, p = (None, self.points(X)) if self._Rm is None else self.pose(X)
         at = Evaluation(np.asarray(X, float), p, R)
