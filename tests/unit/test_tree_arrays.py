@@ -174,3 +174,21 @@ def test_a_learned_correction_s_bound_holds_everywhere_and_the_map_that_uses_it_
     assert kept.over == "workspace" and len(kept.position) == 300
     np.testing.assert_allclose(kept.position, every_one.position, rtol=0, atol=1e-9)
     np.testing.assert_allclose(kept.sigma, every_one.sigma, rtol=1e-12)
+
+
+def test_the_compiled_walk_and_numpy_s_give_every_tree_s_leaf_alike(rng, backend):
+    """Each backend's walk (numba's compiled loop, numpy's level by level) lands every pose in the
+    leaf scikit-learn's own prediction does: far out, on a threshold and at NaN too."""
+    q = rng.uniform(-2, 2, (300, 6))
+    models, ensembles = _ensembles(q, _step(q) + rng.normal(0, 0.01, (300, 3)))
+    fresh = np.vstack([rng.uniform(-2, 2, (50, 6)), rng.uniform(-9, 9, (20, 6))])
+    for model, ensemble in zip(models, ensembles):
+        inner = np.flatnonzero(ensemble.feature >= 0)[:20]
+        on = np.tile(fresh[:1], (len(inner), 1))
+        on[np.arange(len(inner)), ensemble.feature[inner]] = ensemble.threshold[inner]
+        nan = fresh[:5].copy()
+        nan[:, 2] = np.nan
+        X = np.vstack([fresh, on, nan])
+        np.testing.assert_array_equal(ensemble.per_tree(X, backend), ensemble.per_tree(X, "numpy"))
+        both = np.vstack([fresh, on])
+        np.testing.assert_allclose(ensemble.predict(both, backend), model.predict(both), rtol=0, atol=1e-12)

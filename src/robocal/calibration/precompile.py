@@ -13,6 +13,8 @@ from __future__ import annotations
 
 import warnings
 
+import numpy as np
+
 
 def compile_kernels() -> None:
     """Compile (or load) every kernel, serial and parallel, on the calls robocal makes."""
@@ -31,6 +33,11 @@ def compile_kernels() -> None:
                 calibrate(robot, sim.measurements, "ipso", frames=frames, iterations=2, particles=4, backend="numba")
             calibrate(robot, sim.measurements, "lm", frames="none", backend="numba")
     swarm_kernels.warm_up()
+    # a tree correction's walk, on arrays typed as an ensemble holds them (int64 nodes, float64 joints)
+    two = np.array([1, -1, -1, 0, -1, -1], dtype=np.int64)
+    kernels.tree_walk(two, np.zeros(6), np.array([1, -1, -1, 4, -1, -1], dtype=np.int64),
+                      np.array([2, -1, -1, 5, -1, -1], dtype=np.int64), np.array([0, 3], dtype=np.int64),
+                      np.arange(6.0), np.zeros((2, 2)))
     for serial, parallel in kernels.TWINS:
         for signature in serial.signatures:
             parallel.compile(signature)

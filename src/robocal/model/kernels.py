@@ -305,6 +305,23 @@ def apply_right_jacobian_inv_parallel(phi, w):  # pragma: no cover
     return out
 
 
+@njit(cache=True)
+def tree_walk(feature, threshold, left, right, roots, value, X):  # pragma: no cover
+    """:meth:`robocal.model.trees.Ensemble.per_tree`: each tree's leaf value (m, trees) at X (m, n),
+    every pose down every tree to its leaf (a node with feature < 0), left where the joint is not
+    above the threshold (as the numpy walk, NaN included).  Serial: it runs in the ladder's forked
+    workers too, where an OpenMP layer may not start."""
+    m, trees = X.shape[0], roots.shape[0]
+    out = np.empty((m, trees))
+    for i in range(m):
+        for t in range(trees):
+            node = roots[t]
+            while feature[node] >= 0:
+                node = right[node] if X[i, feature[node]] > threshold[node] else left[node]
+            out[i, t] = value[node]
+    return out
+
+
 #: each serial kernel and its parallel twin (:func:`robocal.backend.run_kernel` picks one per call)
 TWINS = ((objective, objective_parallel), (objective_joints, objective_joints_parallel),
          (apply_right_jacobian_inv, apply_right_jacobian_inv_parallel))

@@ -68,33 +68,51 @@ class Ensemble:
     baseline: float
     depth: int
 
-    def _walk(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def _walk(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """The nodes as a walk needs them: a leaf splits on joint 0 at +inf and both its children
-        are itself, so every pose takes ``depth`` steps without a test of where it is; children
-        (2N,): node k's left child at 2k, its right at 2k + 1."""
+        are itself, so a pose stays on its leaf once there; children (2N,): node k's left child at
+        2k, its right at 2k + 1; the trees in order of their depth, deepest first (order), and how
+        many of them still have a level to descend after each step (busy)."""
         if self.__dict__.get("_walk_arrays") is None:
             leaf = self.feature < 0
             index = np.arange(len(self.feature))
             children = np.stack([np.where(leaf, index, self.left), np.where(leaf, index, self.right)], 1).ravel()
-            self.__dict__["_walk_arrays"] = (np.where(leaf, 0, self.feature), np.where(leaf, np.inf, self.threshold),
-                                             children)
+            order = np.argsort(-_tree_depths(self.feature, self.left, self.right, self.roots), kind="stable")
+            depths = _tree_depths(self.feature, self.left, self.right, self.roots)[order]
+            busy = np.array([int(np.sum(depths > step)) for step in range(1, self.depth)], dtype=np.int64)
+            # 32-bit indices: half the memory a step's gathers move
+            self.__dict__["_walk_arrays"] = (np.where(leaf, 0, self.feature).astype(np.intp),
+                                             np.where(leaf, np.inf, self.threshold), children.astype(np.int32),
+                                             order, busy)
         return self.__dict__["_walk_arrays"]
 
-    def per_tree(self, X: np.ndarray) -> np.ndarray:
-        """Each tree's contribution (m, trees) at X (m, n): every pose through every tree at once,
-        one level a step."""
+    def per_tree(self, X: np.ndarray, backend: str = "auto") -> np.ndarray:
+        """Each tree's contribution (m, trees) at X (m, n): the compiled walk (numba, where its
+        kernels are compiled: :func:`robocal.model.compiled.resolve`), else every pose through
+        every tree at once, one level a step, a step walking only the trees that still have a
+        level below it (a tree's depth is about two thirds of the deepest one's); the same values."""
         X = np.ascontiguousarray(X, float)
-        feature, threshold, children = self._walk()
-        flat = X.ravel()
-        offset = (np.arange(len(X)) * X.shape[1])[:, None]
-        node = np.broadcast_to(self.roots, (len(X), len(self.roots))).copy()
-        for _ in range(self.depth - 1):
-            node = children[2 * node + (flat[offset + feature[node]] > threshold[node])]
-        return self.value[node]
+        from .compiled import resolve
 
-    def predict(self, X: np.ndarray) -> np.ndarray:
+        if resolve(backend) == "numba":
+            from .kernels import tree_walk
+
+            return tree_walk(self.feature, self.threshold, self.left, self.right, self.roots, self.value, X)
+        feature, threshold, children, order, busy = self._walk()
+        flat = X.ravel()
+        offset = np.arange(len(X)) * X.shape[1]
+        # (trees, m): the trees a step walks are rows
+        node = np.repeat(self.roots[order][:, None].astype(np.int32), len(X), axis=1)
+        for k in busy:
+            at = node[:k]
+            node[:k] = children[2 * at + (flat[offset + feature[at]] > threshold[at])]
+        out = np.empty((len(X), len(order)))
+        out[:, order] = self.value[node].T
+        return out
+
+    def predict(self, X: np.ndarray, backend: str = "auto") -> np.ndarray:
         """The sum of the trees at X (m, n) rad."""
-        return self.per_tree(X).sum(axis=1) + self.baseline
+        return self.per_tree(X, backend).sum(axis=1) + self.baseline
 
     def bound(self) -> float:
         """The largest |prediction| anywhere: |baseline| plus each tree's largest |leaf| (a pose
@@ -153,7 +171,9 @@ class Ensemble:
         ensemble = cls(feature, threshold, left, right, value, roots, float(np.ravel(model._baseline_prediction)[0]),
                        _depth(feature, left, right, roots))
         if check is not None:
-            ours, theirs = ensemble.predict(np.asarray(check, float)), model.predict(np.asarray(check, float))
+            # numpy's walk: this runs in the ladder's forked workers, which need not load numba for it
+            ours = ensemble.predict(np.asarray(check, float), backend="numpy")
+            theirs = model.predict(np.asarray(check, float))
             gap = float(np.max(np.abs(ours - theirs))) if len(ours) else 0.0
             if not gap <= 1e-9 * (1.0 + float(np.max(np.abs(theirs), initial=0.0))):
                 raise RuntimeError(f"scikit-learn {_sklearn_version()}'s fitted trees read back differently "
@@ -187,6 +207,20 @@ def sklearn_layout(model) -> None:
     if not ok:
         raise RuntimeError(f"scikit-learn {_sklearn_version()} lays out its fitted trees otherwise than robocal "
                            f"reads them: robocal supports scikit-learn {SKLEARN_TESTED}")
+
+
+def _tree_depths(feature, left, right, roots) -> np.ndarray:
+    """Each tree's number of levels (its longest root-to-leaf path); its nodes run from its root
+    to the next tree's."""
+    level = np.zeros(len(feature), dtype=np.int64)
+    for i in np.flatnonzero(feature >= 0):  # parents come first, so one pass settles every level
+        level[left[i]] = level[right[i]] = level[i] + 1
+    tree = np.searchsorted(roots, np.arange(len(feature)), side="right") - 1 if np.all(np.diff(roots) > 0) else None
+    if tree is None:  # nodes not laid out tree by tree: each tree as deep as the deepest
+        return np.full(len(roots), int(level.max()) + 1 if len(level) else 1)
+    out = np.zeros(len(roots), dtype=np.int64)
+    np.maximum.at(out, tree, level + 1)
+    return out
 
 
 def _depth(feature, left, right, roots) -> int:
