@@ -210,8 +210,13 @@ class ParameterSpace:
         return q + dq
 
     def nominal_tools(self) -> np.ndarray:
-        """Tool frames of the reference robot, one per target of the space, (T, 4, 4)."""
-        return np.stack([self.robot.tool_frames([t])[0] for t in self.targets])
+        """Tool frames of the reference robot, one per target of the space, (T, 4, 4); worked out
+        once (every expansion of a deviation vector starts from them), not to be written to."""
+        if self.__dict__.get("_nominal_tools") is None:
+            tools = np.stack([self.robot.tool_frames([t])[0] for t in self.targets])
+            tools.flags.writeable = False
+            self.__dict__["_nominal_tools"] = tools
+        return self.__dict__["_nominal_tools"]
 
     def expand(self, deviation: np.ndarray):
         """(…, k) → geometry (…, n, width), base (…, 4, 4), tools (…, T, 4, 4)."""
