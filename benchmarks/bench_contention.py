@@ -12,7 +12,7 @@ from robocal.bench.workloads import busy_cores, w1_naive_ratio, w6_auto
 w6 = "--no-w6" not in sys.argv
 rows = w1_naive_ratio(5) + (w6_auto() if w6 else [])
 with busy_cores() as busy:
-    rows += w1_naive_ratio(5, label=f" ({busy.n} busy)")
+    rows += w1_naive_ratio(5, label=f" ({busy.n} busy)", target=0.10)
     if w6:
         rows += [r.__class__(f"{r.workload} ({busy.n} busy)", r.value, r.unit, r.target, r.met, r.peer, r.note)
                  for r in w6_auto()]
