@@ -89,26 +89,31 @@ class Cell:
 
     def observe(self, q_all: np.ndarray, rng: np.random.Generator, noise: float, facing: float = 0.2):
         """Camera rows (q deg, u, v, camera, marker) of every marker each camera sees at each pose,
-        with Gaussian pixel noise ``noise`` (px)."""
+        with Gaussian pixel noise ``noise`` (px): pose by pose, camera by camera, the markers in
+        their order, each one in front of the camera and facing it drawing its noise."""
         g = independent.geometry(self.robot, self.deviations)
+        q_all = np.atleast_2d(np.asarray(q_all, float))
+        names = list(self.markers)
+        P = np.array([p for p, _ in self.markers.values()], float)
+        facing_only = np.array([n is not None for _, n in self.markers.values()])
+        N = np.array([np.zeros(3) if n is None else n for _, n in self.markers.values()], float)
+        flanges = self.base @ independent.poses(g, q_all)
         rows = []
-        for q in q_all:
-            flange = self.base @ independent.pose(g, q)
+        for q, flange in zip(q_all, flanges):
+            pw = P @ flange[:3, :3].T + flange[:3, 3]
+            nw = N @ flange[:3, :3].T
             for cam in self.cameras:
                 Tc = self.camera_pose(cam, q)
-                for name, (p, normal) in self.markers.items():
-                    pw = flange[:3, :3] @ p + flange[:3, 3]
-                    pc = Tc[:3, :3].T @ (pw - Tc[:3, 3])
-                    if pc[2] <= 100.0:
-                        continue
-                    if normal is not None:  # faces the camera
-                        nw = flange[:3, :3] @ normal
-                        if nw @ (Tc[:3, 3] - pw) / np.linalg.norm(Tc[:3, 3] - pw) < facing:
-                            continue
-                    uv = cam.project(pc[None])[0] + rng.normal(0.0, noise, 2)
-                    if not (20 <= uv[0] <= cam.size[0] - 20 and 20 <= uv[1] <= cam.size[1] - 20):
-                        continue
-                    rows.append((np.degrees(q), uv, cam.name, name))
+                pc = (pw - Tc[:3, 3]) @ Tc[:3, :3]
+                to_camera = Tc[:3, 3] - pw
+                faces = np.sum(nw * to_camera, axis=1) / np.linalg.norm(to_camera, axis=1) >= facing
+                seen = np.flatnonzero((pc[:, 2] > 100.0) & (faces | ~facing_only))
+                if not seen.size:
+                    continue
+                uv = cam.project(pc[seen]) + rng.normal(0.0, noise, (seen.size, 2))
+                inside = (uv[:, 0] >= 20) & (uv[:, 0] <= cam.size[0] - 20) & (uv[:, 1] >= 20) & \
+                    (uv[:, 1] <= cam.size[1] - 20)
+                rows += [(np.degrees(q), uv[k], cam.name, names[j]) for k, j in enumerate(seen) if inside[k]]
         return rows
 
     def marker_in(self, frame_of, q_all: np.ndarray, name: str) -> np.ndarray:
