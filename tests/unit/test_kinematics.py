@@ -105,3 +105,48 @@ def test_hayati_with_zero_beta_equals_dh(rng):
     g = hay.geometry.copy()
     g[1, 4] = 0.01  # and a nonzero β is Ry(β) appended to the DH link transform
     assert np.abs(hay.replace(geometry=g).fk(q) - hay.fk(q)).max() > 1.0
+
+
+@pytest.mark.parametrize("convention", CONVENTIONS)
+def test_a_swarm_s_chain_keeps_no_numbers_of_the_call_before_in_any_thread(convention):
+    """The chain keeps its factor arrays for the next call of a swarm's shape (the allocator would
+    take their pages from the system afresh): calls of one shape with other numbers, one after the
+    other and from several threads at once, each give what a textbook product of 4×4s gives."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from robocal.model.dh import apply_chain
+
+    rng = np.random.default_rng(7)
+    robot = load_robot("kr5-arc")
+    cases = []
+    for _ in range(8):
+        geom = np.broadcast_to(robot.geometry, (20,) + robot.geometry.shape).copy()
+        geom[..., :5] += rng.normal(0, 0.01, geom[..., :5].shape)
+        cases.append((geom, rng.uniform(-2, 2, (32, 6))))
+
+    def textbook(geom, q):  # the flange origin, Π Rz(q+θ) Tz(d) Tx(a) Rx(α) Ry(β) or Craig's Rx(α) Tx(a) Rz(θ) Tz(d)
+        out = np.empty((len(geom), len(q), 3))
+        for p, g in enumerate(geom):
+            for m, qm in enumerate(q):
+                T = np.eye(4)
+                for (a, alpha, theta, d, beta), qi in zip(g[:, :5], qm):
+                    z = homogeneous(rot_z(qi + theta), [0, 0, d])
+                    if convention == "craig":
+                        T = T @ homogeneous(rot_x(alpha), [a, 0, 0]) @ z
+                    else:
+                        T = T @ z @ homogeneous(rot_x(alpha) @ (rot_y(beta) if convention == "hayati" else np.eye(3)),
+                                                [a, 0, 0])
+                out[p, m] = T[:3, 3]
+        return out
+
+    def ours(case):
+        geom, q = case
+        V = np.zeros((32, 3, 1))
+        return apply_chain(convention, geom, q, np.broadcast_to(V, (20, 32, 3, 1)))[..., 0]
+
+    with ThreadPoolExecutor(4) as pool:
+        at_once = list(pool.map(ours, cases * 3))
+    for k, case in enumerate(cases * 3):
+        if k < len(cases):  # three particles of each against the textbook
+            np.testing.assert_allclose(at_once[k][:3], textbook(case[0][:3], case[1]), rtol=0, atol=1e-8)
+        np.testing.assert_array_equal(ours(case), at_once[k])

@@ -17,6 +17,8 @@ in one call; the only Python loop is over the joints.
 
 from __future__ import annotations
 
+import threading
+
 import numpy as np
 
 from ..math.se3 import end_frame
@@ -117,6 +119,32 @@ def _turning(geom: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, n
     return cq * c0 - sq * s0, sq * c0 + cq * s0, d
 
 
+#: the chain's factor arrays of swarm-sized calls, kept per thread for the next call of the same
+#: shape: laid out afresh each call, half a megabyte came and went, past the allocator's trim
+#: threshold, and every call took its pages from the system again (50 µs a factor, 40 % of a
+#: numpy swarm's time, depending on what the process had allocated before)
+_SCRATCH = threading.local()
+#: factor arrays up to this size are kept (a swarm's: 20 particles × 32 poses × 6 joints × 4 columns is 120 kB)
+SCRATCH_BYTES = 1 << 20
+SCRATCH_ENTRIES = 12
+
+
+def _laid_out(slot: str, values: np.ndarray, shape: tuple) -> np.ndarray:
+    """``values`` broadcast to ``shape``, C-contiguous: in this thread's kept array for (slot,
+    shape) where it is small, else a new one (what np.ascontiguousarray of the broadcast gives)."""
+    if 8 * int(np.prod(shape)) > SCRATCH_BYTES:
+        return np.ascontiguousarray(np.broadcast_to(values, shape))
+    kept = _SCRATCH.__dict__.setdefault("arrays", {})
+    out = kept.pop((slot, shape), None)
+    if out is None:
+        out = np.empty(shape)
+        while len(kept) >= SCRATCH_ENTRIES:
+            kept.pop(next(iter(kept)))
+    kept[(slot, shape)] = out  # most recent last
+    np.copyto(out, values)
+    return out
+
+
 def apply_chain(convention: str, geom: np.ndarray, q: np.ndarray, V: np.ndarray) -> np.ndarray:
     """Apply A_1 ⋯ A_n to the column vectors of V, from the flange back to the base.
 
@@ -132,15 +160,15 @@ def apply_chain(convention: str, geom: np.ndarray, q: np.ndarray, V: np.ndarray)
     ct, st, d = _turning(geom, q)  # (..., m, n)
     full = np.broadcast_shapes(ct.shape[:-1] + V.shape[-1:], V.shape[:-2] + V.shape[-1:])
 
-    def per_joint(values):  # (..., m or 1, n) → (n, ..., m, c), contiguous
-        return np.ascontiguousarray(np.broadcast_to(np.moveaxis(values, -1, 0)[..., None], (n,) + full))
+    def per_joint(slot, values):  # (..., m or 1, n) → (n, ..., m, c), contiguous
+        return _laid_out(slot, np.moveaxis(values, -1, 0)[..., None], (n,) + full)
 
-    CT, ST = per_joint(ct), per_joint(st)
+    CT, ST = per_joint("ct", ct), per_joint("st", st)
     alpha = geom[..., None, :, ALPHA]
-    CA, SA = per_joint(np.cos(alpha)), per_joint(np.sin(alpha))
+    CA, SA = per_joint("ca", np.cos(alpha)), per_joint("sa", np.sin(alpha))
     if convention == "hayati":
         beta = geom[..., None, :, BETA]
-        CB, SB = per_joint(np.cos(beta)), per_joint(np.sin(beta))
+        CB, SB = per_joint("cb", np.cos(beta)), per_joint("sb", np.sin(beta))
     a = np.moveaxis(np.broadcast_to(geom[..., None, :, A], full[:-1] + (n,)), -1, 0)
     d = np.moveaxis(np.broadcast_to(d, full[:-1] + (n,)), -1, 0)
     x, y, z = (np.array(np.broadcast_to(V[..., r, :], full)) for r in range(3))  # own copies: added to in place
