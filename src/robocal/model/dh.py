@@ -17,6 +17,7 @@ in one call; the only Python loop is over the joints.
 
 from __future__ import annotations
 
+import math
 import threading
 
 import numpy as np
@@ -132,7 +133,7 @@ SCRATCH_ENTRIES = 12
 def _laid_out(slot: str, values: np.ndarray, shape: tuple) -> np.ndarray:
     """``values`` broadcast to ``shape``, C-contiguous: in this thread's kept array for (slot,
     shape) where it is small, else a new one (what np.ascontiguousarray of the broadcast gives)."""
-    if 8 * int(np.prod(shape)) > SCRATCH_BYTES:
+    if 8 * math.prod(shape) > SCRATCH_BYTES:
         return np.ascontiguousarray(np.broadcast_to(values, shape))
     kept = _SCRATCH.__dict__.setdefault("arrays", {})
     out = kept.pop((slot, shape), None)
