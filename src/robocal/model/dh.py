@@ -146,6 +146,12 @@ def _laid_out(slot: str, values: np.ndarray, shape: tuple) -> np.ndarray:
     return out
 
 
+def _joint_first(values: np.ndarray) -> np.ndarray:
+    """The view of (..., n) with its last axis first (np.moveaxis without its argument checks,
+    a tenth of a swarm call's overhead)."""
+    return values.transpose((values.ndim - 1,) + tuple(range(values.ndim - 1)))
+
+
 def apply_chain(convention: str, geom: np.ndarray, q: np.ndarray, V: np.ndarray) -> np.ndarray:
     """Apply A_1 ⋯ A_n to the column vectors of V, from the flange back to the base.
 
@@ -162,7 +168,7 @@ def apply_chain(convention: str, geom: np.ndarray, q: np.ndarray, V: np.ndarray)
     full = np.broadcast_shapes(ct.shape[:-1] + V.shape[-1:], V.shape[:-2] + V.shape[-1:])
 
     def per_joint(slot, values):  # (..., m or 1, n) → (n, ..., m, c), contiguous
-        return _laid_out(slot, np.moveaxis(values, -1, 0)[..., None], (n,) + full)
+        return _laid_out(slot, _joint_first(values)[..., None], (n,) + full)
 
     CT, ST = per_joint("ct", ct), per_joint("st", st)
     alpha = geom[..., None, :, ALPHA]
@@ -170,8 +176,8 @@ def apply_chain(convention: str, geom: np.ndarray, q: np.ndarray, V: np.ndarray)
     if convention == "hayati":
         beta = geom[..., None, :, BETA]
         CB, SB = per_joint("cb", np.cos(beta)), per_joint("sb", np.sin(beta))
-    a = np.moveaxis(np.broadcast_to(geom[..., None, :, A], full[:-1] + (n,)), -1, 0)
-    d = np.moveaxis(np.broadcast_to(d, full[:-1] + (n,)), -1, 0)
+    a = _joint_first(np.broadcast_to(geom[..., None, :, A], full[:-1] + (n,)))
+    d = _joint_first(np.broadcast_to(d, full[:-1] + (n,)))
     x, y, z = (np.array(np.broadcast_to(V[..., r, :], full)) for r in range(3))  # own copies: added to in place
     for i in range(n - 1, -1, -1):
         if convention == "craig":
