@@ -40,10 +40,17 @@ def run_measured(code: str) -> tuple[dict, float]:
     """Run Python ``code`` in a fresh interpreter; it prints one JSON object as its last line.
 
     Returns that object and the interpreter's peak resident memory in GB, so a memory figure
-    is the workload's own and not that of whatever ran before in this process.
+    is the workload's own and not that of whatever ran before in this process.  On Linux the peak
+    is the new process image's own (VmHWM): ``ru_maxrss`` keeps, across the exec, the resident
+    size of the process it was forked from (a bench parent holding W6's models made W7 read 0.6
+    GB where the filter takes 0.2).
     """
     wrapper = (code + "\nimport resource as _r, json as _j\n"
-               "print(_j.dumps({'__peak_kb': _r.getrusage(_r.RUSAGE_SELF).ru_maxrss}))\n")
+               "try:\n"
+               "    _p = [int(l.split()[1]) for l in open('/proc/self/status') if l.startswith('VmHWM:')][0]\n"
+               "except (OSError, IndexError, ValueError):\n"
+               "    _p = _r.getrusage(_r.RUSAGE_SELF).ru_maxrss\n"
+               "print(_j.dumps({'__peak_kb': _p}))\n")
     proc = subprocess.run([sys.executable, "-c", wrapper], capture_output=True, text=True, check=True)
     lines = [ln for ln in proc.stdout.splitlines() if ln.startswith("{")]
     result, peak = json.loads(lines[-2]) if len(lines) > 1 else {}, json.loads(lines[-1])["__peak_kb"]
