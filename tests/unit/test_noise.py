@@ -61,3 +61,18 @@ def test_setups_made_from_one_share_the_model_s_jacobian_at_a_solution_and_no_ot
     y += 1e-3  # a solver that reuses its buffer
     after = setup.problem(names).residual_jacobian(y)
     assert len(calls) == 3 and not np.array_equal(before, after)
+
+
+def test_a_setup_sent_to_a_worker_leaves_its_kept_jacobians_behind():
+    import pickle
+
+    robot = load_robot("er10l-c10")
+    sim = simulate(robot, 30, deviations="paper", seed=4)
+    names = list(wen2019.PARAMETERS)
+    setup = Setup(ParameterSpace.of(robot), sim.measurements, 1.0, 0.01)
+    setup.problem(names).residual_jacobian(np.zeros(len(names)))
+    assert len(setup.evaluated) == 1
+    again = pickle.loads(pickle.dumps(setup))
+    assert len(again.evaluated) == 0 and len(pickle.dumps(setup)) < len(pickle.dumps(dict(setup.evaluated)))
+    np.testing.assert_array_equal(again.problem(names).residual_jacobian(np.zeros(len(names))),
+                                  setup.problem(names).residual_jacobian(np.zeros(len(names))))

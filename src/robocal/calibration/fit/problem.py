@@ -62,6 +62,14 @@ DEFAULT_K = 1.0e4
 KEEP_EVALUATIONS = 2
 
 
+class Kept(dict):
+    """The evaluations a setup keeps (:attr:`Setup.evaluated`): a cache, so a setup sent to a
+    worker process (``auto``'s pieces) travels without it."""
+
+    def __reduce__(self):
+        return (Kept, ())
+
+
 @dataclass(frozen=True, eq=False)
 class Setup:
     """What every problem of one calibration shares: space, measurements, noise weighting.
@@ -92,7 +100,7 @@ class Setup:
     #: this one (another noise, prior or width: the model's own Jacobian is theirs too; a setup of
     #: other measurements or another space is told apart by identity): the statistics after a fit
     #: ask for it at the estimate under several weightings (:meth:`Problem.evaluate`)
-    evaluated: dict = field(default_factory=dict, repr=False, compare=False)
+    evaluated: Kept = field(default_factory=Kept, repr=False, compare=False)
 
     @property
     def full_pose(self) -> bool:
