@@ -75,10 +75,15 @@ def _chain_columns(conv, g, q, S, first):
     take several poses at once).  DH and Hayati A_i = Rz(q+θ)·Tz(d)·Tx(a)·Rx(α)[·Ry(β)], Craig
     Rx(α)·Tx(a)·Rz(q+θ)·Tz(d); q (n, 2, m) from :func:`joint_trig`, g (n, 8)."""
     m = S.shape[1]
+    CT = np.empty(m)  # cos and sin of q + θ at every pose: once a joint, for all four columns
+    ST = np.empty(m)
     for i in range(g.shape[0] - 1, -1, -1):
         a, ca, sa, c0, s0, d, cb, sb = g[i, 0], g[i, 1], g[i, 2], g[i, 3], g[i, 4], g[i, 5], g[i, 6], g[i, 7]
         cq = q[i, 0]
         sq = q[i, 1]
+        for j in range(m):
+            CT[j] = cq[j] * c0 - sq[j] * s0  # cos(q + θ)
+            ST[j] = sq[j] * c0 + cq[j] * s0
         for col in range(first, 4):
             X = S[3 * col]
             Y = S[3 * col + 1]
@@ -87,15 +92,13 @@ def _chain_columns(conv, g, q, S, first):
             td = d if col == 3 else 0.0
             if conv == 2:
                 for j in range(m):
-                    ct = cq[j] * c0 - sq[j] * s0  # cos(q + θ)
-                    st = sq[j] * c0 + cq[j] * s0
+                    ct, st = CT[j], ST[j]
                     x, y, z = X[j], Y[j], Z[j] + td
                     x, y = ct * x - st * y + ta, st * x + ct * y
                     X[j], Y[j], Z[j] = x, ca * y - sa * z, sa * y + ca * z
             elif conv == 1:
                 for j in range(m):
-                    ct = cq[j] * c0 - sq[j] * s0
-                    st = sq[j] * c0 + cq[j] * s0
+                    ct, st = CT[j], ST[j]
                     x, y, z = X[j], Y[j], Z[j]
                     x, z = cb * x + sb * z, cb * z - sb * x
                     y, z = ca * y - sa * z, sa * y + ca * z
@@ -103,8 +106,7 @@ def _chain_columns(conv, g, q, S, first):
                     X[j], Y[j], Z[j] = ct * x - st * y, st * x + ct * y, z + td
             else:
                 for j in range(m):
-                    ct = cq[j] * c0 - sq[j] * s0
-                    st = sq[j] * c0 + cq[j] * s0
+                    ct, st = CT[j], ST[j]
                     x, y, z = X[j], Y[j], Z[j]
                     y, z = ca * y - sa * z, sa * y + ca * z
                     x += ta
