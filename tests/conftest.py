@@ -19,6 +19,26 @@ settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "suite"))
 BACKENDS = ["numpy"] + (["numba"] if numba_installed() else [])
 
 
+def pytest_configure(config):
+    """Once, before pytest-xdist starts its workers (in its controller, or a run without it): this
+    install's numba kernels compiled if they are not, as the first process after an install starts
+    them compiling in the background, but waited for here, so that the workers do not each compile
+    again the kernels their numba tests call (a clean clone, as CI has, starts with none compiled).
+    The test of a cold cache keeps a cache of its own."""
+    import subprocess
+    import sys
+
+    if os.environ.get("PYTEST_XDIST_WORKER") or not numba_installed():
+        return
+    from robocal.model.compiled import COMPILED, _read, fingerprint, state_folder, take_lock
+
+    folder = state_folder()
+    if folder is None or _read(folder / COMPILED) == fingerprint() or not take_lock(folder):
+        return
+    subprocess.run([sys.executable, "-m", "robocal.calibration.precompile", str(folder)], check=False,
+                   stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+
+
 @pytest.fixture
 def rng():
     return np.random.default_rng(12345)
