@@ -19,53 +19,24 @@ settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "suite"))
 BACKENDS = ["numpy"] + (["numba"] if numba_installed() else [])
 
 
-def _compile_state():
-    """This install's compile folder and whether its kernels are compiled (None, True without numba)."""
-    if not numba_installed():
-        return None, True
-    from robocal.model.compiled import COMPILED, _read, fingerprint, state_folder
-
-    folder = state_folder()
-    return folder, folder is None or _read(folder / COMPILED) == fingerprint()
-
-
 def pytest_configure(config):
-    """Once, as pytest-xdist's controller starts (or a run without it): this install's numba kernels
-    compiled if they are not, as the first process after an install starts them compiling in the
-    background, but here at full speed while the workers start and collect, and waited for before
-    the first test (:func:`_kernels_compiled`), so that the workers do not each compile again the
-    kernels their numba tests call (a clean clone, as CI has, starts with none compiled).  The test
-    of a cold cache keeps a cache of its own."""
+    """Once, before pytest-xdist starts its workers (in its controller, or a run without it): this
+    install's numba kernels compiled if they are not, as the first process after an install starts
+    them compiling in the background, but waited for here, so that the workers do not each compile
+    again the kernels their numba tests call (a clean clone, as CI has, starts with none compiled).
+    The test of a cold cache keeps a cache of its own."""
     import subprocess
     import sys
 
-    if os.environ.get("PYTEST_XDIST_WORKER"):
+    if os.environ.get("PYTEST_XDIST_WORKER") or not numba_installed():
         return
-    folder, compiled = _compile_state()
-    if compiled:
+    from robocal.model.compiled import COMPILED, _read, fingerprint, state_folder, take_lock
+
+    folder = state_folder()
+    if folder is None or _read(folder / COMPILED) == fingerprint() or not take_lock(folder):
         return
-    from robocal.model.compiled import take_lock
-
-    if take_lock(folder):
-        compiling = subprocess.Popen([sys.executable, "-m", "robocal.calibration.precompile", str(folder)],
-                                     stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-        config.add_cleanup(compiling.wait)
-
-
-@pytest.fixture(scope="session", autouse=True)
-def _kernels_compiled():
-    """Each worker's tests start once the compile :func:`pytest_configure` started has ended (its
-    lock gone), at most 120 s."""
-    import time
-
-    folder, compiled = _compile_state()
-    if compiled or folder is None:
-        return
-    from robocal.model.compiled import LOCK
-
-    deadline = time.time() + 120.0
-    while (folder / LOCK).exists() and time.time() < deadline:
-        time.sleep(0.2)
+    subprocess.run([sys.executable, "-m", "robocal.calibration.precompile", str(folder)], check=False,
+                   stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
 
 
 @pytest.fixture
