@@ -252,7 +252,7 @@ def test_the_compile_lock_is_taken_once_by_simultaneous_starts_and_never_through
     for trial in range(5):
         folder = tmp_path / f"t{trial}"
         folder.mkdir()
-        start = time.time() + 1.5
+        start = time.time() + 1.0  # each process started and waiting by then (a late one still finds the lock held)
         runs = [subprocess.Popen([sys.executable, "-c", code, str(folder), str(start)], stdout=subprocess.PIPE,
                                  text=True) for _ in range(4)]
         said = [r.communicate()[0].strip() for r in runs]
