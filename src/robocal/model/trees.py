@@ -77,8 +77,9 @@ class Ensemble:
             leaf = self.feature < 0
             index = np.arange(len(self.feature))
             children = np.stack([np.where(leaf, index, self.left), np.where(leaf, index, self.right)], 1).ravel()
-            order = np.argsort(-_tree_depths(self.feature, self.left, self.right, self.roots), kind="stable")
-            depths = _tree_depths(self.feature, self.left, self.right, self.roots)[order]
+            depths = _tree_depths(self.feature, self.left, self.right, self.roots)
+            order = np.argsort(-depths, kind="stable")
+            depths = depths[order]
             busy = np.array([int(np.sum(depths > step)) for step in range(1, self.depth)], dtype=np.int64)
             # 32-bit indices: half the memory a step's gathers move
             self.__dict__["_walk_arrays"] = (np.where(leaf, 0, self.feature).astype(np.intp),
@@ -118,8 +119,11 @@ class Ensemble:
         """The largest |prediction| anywhere: |baseline| plus each tree's largest |leaf| (a pose
         ends in one leaf a tree); all the leaves' sum where the trees' nodes are not in order."""
         leaf = np.where(self.feature < 0, np.abs(self.value), 0.0)
-        ordered = len(self.roots) and self.roots[0] == 0 and np.all(np.diff(self.roots) > 0)
-        largest = np.maximum.reduceat(leaf, self.roots) if ordered else leaf
+        tree = _tree_of_nodes(self.roots, len(leaf))
+        if tree is None:
+            return abs(self.baseline) + float(np.sum(leaf))
+        largest = np.zeros(len(self.roots))
+        np.maximum.at(largest, tree, leaf)
         return abs(self.baseline) + float(np.sum(largest))
 
     @property
@@ -209,14 +213,22 @@ def sklearn_layout(model) -> None:
                            f"reads them: robocal supports scikit-learn {SKLEARN_TESTED}")
 
 
+def _tree_of_nodes(roots: np.ndarray, n: int) -> np.ndarray | None:
+    """Each of the n nodes' tree, where the nodes run tree by tree from the first root (as
+    :meth:`Ensemble.of_sklearn` lays them out), else None."""
+    if len(roots) == 0 or roots[0] != 0 or np.any(np.diff(roots) <= 0):
+        return None
+    return np.searchsorted(roots, np.arange(n), side="right") - 1
+
+
 def _tree_depths(feature, left, right, roots) -> np.ndarray:
-    """Each tree's number of levels (its longest root-to-leaf path); its nodes run from its root
-    to the next tree's."""
+    """Each tree's number of levels (its longest root-to-leaf path); where the nodes are not laid
+    out tree by tree, each tree as deep as the deepest."""
     level = np.zeros(len(feature), dtype=np.int64)
     for i in np.flatnonzero(feature >= 0):  # parents come first, so one pass settles every level
         level[left[i]] = level[right[i]] = level[i] + 1
-    tree = np.searchsorted(roots, np.arange(len(feature)), side="right") - 1 if np.all(np.diff(roots) > 0) else None
-    if tree is None:  # nodes not laid out tree by tree: each tree as deep as the deepest
+    tree = _tree_of_nodes(roots, len(feature))
+    if tree is None:
         return np.full(len(roots), int(level.max()) + 1 if len(level) else 1)
     out = np.zeros(len(roots), dtype=np.int64)
     np.maximum.at(out, tree, level + 1)
@@ -225,10 +237,7 @@ def _tree_depths(feature, left, right, roots) -> np.ndarray:
 
 def _depth(feature, left, right, roots) -> int:
     """The longest root-to-leaf path of the trees (children always follow their parent)."""
-    level = np.zeros(len(feature), dtype=np.int64)
-    for i in np.flatnonzero(feature >= 0):  # parents come first, so one pass settles every level
-        level[left[i]] = level[right[i]] = level[i] + 1
-    return int(level.max()) + 1 if len(level) else 1
+    return int(_tree_depths(feature, left, right, roots).max()) if len(roots) else 1
 
 
 @dataclass(frozen=True, eq=False)
