@@ -132,7 +132,6 @@ def w1_whole_process(repeats: int = 5) -> list[Row]:
     32 poses, the swarm, the statistics, writing the result) beside the naive numpy IPSO's script
     (:data:`_NAIVE`), each a fresh interpreter, interleaved; the median of the paired ratios
     (target ≤ 0.5): start-up, imports and loading the compiled kernels are most of either."""
-    import subprocess
     import sys
     import tempfile
 
@@ -146,14 +145,8 @@ def w1_whole_process(repeats: int = 5) -> list[Row]:
         ours = [sys.executable, "-m", "robocal", "calibrate", "er10l-c10", str(data), "--method", "ipso", "--frames",
                 "none", "--seed", "0", "--out", str(Path(d) / "w1.json"), "--quiet"]
         naive_cmd = [sys.executable, "-c", _NAIVE.format(k=prob.k)]
-
-        def timed(cmd):
-            t = time.perf_counter()
-            subprocess.run(cmd, check=True, capture_output=True)
-            return time.perf_counter() - t
-
-        timed(ours), timed(naive_cmd)  # the kernels loaded once, files in the page cache
-        pairs = [(timed(ours), timed(naive_cmd)) for _ in range(repeats)]
+        _wall(ours), _wall(naive_cmd)  # the kernels loaded once, files in the page cache
+        pairs = [(_wall(ours), _wall(naive_cmd)) for _ in range(repeats)]
     ratio = statistics.median(a / b for a, b in pairs)
     return [Row("W1 robocal calibrate --method ipso, whole process", statistics.median(a for a, _ in pairs), "s", "—",
                 None),
@@ -355,13 +348,18 @@ def _command_line(data: Path, model: str, out: Path) -> float:
     """Wall time (s) of ``robocal calibrate ur10 DATA --frames base+tool --validate … --model MODEL``
     as a user runs it (the README's): a fresh interpreter, reading, calibrating, validating on the
     other half, reporting and writing."""
-    import subprocess
     import sys
 
+    return _wall([sys.executable, "-m", "robocal", "calibrate", "ur10", str(data), "--frames", "base+tool",
+                  "--validate", str(Path(data).with_name("validation.csv")), "--model", model, "--out", str(out)])
+
+
+def _wall(cmd: list[str]) -> float:
+    """Wall time (s) of a command run to its end (its output kept from the terminal)."""
+    import subprocess
+
     start = time.perf_counter()
-    subprocess.run([sys.executable, "-m", "robocal", "calibrate", "ur10", str(data), "--frames", "base+tool",
-                    "--validate", str(Path(data).with_name("validation.csv")), "--model", model, "--out", str(out)],
-                   check=True, capture_output=True)
+    subprocess.run(cmd, check=True, capture_output=True)
     return time.perf_counter() - start
 
 
