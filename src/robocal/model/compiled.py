@@ -130,8 +130,8 @@ def fingerprint() -> str:
     except PackageNotFoundError:
         numba = "none"
     here = Path(__file__).resolve().parents[1]
-    source = b"".join((here / part).read_bytes() for part in ("model/kernels.py", "optimize/kernels.py")
-                      if (here / part).is_file())
+    parts = ("model/kernels.py", "optimize/kernels.py", "calibration/select/boost_kernels.py")
+    source = b"".join((here / part).read_bytes() for part in parts if (here / part).is_file())
     return f"robocal {__version__}, numba {numba}, python {platform.python_version()}, " \
         f"kernels {hashlib.sha256(source).hexdigest()[:16]}"
 

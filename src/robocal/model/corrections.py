@@ -47,10 +47,10 @@ class Stacked:
     def dof(self) -> float:
         return float(self.trees.dof + self.process.dof)
 
-    def predict(self, q: np.ndarray) -> np.ndarray:
+    def predict(self, q: np.ndarray, positions: bool = False) -> np.ndarray:
         out = np.zeros((len(np.atleast_2d(q)), self.outputs))
         for part in self.parts:
-            d = part.predict(q)
+            d = part.predict(q, positions)
             out[:, :d.shape[1]] += d
         return out
 
@@ -65,8 +65,8 @@ class Stacked:
         """The share of the correction kept at q: the larger of the two parts' (each fades on its own)."""
         return np.maximum(self.trees.weight(q), self.process.weight(q))
 
-    def correct(self, q, R, p, base_rotation):
-        return apply_correction(self.predict(q), self.axes, R, p, base_rotation)
+    def correct(self, q, R, p, base_rotation, rotations: bool = True):
+        return apply_correction(self.predict(q, positions=not rotations), self.axes, R, p, base_rotation, rotations)
 
     def summary(self) -> dict:
         return {"kind": "gradient-boosted trees, then a gaussian process on what they leave",

@@ -53,11 +53,13 @@ def rbf(a: np.ndarray, b: np.ndarray, length_scales: np.ndarray, amplitude: floa
     return amplitude * np.exp(-0.5 * np.maximum(sq, 0.0))
 
 
-def apply_correction(d: np.ndarray, axes: np.ndarray, R: np.ndarray, p: np.ndarray, base_rotation: np.ndarray):
-    """p ← p + R_b R_o δp and, with orientations, R ← Exp(R_b R_o δr) R (see :mod:`robocal.model.residual`)."""
+def apply_correction(d: np.ndarray, axes: np.ndarray, R: np.ndarray, p: np.ndarray, base_rotation: np.ndarray,
+                     rotations: bool = True):
+    """p ← p + R_b R_o δp and, with orientations, R ← Exp(R_b R_o δr) R (see :mod:`robocal.model.residual`);
+    ``rotations`` False: R as it came (the positions alone are wanted)."""
     turn = base_rotation @ axes
     p = p + d[:, :3] @ turn.T
-    if d.shape[1] == 6:
+    if d.shape[1] == 6 and rotations:
         R = exp_so3(d[:, 3:] @ turn.T) @ R
     return R, p
 
@@ -164,13 +166,20 @@ class ResidualModel:
         """Effective degrees of freedom taken from the data (every block, every output)."""
         return float(sum(b.dof for b in self.blocks))
 
-    def predict(self, q: np.ndarray) -> np.ndarray:
-        """δ (m, 3 or 6) at commanded joints q (m, n) rad; computed in chunks to bound memory."""
+    def predict(self, q: np.ndarray, positions: bool = False) -> np.ndarray:
+        """δ (m, 3 or 6) at commanded joints q (m, n) rad; computed in chunks to bound memory.
+        ``positions``: the blocks of the position outputs alone, the others' columns 0."""
         q = np.atleast_2d(np.asarray(q, float))
-        out = np.empty((len(q), self.outputs))
+        blocks, width = [], 0
+        for b in self.blocks:
+            if positions and width >= 3:
+                break
+            blocks.append(b)
+            width += b.alpha.shape[1]
+        out = np.zeros((len(q), self.outputs))
         for start in range(0, len(q), 4096):
             chunk = q[start:start + 4096]
-            out[start:start + 4096] = np.concatenate([b.predict(self.X, chunk) for b in self.blocks], axis=1)
+            out[start:start + 4096, :width] = np.concatenate([b.predict(self.X, chunk) for b in blocks], axis=1)
         return out
 
     def weight(self, q: np.ndarray) -> np.ndarray:
@@ -200,10 +209,12 @@ class ResidualModel:
             out[start:start + 4096] = block.variance(self.X, q[start:start + 4096]) * float(np.sum(block.y_scale ** 2))
         return out
 
-    def correct(self, q: np.ndarray, R: np.ndarray, p: np.ndarray, base_rotation: np.ndarray):
+    def correct(self, q: np.ndarray, R: np.ndarray, p: np.ndarray, base_rotation: np.ndarray,
+                rotations: bool = True):
         """The pose (R (m, 3, 3), p (m, 3) mm, measuring frame) with the correction at q added;
-        base_rotation (3, 3): the robot base's orientation in the measuring frame."""
-        return apply_correction(self.predict(q), self.axes, R, p, base_rotation)
+        base_rotation (3, 3): the robot base's orientation in the measuring frame; ``rotations``
+        False: p alone is corrected (the orientation outputs are not worked out)."""
+        return apply_correction(self.predict(q, positions=not rotations), self.axes, R, p, base_rotation, rotations)
 
     def summary(self) -> dict:
         """What the result JSON says of the model (the model itself goes to a file of its own)."""

@@ -152,11 +152,13 @@ class Robot:
                                  None if self.tree is None else self.tree.parents)
 
     def fk(self, q, targets: Sequence[str] | None = None, inputs: JointInputs | None = None,
-           chains: Sequence[str] | None = None) -> np.ndarray:
+           chains: Sequence[str] | None = None, *, rotations: bool = True) -> np.ndarray:
         """End poses (m, 4, 4) in the measuring frame for commanded joints q (m, n) rad, with the
         robot's joint terms (on the poses' :class:`~robocal.model.terms.JointInputs`: torques,
         payload, directions of motion, time, where they need them) and its residual correction
-        (:mod:`robocal.model.residual`).  A tree's rows name their chain (``chains``)."""
+        (:mod:`robocal.model.residual`).  A tree's rows name their chain (``chains``).  ``rotations``
+        False: the residual correction's orientation outputs are not worked out, and the poses'
+        rotations lack them (what :meth:`positions` asks for)."""
         q = np.atleast_2d(np.asarray(q, float))
         qe = self.effective_joints(q, inputs)
         if self.tree is not None and chains is not None:  # a row without a target is on its chain's own tool
@@ -170,13 +172,13 @@ class Robot:
             return homogeneous(R, p)
         R, p = chain_pose(self.convention, self.geometry, qe, self.base, tools)
         if self.residual is not None:
-            R, p = self.residual.correct(q, R, p, self.base[:3, :3])
+            R, p = self.residual.correct(q, R, p, self.base[:3, :3], rotations)
         return homogeneous(R, p)
 
     def positions(self, q, targets: Sequence[str] | None = None, inputs: JointInputs | None = None,
                   chains: Sequence[str] | None = None) -> np.ndarray:
         """Measured-point positions (m, 3) mm in the measuring frame for commanded joints q (m, n) rad."""
-        return self.fk(q, targets, inputs, chains)[:, :3, 3]
+        return self.fk(q, targets, inputs, chains, rotations=False)[:, :3, 3]
 
     def flange_frames(self, q, chains: Sequence[str] | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Each row's flange (the frame after its chain's last joint) in the robot's base frame, as

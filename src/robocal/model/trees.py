@@ -166,8 +166,9 @@ class Ensemble:
             leaf = nodes["is_leaf"].astype(bool)
             parts.append((np.where(leaf, -1, nodes["feature_idx"]).astype(np.int64),
                           nodes["num_threshold"].astype(float),
-                          np.where(leaf, -1, nodes["left"] + offset).astype(np.int64),
-                          np.where(leaf, -1, nodes["right"] + offset).astype(np.int64),
+                          # int64 first: the records' uint32 children took a leaf's −1 as 2³² − 1
+                          np.where(leaf, -1, nodes["left"].astype(np.int64) + offset),
+                          np.where(leaf, -1, nodes["right"].astype(np.int64) + offset),
                           np.where(leaf, nodes["value"], 0.0).astype(float), offset))
             offset += len(nodes)
         feature, threshold, left, right, value = (np.concatenate([p[k] for p in parts]) for k in range(5))
@@ -293,15 +294,20 @@ class TreeResidual:
         """The share (m,) of the correction kept at each pose (:func:`fade` of its distance)."""
         return fade(self.distance(q), self.reach)
 
-    def raw(self, q: np.ndarray) -> np.ndarray:
-        """The trees' own prediction (m, outputs), unfaded."""
+    def raw(self, q: np.ndarray, positions: bool = False) -> np.ndarray:
+        """The trees' own prediction (m, outputs), unfaded (``positions``: the orientations' columns 0)."""
         q = np.atleast_2d(np.asarray(q, float))
+        if positions and self.outputs > 3:
+            out = np.zeros((len(q), self.outputs))
+            out[:, :3] = np.stack([e.predict(q) for e in self.ensembles[:3]], axis=1)
+            return out
         return np.stack([e.predict(q) for e in self.ensembles], axis=1)
 
-    def predict(self, q: np.ndarray) -> np.ndarray:
-        """δ (m, 3 or 6) at commanded joints q (m, n) rad, faded outside the data."""
+    def predict(self, q: np.ndarray, positions: bool = False) -> np.ndarray:
+        """δ (m, 3 or 6) at commanded joints q (m, n) rad, faded outside the data (``positions``:
+        the orientations' trees not walked, their columns 0)."""
         q = np.atleast_2d(np.asarray(q, float))
-        return self.weight(q)[:, None] * self.raw(q)
+        return self.weight(q)[:, None] * self.raw(q, positions)
 
     def position_bound(self) -> float:
         """The largest |δp| (mm) the correction adds anywhere (it fades, never grows)."""
@@ -313,9 +319,11 @@ class TreeResidual:
         w = self.weight(q)
         return w * self.inside + (1.0 - w) * self.prior
 
-    def correct(self, q: np.ndarray, R: np.ndarray, p: np.ndarray, base_rotation: np.ndarray):
-        """The pose (R (m, 3, 3), p (m, 3) mm, measuring frame) with the correction at q added."""
-        return apply_correction(self.predict(q), self.axes, R, p, base_rotation)
+    def correct(self, q: np.ndarray, R: np.ndarray, p: np.ndarray, base_rotation: np.ndarray,
+                rotations: bool = True):
+        """The pose (R (m, 3, 3), p (m, 3) mm, measuring frame) with the correction at q added
+        (``rotations`` False: p alone)."""
+        return apply_correction(self.predict(q, positions=not rotations), self.axes, R, p, base_rotation, rotations)
 
     def summary(self) -> dict:
         names = ["x", "y", "z", "rx", "ry", "rz"][: self.outputs]

@@ -38,6 +38,7 @@ import numpy as np
 from ...backend import SERIAL, worker_pool
 from ...model.trees import Ensemble, TreeResidual, fade, nearest
 from ..judge.statistics import group_folds
+from .boosting import Boosted, boost
 
 LEARNING_RATE = 0.2
 MAX_TREES = 200
@@ -90,10 +91,35 @@ def _one_thread():
     return threadpool_limits(1, user_api="openmp")
 
 
-def _fitted(q, y, leaf, trees, seed) -> list:
-    """One fitted regressor per column of y."""
+def _grown(q, y, leaf: int, trees: int | None, seed, test=None, test_y=None, check_at: int = 0) -> Boosted:
+    """One output's trees on y (m,) at q (:mod:`.boosting`): robocal's compiled loop where numba's kernels
+    are compiled, else scikit-learn's own fit (the same trees); ``test``, ``test_y`` and ``check_at`` as
+    :func:`~.boosting.boost` takes them."""
+    from ...model.compiled import resolve
+
+    if resolve("auto") == "numba":
+        return boost(q, y, learning_rate=LEARNING_RATE, max_leaf_nodes=MAX_LEAF_NODES, min_samples_leaf=leaf,
+                     trees=trees, max_trees=MAX_TREES, patience=PATIENCE, seed=seed, test=test, test_y=test_y,
+                     check_at=check_at, check_patience=CURVE_PATIENCE)
     with _one_thread():
-        return [_regressor(leaf, trees, seed).fit(q, y[:, a]) for a in range(y.shape[1])]
+        model = _regressor(leaf, CURVE_FIRST if check_at else trees, seed)
+        staged = None
+        if check_at:  # a first stretch of trees, then the rest where the held-out curve asks for them
+            model.set_params(warm_start=True)
+            for grown in (check_at, MAX_TREES):
+                model.set_params(max_iter=grown)
+                model.fit(q, y)
+                staged = np.array(list(model.staged_predict(test)))  # (trees, m)
+                sq = np.sum((staged - test_y[None, :]) ** 2, axis=1)
+                if model.n_iter_ < grown or model.n_iter_ - int(np.argmin(sq)) > CURVE_PATIENCE:
+                    break
+        else:
+            model.fit(q, y)
+            if test is not None:
+                staged = np.array(list(model.staged_predict(test)))
+        check = q[:: max(1, len(q) // 200)]  # the ensemble read back predicts as the model does
+        gain = np.concatenate([predictor.nodes["gain"] for (predictor,) in model._predictors])
+        return Boosted(Ensemble.of_sklearn(model, check), gain.astype(float), staged)
 
 
 #: trees an inner fold grows first, and how many past its held-out minimum tell it to stop there:
@@ -112,16 +138,8 @@ def curve(piece) -> np.ndarray:
     (an inner fold's three outputs each) left one idle a third of the time."""
     q_train, y_train, q_test, y_test, leaf, seed = piece
     out = np.empty(MAX_TREES)
-    with _one_thread():
-        model = _regressor(leaf, CURVE_FIRST, seed)
-        model.set_params(warm_start=True)
-        for trees in (CURVE_FIRST, MAX_TREES):
-            model.set_params(max_iter=trees)
-            model.fit(q_train, y_train)
-            staged = np.array(list(model.staged_predict(q_test)))  # (trees, m)
-            sq = np.sum((staged - y_test[None, :]) ** 2, axis=1)
-            if model.n_iter_ < trees or model.n_iter_ - int(np.argmin(sq)) > CURVE_PATIENCE:
-                break
+    staged = _grown(q_train, y_train, leaf, MAX_TREES, seed, q_test, y_test, CURVE_FIRST).staged
+    sq = np.sum((staged - y_test[None, :]) ** 2, axis=1)
     out[:len(sq)] = sq
     out[len(sq):] = sq[-1]
     return out
@@ -167,35 +185,19 @@ def choose_settings(q: np.ndarray, e: np.ndarray, groups: np.ndarray | None = No
     return settings_of(leaves, pool.map(curve, pieces))
 
 
-def _importance(models) -> np.ndarray:
-    """Each model's share of the split gain per joint, (models, n)."""
-    out = np.zeros((len(models), models[0].n_features_in_))
-    for k, model in enumerate(models):
-        for (predictor,) in model._predictors:
-            nodes = predictor.nodes
-            inner = ~nodes["is_leaf"].astype(bool)
-            np.add.at(out[k], nodes["feature_idx"][inner], np.maximum(nodes["gain"][inner], 0.0))
-        total = out[k].sum()
-        out[k] = out[k] / total if total > 0 else 0.0
-    return out
-
-
 def _ensembles(q, y, leaf: int, trees: int | None, seed) -> tuple[list[Ensemble], np.ndarray]:
     """The ensembles of y's columns, and each one's joint importance (outputs, n); trees None:
     as many as early stopping keeps."""
-    models = _fitted(q, y, leaf, trees, seed)
-    check = q[:: max(1, len(q) // 200)]  # the ensemble read back predicts as the model does
-    return [Ensemble.of_sklearn(m, check) for m in models], _importance(models)
+    grown = [_grown(q, y[:, a], leaf, trees, seed) for a in range(y.shape[1])]
+    return [b.ensemble for b in grown], np.array([b.importance(q.shape[1]) for b in grown])
 
 
 def _fold_piece(piece):
     """An outer fold's output: its trees fitted on the training poses, their raw prediction at
     every pose (m,) and their joint importance (1, n).  One output a piece (see :func:`curve`)."""
     q_train, y_train, q_all, settings, seed = piece
-    models = _fitted(q_train, y_train[:, None], settings.leaf, settings.trees, seed)
-    with _one_thread():  # predicting too: two workers' OpenMP threads spinning took a fold from 0.3 s to 3 s
-        predicted = models[0].predict(q_all)
-    return predicted, _importance(models)
+    grown = _grown(q_train, y_train, settings.leaf, settings.trees, seed, test=q_all)
+    return grown.staged[-1], grown.importance(q_train.shape[1])[None, :]
 
 
 @dataclass
