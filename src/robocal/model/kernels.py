@@ -307,20 +307,25 @@ def apply_right_jacobian_inv_parallel(phi, w):  # pragma: no cover
     return out
 
 
+@njit(cache=True, inline="always")
+def _walk_tree(feature, threshold, left, right, root, value, X, out, t):
+    """Every pose of X down the tree at ``root`` to its leaf (a node with feature < 0), left where
+    the joint is not above the threshold (NaN too, as the numpy walk): out[:, t]."""
+    for i in range(X.shape[0]):
+        node = root
+        while feature[node] >= 0:
+            node = right[node] if X[i, feature[node]] > threshold[node] else left[node]
+        out[i, t] = value[node]
+
+
 @njit(cache=True)
 def tree_walk(feature, threshold, left, right, roots, value, X):  # pragma: no cover
     """:meth:`robocal.model.trees.Ensemble.per_tree`: each tree's leaf value (m, trees) at X (m, n),
-    every pose down every tree to its leaf (a node with feature < 0), left where the joint is not
-    above the threshold (as the numpy walk, NaN included).  Serial: it runs in the ladder's forked
-    workers too, where an OpenMP layer may not start."""
-    m, trees = X.shape[0], roots.shape[0]
-    out = np.empty((m, trees))
-    for i in range(m):
-        for t in range(trees):
-            node = roots[t]
-            while feature[node] >= 0:
-                node = right[node] if X[i, feature[node]] > threshold[node] else left[node]
-            out[i, t] = value[node]
+    a tree at a time (its nodes stay in the first-level cache while every pose walks it).  Serial:
+    it runs in the ladder's forked workers too, where an OpenMP layer may not start."""
+    out = np.empty((X.shape[0], roots.shape[0]))
+    for t in range(roots.shape[0]):
+        _walk_tree(feature, threshold, left, right, roots[t], value, X, out, t)
     return out
 
 
