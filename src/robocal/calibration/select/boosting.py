@@ -155,3 +155,15 @@ def warm_boosting(always: bool = False) -> None:
     y = np.sin(3.0 * X[:, 0])
     boost(X, y, learning_rate=0.2, max_leaf_nodes=3, min_samples_leaf=5, trees=None, max_trees=3, patience=1, seed=0,
           test=X[:5], test_y=y[:5], check_at=1)
+
+
+def worker_preparation() -> tuple[str, ...]:
+    """What a worker of the ``auto`` ladder loads as it starts (:class:`robocal.backend.worker_pool`'s
+    ``prepare``): the compiled loop where numba's kernels run (scikit-learn is not imported then: two
+    workers importing it took a core's second from the geometric fit beside them), else
+    scikit-learn's trees."""
+    from ...model.compiled import resolve
+
+    if resolve("auto") == "numba":
+        return ("robocal.calibration.select.boosting:warm_boosting",)
+    return ("sklearn.ensemble",)

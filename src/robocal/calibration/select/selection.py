@@ -48,6 +48,7 @@ from ..fit.parametric import Fit, fit_parametric, term_spec, unsupported_terms
 from ..inputs import Inputs
 from ..result import BudgetRow, LadderRow
 from ..timing import stage
+from .boosting import worker_preparation
 from .choice import SIGNIFICANCE, TRIAL_ORDER, Candidate, choose, learned_of, model_name, with_term
 from .crossval import (
     K_FOLDS,
@@ -268,8 +269,7 @@ def fit_model(inputs: Inputs, config: CalibrationConfig, progress=None, stages=N
         geometric, geometric_cv = choice.fit, choice.cv
     rung_config = CalibrationConfig.build(config, backend="numpy")
     # the workers start (and import the trees' library) while geometry is fitted here
-    with worker_pool(prepare=("sklearn.ensemble", "robocal.calibration.select.boosting:warm_boosting")
-                     if residuals else ()) as pool:
+    with worker_pool(prepare=worker_preparation() if residuals else ()) as pool:
         if choice is None:
             say(0, work, f"model 1/{steps}: geometric, fit and {K_FOLDS} folds")
             geometric = fit_parametric(inputs, config, term_spec((), meas, config), progress)
