@@ -16,6 +16,10 @@ from robocal.model.trees import Ensemble
 
 pytest.importorskip("numba")
 
+#: the compiled loop copies the releases it was checked against; with another, robocal fits by scikit-learn
+copied = pytest.mark.skipif(boosting._sklearn_release() not in boosting.SKLEARN_GROWN,
+                            reason="a scikit-learn release the compiled loop does not copy")
+
 KW = dict(learning_rate=trees.LEARNING_RATE, max_leaf_nodes=trees.MAX_LEAF_NODES, max_trees=trees.MAX_TREES,
           patience=trees.PATIENCE)
 
@@ -39,6 +43,7 @@ def _case(rng, k):
     return X, y, int(rng.choice([1, 5, 10, 30])), None if k % 3 == 0 else int(rng.integers(1, 120)), k % 4
 
 
+@copied
 def test_the_compiled_loop_grows_scikit_learn_s_trees_to_the_last_bit(rng):
     for k in range(14):
         X, y, leaf, n_trees, seed = _case(rng, k)
@@ -56,6 +61,7 @@ def test_the_compiled_loop_grows_scikit_learn_s_trees_to_the_last_bit(rng):
         np.testing.assert_array_equal(ours.predict(X), model.predict(X))
 
 
+@copied
 def test_its_bins_and_its_validation_split_are_scikit_learn_s(rng):
     for n, digits in ((50, None), (254, None), (255, None), (256, None), (1000, None), (1000, 2), (3000, 1)):
         X = rng.normal(size=(n, 3)) * np.array([1.0, 1e-3, 100.0])
@@ -105,3 +111,19 @@ def test_the_ladder_s_pieces_are_the_same_on_either_path(rng, monkeypatch, check
         np.testing.assert_array_equal(getattr(compiled[2][0][0], field), getattr(plain[2][0][0], field))
     # noise: the first stretch passes its minimum and the curve stops there; structure: all the trees
     assert (compiled[0][trees.CURVE_FIRST:] == compiled[0][trees.CURVE_FIRST - 1]).all() == check
+
+
+def test_another_scikit_learn_release_fits_its_own_trees(monkeypatch):
+    """The compiled loop copies scikit-learn 1.9's algorithm (1.4 binned by other percentiles): with a
+    release it was not checked against, scikit-learn fits the trees and the workers import it."""
+    monkeypatch.delenv("ROBOCAL_NO_NUMBA", raising=False)
+    monkeypatch.setattr("robocal.model.compiled.kernels_compiled", lambda: True)
+    monkeypatch.setattr(boosting, "_sklearn_release", lambda: (1, 9))
+    assert boosting.compiled()
+    assert boosting.worker_preparation() == ("robocal.calibration.select.boosting:warm_boosting",)
+    monkeypatch.setattr(boosting, "_sklearn_release", lambda: (1, 4))
+    assert not boosting.compiled()
+    assert boosting.worker_preparation() == ("sklearn.ensemble",)
+    monkeypatch.setattr(boosting, "_sklearn_release", lambda: (1, 9))
+    monkeypatch.setenv("ROBOCAL_NO_NUMBA", "1")
+    assert not boosting.compiled()

@@ -7,7 +7,8 @@ binning and its own split of the validation poses (as its ``_BinMapper`` and ``t
 find them: :func:`_thresholds`, :func:`_split`), and its trees grown by
 :func:`~.boost_kernels.grow_trees` where numba's kernels are compiled
 (:func:`robocal.model.compiled.resolve`), else by scikit-learn itself.  The compiled loop does what
-scikit-learn's grower and splitter do, step by step (its module says how), so the trees, their
+scikit-learn's grower and splitter do, step by step (its module says how; scikit-learn 1.9, whose
+release the loop is used with: :func:`compiled`), so the trees, their
 values, their gains and their predictions are the same to the last bit: a test grows both on many
 data sets and compares every array.  It grows a tree in tens of microseconds where scikit-learn's
 Python grower takes most of a millisecond.
@@ -15,6 +16,7 @@ Python grower takes most of a millisecond.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -143,13 +145,37 @@ def boost(X: np.ndarray, y: np.ndarray, *, learning_rate: float, max_leaf_nodes:
     return Boosted(ensemble, gain, None if test is None else staged)
 
 
+#: the scikit-learn releases whose boosting the compiled loop was checked against, bit for bit (its binning
+#: changed between 1.4 and 1.9: percentiles by "midpoint", then by "averaged_inverted_cdf")
+SKLEARN_GROWN = ((1, 9),)
+
+
+@functools.cache
+def _sklearn_release() -> tuple[int, ...]:
+    """The installed scikit-learn's (major, minor), read from its metadata without importing it."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return tuple(int(p) for p in version("scikit-learn").split(".")[:2])
+    except (PackageNotFoundError, ValueError):
+        return ()
+
+
+def compiled() -> bool:
+    """Whether this process grows trees by the compiled loop: numba's kernels run
+    (:func:`robocal.model.compiled.resolve`) and the scikit-learn installed is one the loop was
+    checked against (:data:`SKLEARN_GROWN`); else scikit-learn fits them itself, and the numbers
+    are its own."""
+    from ...model.compiled import resolve
+
+    return _sklearn_release() in SKLEARN_GROWN and resolve("auto") == "numba"
+
+
 def warm_boosting(always: bool = False) -> None:
     """Load the compiled loop (compile it where it is not in numba's cache) on a few poses, where
     numba's kernels run (``always``: whatever this process resolves; the background compile's call):
     a worker of the ``auto`` ladder calls it as it starts, while the parent fits the geometry."""
-    from ...model.compiled import resolve
-
-    if not always and resolve("auto") != "numba":
+    if not always and not compiled():
         return
     X = np.linspace(-1.0, 1.0, 80).reshape(40, 2)
     y = np.sin(3.0 * X[:, 0])
@@ -162,8 +188,6 @@ def worker_preparation() -> tuple[str, ...]:
     ``prepare``): the compiled loop where numba's kernels run (scikit-learn is not imported then: two
     workers importing it took a core's second from the geometric fit beside them), else
     scikit-learn's trees."""
-    from ...model.compiled import resolve
-
-    if resolve("auto") == "numba":
+    if compiled():
         return ("robocal.calibration.select.boosting:warm_boosting",)
     return ("sklearn.ensemble",)

@@ -38,7 +38,7 @@ import numpy as np
 from ...backend import SERIAL, worker_pool
 from ...model.trees import Ensemble, TreeResidual, fade, nearest
 from ..judge.statistics import group_folds
-from .boosting import Boosted, boost
+from .boosting import Boosted, boost, compiled
 
 LEARNING_RATE = 0.2
 MAX_TREES = 200
@@ -95,9 +95,7 @@ def _grown(q, y, leaf: int, trees: int | None, seed, test=None, test_y=None, che
     """One output's trees on y (m,) at q (:mod:`.boosting`): robocal's compiled loop where numba's kernels
     are compiled, else scikit-learn's own fit (the same trees); ``test``, ``test_y`` and ``check_at`` as
     :func:`~.boosting.boost` takes them."""
-    from ...model.compiled import resolve
-
-    if resolve("auto") == "numba":
+    if compiled():
         return boost(q, y, learning_rate=LEARNING_RATE, max_leaf_nodes=MAX_LEAF_NODES, min_samples_leaf=leaf,
                      trees=trees, max_trees=MAX_TREES, patience=PATIENCE, seed=seed, test=test, test_y=test_y,
                      check_at=check_at, check_patience=CURVE_PATIENCE)
