@@ -163,18 +163,14 @@ def _worker_start(modules: tuple[str, ...] = ()) -> None:
     """In a worker of :class:`worker_pool`: Ctrl-C is the parent's to handle (it says so once and
     ends the pool), BLAS runs on one thread (the workers share the cores out already), and the
     modules its pieces will need are imported now (``modules``: scikit-learn's trees take a
-    second to import, which each worker would otherwise pay at its first piece; ``module:function``
-    also calls the function, as the boosting's warm-up loads its compiled loop)."""
+    second to import, which each worker would otherwise pay at its first piece)."""
     import importlib
     import signal
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     for module in modules:
-        name, _, call = module.partition(":")
         try:
-            imported = importlib.import_module(name)
-            if call:
-                getattr(imported, call)()
+            importlib.import_module(module)
         except ImportError:  # the piece that needs it says so, where it runs
             pass
     try:

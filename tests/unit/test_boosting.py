@@ -120,7 +120,7 @@ def test_another_scikit_learn_release_fits_its_own_trees(monkeypatch):
     monkeypatch.setattr("robocal.model.compiled.kernels_compiled", lambda: True)
     monkeypatch.setattr(boosting, "_sklearn_release", lambda: (1, 9))
     assert boosting.compiled()
-    assert boosting.worker_preparation() == ("robocal.calibration.select.boosting:warm_boosting",)
+    assert boosting.worker_preparation() == ()
     monkeypatch.setattr(boosting, "_sklearn_release", lambda: (1, 4))
     assert not boosting.compiled()
     assert boosting.worker_preparation() == ("sklearn.ensemble",)

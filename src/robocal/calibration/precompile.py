@@ -23,7 +23,7 @@ def compile_kernels() -> None:
     from ..optimize import kernels as swarm_kernels
     from ..simulation import simulate
     from . import calibrate
-    from .select.boosting import warm_boosting
+    from .select.boosting import compile_boosting
 
     robot = load_robot("er10l-c10")
     with warnings.catch_warnings():
@@ -39,7 +39,7 @@ def compile_kernels() -> None:
     kernels.tree_walk(two, np.zeros(6), np.array([1, -1, -1, 4, -1, -1], dtype=np.int64),
                       np.array([2, -1, -1, 5, -1, -1], dtype=np.int64), np.array([0, 3], dtype=np.int64),
                       np.arange(6.0), np.zeros((2, 2)))
-    warm_boosting(always=True)
+    compile_boosting()
     for serial, parallel in kernels.TWINS:
         for signature in serial.signatures:
             parallel.compile(signature)

@@ -268,7 +268,7 @@ def fit_model(inputs: Inputs, config: CalibrationConfig, progress=None, stages=N
         config = choice.config
         geometric, geometric_cv = choice.fit, choice.cv
     rung_config = CalibrationConfig.build(config, backend="numpy")
-    # the workers start (and import the trees' library) while geometry is fitted here
+    # the workers start while geometry is fitted here (importing scikit-learn where it grows the trees)
     with worker_pool(prepare=worker_preparation() if residuals else ()) as pool:
         if choice is None:
             say(0, work, f"model 1/{steps}: geometric, fit and {K_FOLDS} folds")
