@@ -201,6 +201,133 @@ def _walk(feature, bin_, left, right, value, root, Xb, out):  # pragma: no cover
 
 
 @njit(cache=True)
+def _grow_one(Xb, g, nbins, min_leaf, max_leaf, hg, hc, part, buf, start, stop, sg, sh, val, leaf, kids, split, heap,
+              gain):  # pragma: no cover
+    """One tree grown on the gradients g, scikit-learn's grower's way (the module docstring): its nodes
+    in the arrays given (children in ``kids``, leaves marked in ``leaf``, each node's samples
+    part[start:stop]); a node's number is its order of creation, the root 0."""
+    n, F = Xb.shape
+    B = hg.shape[2]
+    for i in range(n):
+        part[i] = i
+    # the root
+    nodes, finalized, size = 1, 0, 0
+    start[0], stop[0] = 0, n
+    _brute(hg, hc, 0, Xb, part, 0, n, g)
+    sg[0] = _pairwise(hg[0, 0], 0, B)
+    sh[0] = float(n)
+    val[0] = 0.0
+    leaf[0] = False
+    gain[0] = -1.0
+    if n < 2 * min_leaf or sh[0] < _MIN_HESSIAN:
+        leaf[0] = True
+        finalized += 1
+    else:
+        _best_split(hg, hc, 0, nbins, n, sg[0], sh[0], val[0], min_leaf, split[0])
+        gain[0] = split[0, 0]
+        if gain[0] <= 0.0:
+            leaf[0] = True
+            finalized += 1
+        else:
+            heap[0] = 0
+            size = 1
+    while size:
+        node = _heap_pop(heap, size, gain)
+        size -= 1
+        f, b = int(split[node, 1]), int(split[node, 2])
+        s0, s1 = start[node], stop[node]
+        nl, nr = s0, 0  # a stable partition: the left samples first, each side in its order
+        for k in range(s0, s1):
+            i = part[k]
+            if Xb[i, f] <= b:
+                part[nl] = i
+                nl += 1
+            else:
+                buf[nr] = i
+                nr += 1
+        for k in range(nr):
+            part[nl + k] = buf[k]
+        L, R = nodes, nodes + 1
+        nodes += 2
+        kids[node, 0], kids[node, 1] = L, R
+        start[L], stop[L], start[R], stop[R] = s0, nl, nl, s1
+        sg[L], sh[L], val[L] = split[node, 3], split[node, 4], split[node, 6]
+        sg[R], sh[R], val[R] = sg[node] - split[node, 3], sh[node] - split[node, 4], split[node, 7]
+        leaf[L] = leaf[R] = False
+        gain[L] = gain[R] = -1.0
+        if finalized + size + 2 == max_leaf:
+            leaf[L] = leaf[R] = True
+            for k in range(size):
+                leaf[heap[k]] = True
+            finalized += 2 + size
+            size = 0
+            break
+        nL, nR = nl - s0, s1 - nl
+        if nL < 2 * min_leaf:
+            leaf[L] = True
+            finalized += 1
+        if nR < 2 * min_leaf:
+            leaf[R] = True
+            finalized += 1
+        if not (leaf[L] and leaf[R]):
+            small, large = (L, R) if nL < nR else (R, L)
+            _brute(hg, hc, small, Xb, part, start[small], stop[small], g)
+            for ff in range(F):
+                for bb in range(B):
+                    hg[large, ff, bb] = hg[node, ff, bb] - hg[small, ff, bb]
+                    hc[large, ff, bb] = hc[node, ff, bb] - hc[small, ff, bb]
+            for child in (L, R):
+                if not leaf[child]:
+                    _best_split(hg, hc, child, nbins, stop[child] - start[child], sg[child], sh[child],
+                                val[child], min_leaf, split[child])
+                    gain[child] = split[child, 0]
+                    if gain[child] <= 0.0:
+                        leaf[child] = True
+                        finalized += 1
+                    else:
+                        heap[size] = child
+                        size += 1
+                        _sift_down(heap, gain, 0, size - 1)
+
+
+@njit(cache=True)
+def _lay_out(leaf, kids, split, gain, val, start, stop, part, learning_rate, used, raw, order, stack, o_feature, o_bin,
+             o_left, o_right, o_value, o_gain):  # pragma: no cover
+    """The grown tree's nodes written from ``used`` on in scikit-learn's predictor order (depth first,
+    left before right), its leaves shrunk by the learning rate and added to the training predictions
+    raw; how many nodes it has."""
+    # the leaves shrunk, the training predictions moved; the nodes laid out depth first
+    top, count = 0, 0
+    stack[0] = 0
+    top = 1
+    while top:
+        top -= 1
+        node = stack[top]
+        order[count] = node
+        count += 1
+        if not leaf[node]:
+            stack[top] = kids[node, 1]
+            stack[top + 1] = kids[node, 0]
+            top += 2
+    where = np.empty(len(leaf), np.int64)
+    for k in range(count):
+        where[order[k]] = used + k
+    for k in range(count):
+        node = order[k]
+        j = used + k
+        o_gain[j] = gain[node]
+        if leaf[node]:
+            v = val[node] * learning_rate
+            o_feature[j], o_bin[j], o_left[j], o_right[j], o_value[j] = -1, 0, -1, -1, v
+            for kk in range(start[node], stop[node]):
+                raw[part[kk]] += v
+        else:
+            o_feature[j], o_bin[j] = int(split[node, 1]), int(split[node, 2])
+            o_left[j], o_right[j], o_value[j] = where[kids[node, 0]], where[kids[node, 1]], 0.0
+    return count
+
+
+@njit(cache=True)
 def grow_trees(Xb, y, nbins, baseline, learning_rate, max_iter, max_leaf, min_leaf, Xv, yv, patience,
                Xt, yt, check_at, check_patience):  # pragma: no cover
     """Boost up to ``max_iter`` trees on the binned samples Xb (n, F) uint8 and targets y (n,).
@@ -250,115 +377,11 @@ def grow_trees(Xb, y, nbins, baseline, learning_rate, max_iter, max_leaf, min_le
     for it in range(max_iter):
         for i in range(n):
             g[i] = raw[i] - y[i]
-        for i in range(n):
-            part[i] = i
-        # the root
-        nodes, finalized, size = 1, 0, 0
-        start[0], stop[0] = 0, n
-        _brute(hg, hc, 0, Xb, part, 0, n, g)
-        sg[0] = _pairwise(hg[0, 0], 0, B)
-        sh[0] = float(n)
-        val[0] = 0.0
-        leaf[0] = False
-        gain[0] = -1.0
-        if n < 2 * min_leaf or sh[0] < _MIN_HESSIAN:
-            leaf[0] = True
-            finalized += 1
-        else:
-            _best_split(hg, hc, 0, nbins, n, sg[0], sh[0], val[0], min_leaf, split[0])
-            gain[0] = split[0, 0]
-            if gain[0] <= 0.0:
-                leaf[0] = True
-                finalized += 1
-            else:
-                heap[0] = 0
-                size = 1
-        while size:
-            node = _heap_pop(heap, size, gain)
-            size -= 1
-            f, b = int(split[node, 1]), int(split[node, 2])
-            s0, s1 = start[node], stop[node]
-            nl, nr = s0, 0  # a stable partition: the left samples first, each side in its order
-            for k in range(s0, s1):
-                i = part[k]
-                if Xb[i, f] <= b:
-                    part[nl] = i
-                    nl += 1
-                else:
-                    buf[nr] = i
-                    nr += 1
-            for k in range(nr):
-                part[nl + k] = buf[k]
-            L, R = nodes, nodes + 1
-            nodes += 2
-            kids[node, 0], kids[node, 1] = L, R
-            start[L], stop[L], start[R], stop[R] = s0, nl, nl, s1
-            sg[L], sh[L], val[L] = split[node, 3], split[node, 4], split[node, 6]
-            sg[R], sh[R], val[R] = sg[node] - split[node, 3], sh[node] - split[node, 4], split[node, 7]
-            leaf[L] = leaf[R] = False
-            gain[L] = gain[R] = -1.0
-            if finalized + size + 2 == max_leaf:
-                leaf[L] = leaf[R] = True
-                for k in range(size):
-                    leaf[heap[k]] = True
-                finalized += 2 + size
-                size = 0
-                break
-            nL, nR = nl - s0, s1 - nl
-            if nL < 2 * min_leaf:
-                leaf[L] = True
-                finalized += 1
-            if nR < 2 * min_leaf:
-                leaf[R] = True
-                finalized += 1
-            if not (leaf[L] and leaf[R]):
-                small, large = (L, R) if nL < nR else (R, L)
-                _brute(hg, hc, small, Xb, part, start[small], stop[small], g)
-                for ff in range(F):
-                    for bb in range(B):
-                        hg[large, ff, bb] = hg[node, ff, bb] - hg[small, ff, bb]
-                        hc[large, ff, bb] = hc[node, ff, bb] - hc[small, ff, bb]
-                for child in (L, R):
-                    if not leaf[child]:
-                        _best_split(hg, hc, child, nbins, stop[child] - start[child], sg[child], sh[child],
-                                    val[child], min_leaf, split[child])
-                        gain[child] = split[child, 0]
-                        if gain[child] <= 0.0:
-                            leaf[child] = True
-                            finalized += 1
-                        else:
-                            heap[size] = child
-                            size += 1
-                            _sift_down(heap, gain, 0, size - 1)
-        # the leaves shrunk, the training predictions moved; the nodes laid out depth first
-        top, count = 0, 0
-        stack[0] = 0
-        top = 1
-        while top:
-            top -= 1
-            node = stack[top]
-            order[count] = node
-            count += 1
-            if not leaf[node]:
-                stack[top] = kids[node, 1]
-                stack[top + 1] = kids[node, 0]
-                top += 2
-        where = np.empty(M, np.int64)
-        for k in range(count):
-            where[order[k]] = used + k
+        _grow_one(Xb, g, nbins, min_leaf, max_leaf, hg, hc, part, buf, start, stop, sg, sh, val, leaf, kids, split,
+                  heap, gain)
         roots[it] = used
-        for k in range(count):
-            node = order[k]
-            j = used + k
-            o_gain[j] = gain[node]
-            if leaf[node]:
-                v = val[node] * learning_rate
-                o_feature[j], o_bin[j], o_left[j], o_right[j], o_value[j] = -1, 0, -1, -1, v
-                for kk in range(start[node], stop[node]):
-                    raw[part[kk]] += v
-            else:
-                o_feature[j], o_bin[j] = int(split[node, 1]), int(split[node, 2])
-                o_left[j], o_right[j], o_value[j] = where[kids[node, 0]], where[kids[node, 1]], 0.0
+        count = _lay_out(leaf, kids, split, gain, val, start, stop, part, learning_rate, used, raw, order, stack,
+                         o_feature, o_bin, o_left, o_right, o_value, o_gain)
         used += count
         trees = it + 1
         if Xt.shape[0]:
