@@ -141,11 +141,12 @@ def _brute(hg, hc, slot, Xb, part, start, stop, g):  # pragma: no cover
     hg[slot] = 0.0
     hc[slot] = 0
     for f in range(Xb.shape[1]):
+        sums, counts = hg[slot, f], hc[slot, f]
         for k in range(start, stop):
             i = part[k]
             b = Xb[i, f]
-            hg[slot, f, b] += g[i]
-            hc[slot, f, b] += 1
+            sums[b] += g[i]
+            counts[b] += 1
 
 
 @njit(cache=True)
@@ -159,15 +160,16 @@ def _best_split(hg, hc, slot, nbins, n, sum_g, sum_h, value, min_leaf, out):  # 
         best, found = -1.0, False
         bb, bg, bh, bn = 0, 0.0, 0.0, 0
         gl, hl, nl = 0.0, 0.0, 0
+        sums, counts = hg[slot, f], hc[slot, f]
         for b in range(nbins[f] - 1):
-            c = hc[slot, f, b]
+            c = counts[b]
             if c == 0:  # an empty bin: the same sums and gain as the bin before, which a strict > never takes
                 continue
             nl += c
             nr = n - nl
             hl += c
             hr = sum_h - hl
-            gl += hg[slot, f, b]
+            gl += sums[b]
             gr = sum_g - gl
             if nl < min_leaf:
                 continue
@@ -344,7 +346,7 @@ def grow_trees(Xb, y, nbins, baseline, learning_rate, max_iter, max_leaf, min_le
     B = 256  # the histograms' bins: 255 for values and one for missing ones, as scikit-learn keeps them
     M = 2 * max_leaf - 1
     hg = np.zeros((M, F, B))
-    hc = np.zeros((M, F, B), dtype=np.int64)
+    hc = np.zeros((M, F, B), dtype=np.int32)
     part = np.arange(n)
     buf = np.empty(n, dtype=np.int64)
     start, stop = np.empty(M, np.int64), np.empty(M, np.int64)
