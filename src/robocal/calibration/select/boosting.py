@@ -5,13 +5,12 @@ or by scikit-learn: the same trees either way.
 leaves, smallest leaf, early stopping on a held-out fifth as :mod:`.trees` sets them) with its own
 binning and its own split of the validation poses (as its ``_BinMapper`` and ``train_test_split``
 find them: :func:`_thresholds`, :func:`_split`), and its trees grown by
-:func:`~.boost_kernels.grow_trees` where numba's kernels are compiled
-(:func:`robocal.model.compiled.resolve`), else by scikit-learn itself.  The compiled loop does what
-scikit-learn's grower and splitter do, step by step (its module says how; scikit-learn 1.9, whose
-release the loop is used with: :func:`compiled`), so the trees, their
+:func:`~.boost_kernels.grow_trees` where numba's kernels are compiled and scikit-learn is the
+release the loop copies (:func:`compiled`), else by scikit-learn itself.  The compiled loop does what
+scikit-learn's grower and splitter do, step by step (its module says how), so the trees, their
 values, their gains and their predictions are the same to the last bit: a test grows both on many
-data sets and compares every array.  It grows a tree in tens of microseconds where scikit-learn's
-Python grower takes most of a millisecond.
+data sets and compares every array.  It grows a tree in about a tenth of a millisecond where
+scikit-learn's Python grower takes 0.6–0.7 ms (900 poses, six joints, 15 leaves).
 """
 
 from __future__ import annotations
