@@ -192,3 +192,29 @@ def test_the_compiled_walk_and_numpy_s_give_every_tree_s_leaf_alike(rng, backend
         np.testing.assert_array_equal(ensemble.per_tree(X, backend), ensemble.per_tree(X, "numpy"))
         both = np.vstack([fresh, on])
         np.testing.assert_allclose(ensemble.predict(both, backend), model.predict(both), rtol=0, atol=1e-12)
+
+
+def test_positions_skip_the_orientation_outputs_and_equal_the_whole_pose_s(rng, monkeypatch):
+    """A position asks a correction for its position outputs alone: the same positions, to the bit,
+    as the whole corrected pose gives (six-output trees, a process of two blocks, the two stacked),
+    and the orientation trees are not walked for it."""
+    from robocal.io.robotfile import load_robot
+
+    q = rng.uniform(-2, 2, (300, 6))
+    wavy = np.column_stack([_step(q), 1e-3 * np.sin(q[:, :3])])
+    _, ensembles = _ensembles(q, wavy + rng.normal(0, 0.01, (300, 6)), trees=20)
+    trees = TreeResidual(ensembles, q, np.full(6, 1.0), 0.5, inside=0.01, prior=0.09,
+                         importance=np.full((6, 6), 1 / 6), taken=np.ones(6))
+    block = lambda t: Block(rng.normal(size=(20, t)), np.full(6, 0.7), 1.0, np.full(t, 0.05),  # noqa: E731
+                            np.full(t, 0.2), noise=0.1)
+    process = ResidualModel(q[:20], (block(3), block(3)))
+    fresh = np.vstack([rng.uniform(-2, 2, (40, 6)), q[:10] + 0.01])
+    for correction in (trees, process, Stacked(trees.with_inside(0.0), process)):
+        robot = load_robot("ur10").replace(residual=correction)
+        whole = robot.fk(fresh)
+        np.testing.assert_array_equal(robot.positions(fresh), whole[:, :3, 3])
+        assert not np.array_equal(whole[:, :3, :3], robot.fk(fresh, rotations=False)[:, :3, :3])
+    walked = []
+    monkeypatch.setattr(Ensemble, "predict", lambda self, X, backend="auto": walked.append(self) or np.zeros(len(X)))
+    load_robot("ur10").replace(residual=trees).positions(fresh)
+    assert walked == list(ensembles[:3])
