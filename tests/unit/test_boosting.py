@@ -80,6 +80,25 @@ def test_its_bins_and_its_validation_split_are_scikit_learn_s(rng):
         np.testing.assert_array_equal(val, s_val)
 
 
+@copied
+def test_a_joint_held_still_matches_and_a_nan_is_refused(rng):
+    """A joint that never moved (one distinct value: no bin to split) grows scikit-learn's trees too;
+    a NaN joint, where scikit-learn sends it the way most samples went and the bins would send it
+    right, is refused, in the poses fitted and in those predicted."""
+    X = rng.uniform(-2, 2, (300, 3))
+    X[:, 1] = 0.7
+    y = np.sin(2 * X[:, 0]) + rng.normal(0, 0.05, 300)
+    model = _sklearn(X, y, 10, 40, 0)
+    ours = boosting.boost(X, y, min_samples_leaf=10, trees=40, seed=0, test=X[:20], **KW)
+    np.testing.assert_array_equal(ours.staged[-1], model.predict(X[:20]))
+    assert not np.any(ours.ensemble.feature == 1)
+    bad = X[:20].copy()
+    bad[3, 2] = np.nan
+    for kwargs in (dict(X=np.vstack([X, bad]), y=np.r_[y, y[:20]]), dict(X=X, y=y, test=bad)):
+        with pytest.raises(ValueError, match="finite"):
+            boosting.boost(min_samples_leaf=10, trees=40, seed=0, **kwargs, **KW)
+
+
 def test_numpy_s_pairwise_sum_as_the_loop_adds(rng):
     from robocal.calibration.select.boost_kernels import _pairwise
 

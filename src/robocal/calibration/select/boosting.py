@@ -84,7 +84,7 @@ def _thresholds(X: np.ndarray, random_seed) -> list[np.ndarray]:
         return list(_BinMapper(n_bins=_BINS, random_state=random_seed, n_threads=1).fit(X).bin_thresholds_)
     out = []
     for column in X.T:
-        distinct = np.unique(np.sort(column))
+        distinct = np.unique(column)
         if len(distinct) == 1:
             t = np.asarray([], dtype=float)
         elif len(distinct) <= _BINS - 1:
@@ -118,7 +118,9 @@ def boost(X: np.ndarray, y: np.ndarray, *, learning_rate: float, max_leaf_nodes:
     from .boost_kernels import grow_trees
 
     X, y = np.asarray(X, float), np.asarray(y, float)
-    if not (np.all(np.isfinite(X)) and np.all(np.isfinite(y))):
+    test = None if test is None else np.asarray(test, float)
+    # a NaN joint would take the last bin here where scikit-learn sends it the way most samples went
+    if not all(np.all(np.isfinite(a)) for a in (X, y, test, test_y) if a is not None):
         raise ValueError("boosting takes finite joints and targets")
     stop = trees is None
     random_seed, train, val = _split(len(X), seed, stop)
@@ -128,7 +130,7 @@ def boost(X: np.ndarray, y: np.ndarray, *, learning_rate: float, max_leaf_nodes:
     empty = np.zeros((0, X.shape[1]), dtype=np.uint8)
     Xv = empty if val is None else _binned(X[val], thresholds)
     yv = np.zeros(0) if val is None else y[val]
-    Xt = empty if test is None else _binned(np.asarray(test, float), thresholds)
+    Xt = empty if test is None else _binned(test, thresholds)
     baseline = float(np.average(y[train]))
     max_iter = max_trees if stop else max(int(trees), 1)
     feature, bin_, left, right, value, gain, roots, staged = grow_trees(

@@ -100,7 +100,7 @@ def _grown(q, y, leaf: int, trees: int | None, seed, test=None, test_y=None, che
                      trees=trees, max_trees=MAX_TREES, patience=PATIENCE, seed=seed, test=test, test_y=test_y,
                      check_at=check_at, check_patience=CURVE_PATIENCE)
     with _one_thread():
-        model = _regressor(leaf, CURVE_FIRST if check_at else trees, seed)
+        model = _regressor(leaf, trees, seed)
         staged = None
         if check_at:  # a first stretch of trees, then the rest where the held-out curve asks for them
             model.set_params(warm_start=True)
