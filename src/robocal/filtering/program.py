@@ -178,12 +178,40 @@ def blank_comments(text: str, marker: str) -> str:
     for line in text.splitlines(keepends=True):
         body = line.rstrip("\r\n")
         newline = line[len(body):]
-        body = re.sub(r'"[^"]*"', lambda m: " " * len(m.group()), body)
+        if '"' in body:
+            body = re.sub(r'"[^"]*"', lambda m: " " * len(m.group()), body)
         cut = body.find(marker)
         if cut >= 0:
             body = body[:cut] + " " * (len(body) - cut)
         out.append(body + newline)
     return "".join(out)
+
+
+def keyword_matches(pattern: re.Pattern, code: str, keywords: tuple[str, ...]):
+    """``pattern.finditer(code)`` for a pattern that can match only where one of ``keywords`` (lower
+    case) begins, case aside: the same matches, the pattern tried only there.  A case-insensitive
+    pattern has no literal prefix for ``re`` to scan for, so it is tried at every character of the
+    module (30–45 ms a pattern for a module of 10 000 targets, against ~2 ms for ``str.find``).
+    Where the code is not ASCII, Unicode's case folding could match a keyword ``str.lower`` does not
+    give (``ı``, ``ſ``): the pattern scans as usual."""
+    if not code.isascii():
+        yield from pattern.finditer(code)
+        return
+    low = code.lower()
+    starts = []
+    for word in keywords:
+        i = low.find(word)
+        while i >= 0:
+            starts.append(i)
+            i = low.find(word, i + 1)
+    end = 0
+    for i in sorted(starts):
+        if i < end:  # finditer goes on where the last match ended
+            continue
+        m = pattern.match(code, i)
+        if m is not None:
+            yield m
+            end = max(m.end(), i + 1)
 
 
 class Lines:

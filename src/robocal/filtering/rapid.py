@@ -44,6 +44,7 @@ from .program import (
     Target,
     blank_comments,
     fields_in,
+    keyword_matches,
     read_file,
     split_top,
 )
@@ -104,17 +105,23 @@ _NAME = re.compile(r"[A-Za-z_]\w*")
 _SHIELD = "\u00b6"
 
 
+_RELTOOL = re.compile(r"RelTool\s*\([^;]*?\)", re.I)
+_OFFSET = re.compile(r"\s*(Offs|RelTool)\s*\((.*)\)\s*", re.I | re.S)
+
+
 def _protected(arguments: str) -> str:
     """A motion's arguments with the backslashes inside its RelTool(…) calls shielded (``\\Rz:=25`` is
     RelTool's, not the motion's)."""
-    return re.sub(r"RelTool\s*\([^;]*?\)", lambda m: m.group().replace("\\", _SHIELD), arguments, flags=re.I)
+    if "reltool" not in arguments.lower():
+        return arguments
+    return _RELTOOL.sub(lambda m: m.group().replace("\\", _SHIELD), arguments)
 
 
 def _offset(argument: str, line: int) -> tuple[str, Offset] | None:
     """``Offs(NAME, dx, dy, dz)`` or ``RelTool(NAME, dx, dy, dz [\\Rx:=a] [\\Ry:=b] [\\Rz:=c])`` of literal
     numbers (mm, deg): the target's name and the offset; None for anything else (a variable offset
     changes the target as the program runs)."""
-    m = re.fullmatch(r"\s*(Offs|RelTool)\s*\((.*)\)\s*", argument, re.I | re.S)
+    m = _OFFSET.fullmatch(argument) if "(" in argument else None
     if m is None:
         return None
     parts = split_top(m.group(2))
@@ -167,12 +174,12 @@ def read(path: Path, frames_file: Path | None = None) -> Program:
     lines = Lines(text)
     program = Program("rapid", source, [ProgramFile(source, text, enc)], [])
     program.tools["tool0"], program.users["wobj0"] = np.eye(4), np.eye(4)
-    for m in _TOOL.finditer(code):
+    for m in keyword_matches(_TOOL, code, ("tooldata",)):
         program.tools[m.group(1)] = _frame(m.group(3), m.group(4), source, lines.of(m.start()))
         if m.group(2).upper() == "FALSE":
             program.missing[m.group(1)] = "a stationary tool (robhold FALSE): the robot holds the work object"
             del program.tools[m.group(1)]
-    for m in _WOBJ.finditer(code):
+    for m in keyword_matches(_WOBJ, code, ("wobjdata",)):
         line = lines.of(m.start())
         program.users[m.group(1)] = _frame(m.group(4), m.group(5), source, line) @ \
             _frame(m.group(6), m.group(7), source, line)
@@ -182,7 +189,7 @@ def read(path: Path, frames_file: Path | None = None) -> Program:
     uses: dict[str, list] = {}
     spans = []
     offsets: dict[str, list[Offset]] = {}
-    for m in _MOVE.finditer(code):
+    for m in keyword_matches(_MOVE, code, ("move",)):
         positional, tool, wobj, odd = _arguments(_protected(m.group(2)))
         line = lines.of(m.start())
         why = None if not odd else f"its motion (line {line}) has \\{odd[0]}, which robocal does not take as " \
@@ -235,12 +242,12 @@ def _targets(code: str, program: Program, spans: list, uses: dict, lines: Lines)
     everything = {(u[0], u[1]) for us in uses.values() for u in us}
     starts = [sp[0] for sp in spans]  # motions in order of the text
     poses: list[Target] = []
-    declarations = {m.end(): m for m in _DECL.finditer(code)}  # value's start → its declaration
+    declarations = {m.end(): m for m in keyword_matches(_DECL, code, ("robtarget", "jointtarget"))}  # value's start → its declaration
     for kind, pattern, keys in (("pose", _ROBTARGET_FIELDS, KEYS_POSE),
                                 ("joints", _JOINTTARGET_FIELDS, tuple(f"q{i + 1}" for i in range(6)))):
         for m in pattern.finditer(code):  # (tuple.__new__: Field's own __new__ is a Python call, per number)
             items = dict(zip(keys, [_field(Field, (a, b, s)) for (a, b), s in zip(m.regs[1:], m.groups())]))
-            values = [float(f.text) for f in items.values()]
+            values = list(map(float, m.groups()))
             decl = declarations.get(m.start())
             line = lines.of(m.start())
             declared = decl and decl.group(1).lower() == ("robtarget" if kind == "pose" else "jointtarget")

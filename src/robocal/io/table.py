@@ -69,9 +69,15 @@ DELIMITERS = {",": ",", ";": ";", "tab": "\t", "\t": "\t", "space": " "}
 DECIMALS = (".", ",")
 
 
+_NESTING = frozenset("()[]{}")
+_QUOTES = frozenset("'\"")
+
+
 def split_top(text: str, quotes: bool = False) -> list[str]:
     """``text`` split at the commas outside parentheses, brackets and braces (and, with ``quotes``, outside
     quoted text), every part kept, empty ones too."""
+    if _NESTING.isdisjoint(text) and not (quotes and _QUOTES.intersection(text)):
+        return text.split(",")
     parts, depth, quote, last = [], 0, None, 0
     for i, c in enumerate(text):
         if quote:
