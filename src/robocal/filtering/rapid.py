@@ -242,7 +242,8 @@ def _targets(code: str, program: Program, spans: list, uses: dict, lines: Lines)
     everything = {(u[0], u[1]) for us in uses.values() for u in us}
     starts = [sp[0] for sp in spans]  # motions in order of the text
     poses: list[Target] = []
-    declarations = {m.end(): m for m in keyword_matches(_DECL, code, ("robtarget", "jointtarget"))}  # value's start → its declaration
+    # value's start → its declaration
+    declarations = {m.end(): m for m in keyword_matches(_DECL, code, ("robtarget", "jointtarget"))}
     for kind, pattern, keys in (("pose", _ROBTARGET_FIELDS, KEYS_POSE),
                                 ("joints", _JOINTTARGET_FIELDS, tuple(f"q{i + 1}" for i in range(6)))):
         for m in pattern.finditer(code):  # (tuple.__new__: Field's own __new__ is a Python call, per number)
