@@ -1,0 +1,60 @@
+"""The program readers' text helpers against the plain forms they stand in for: keyword-anchored
+matching against ``finditer``, the nesting-free split against the character walk."""
+
+import re
+
+import numpy as np
+import pytest
+
+from robocal.filtering.program import keyword_matches
+from robocal.io.table import split_top
+
+_MOVE = re.compile(r"\b(Move(?:L|J|C|AbsJ)?)\b([^;]*);", re.I)
+_DECL = re.compile(r"\b(robtarget|jointtarget)\s+(\w+)\s*:=\s*", re.I)
+_WORDS = ("MoveL", "movej", "MOVEC", "MoveAbsJ", "Move", "xMoveL", "MoveLx", "robtarget", "ROBTARGET",
+          "jointtarget", "p1", ":=", ";", " ", "\n", ",", "MoveL MoveJ", "robtarget robtarget", "_MoveL")
+
+
+def _spans(matches):
+    return [(m.start(), m.end(), m.groups()) for m in matches]
+
+
+@pytest.mark.parametrize("seed", range(40))
+def test_keyword_matches_are_finditer_s(seed):
+    rng = np.random.default_rng(seed)
+    text = "".join(rng.choice(_WORDS, 60))
+    for pattern, words in ((_MOVE, ("move",)), (_DECL, ("robtarget", "jointtarget"))):
+        assert _spans(keyword_matches(pattern, text, words)) == _spans(pattern.finditer(text))
+
+
+def test_a_match_holding_the_next_keyword_hides_it_as_finditer_does():
+    text = "MoveL MoveJ p1; MoveL p2;"
+    assert _spans(keyword_matches(_MOVE, text, ("move",))) == _spans(_MOVE.finditer(text))
+    assert len(list(keyword_matches(_MOVE, text, ("move",)))) == 2
+
+
+def test_code_that_is_not_ascii_scans_as_usual():
+    # 'ſ' and 'ı' fold onto s and i under re.I, and str.lower leaves them: only a full scan finds them
+    text = "CONST jointtarget j:=[[0]]; CONST joıntTarget k:=[[0]]; Moveſ"
+    pattern = re.compile(r"\b(joint)target\s+(\w+)", re.I)
+    expected = _spans(pattern.finditer(text))
+    assert len(expected) == 2
+    assert _spans(keyword_matches(pattern, text, ("jointtarget",))) == expected
+
+
+@pytest.mark.parametrize("text", ["a,b,c", "", ",", "a,,b", " p0, v500 ,z10,gun ", "f(a,b),c", "a),b,c", "[1,2],{3,4}",
+                                  "a,'x,y',b"])
+def test_split_top_plain_and_walked_agree(text):
+    walked = _walk(text)
+    assert split_top(text) == walked
+
+
+def _walk(text):
+    parts, depth, last = [], 0, 0
+    for i, c in enumerate(text):
+        depth += c in "([{"
+        depth -= c in ")]}"
+        if c == "," and depth == 0:
+            parts.append(text[last:i])
+            last = i + 1
+    return parts + [text[last:]]
