@@ -95,6 +95,7 @@ def _filter(run_cli, tmp_path, name, body: bytes, *extra):
 
 
 @pytest.mark.parametrize("value,words", [("[1e999,0,500]", ("line 3", "not a finite number")),
+                                         ("[1" + "0" * 400 + ",0,500]", ("line 3", "not a finite number")),
                                          ("[400x,0,500]", ("line 3", "robtarget p1")),
                                          ("[4.0.0,0,500]", ("line 3", "robtarget p1"))])
 def test_program_numbers_are_read_whole_and_finite(tmp_path, run_cli, value, words):

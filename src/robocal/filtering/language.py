@@ -107,8 +107,9 @@ def angle_decimals(fields: list[Field], values) -> int:
 
 def set_number(changes: list, f: Field, value: float, decimals: int) -> None:
     """Change a number unless the new value would not show at the precision written."""
-    if not f.unchanged(value, decimals):
-        changes.append((f, f.formatted(value, decimals)))
+    places = max(f.decimals(), decimals)  # (Field.unchanged and Field.formatted, its decimals counted once)
+    if not f.shows(value, places):
+        changes.append((f, f.written(value, places)))
 
 
 def set_text(changes: list, f: Field, text: str) -> None:

@@ -49,7 +49,10 @@ class Field(NamedTuple):
         """``value`` written in this field's style: as many decimals as it had, at least
         ``minimum_decimals`` (enough for the correction), an explicit sign if it had one, no
         leading zero if it had none (FANUC's ``-.500``)."""
-        decimals = max(self.decimals(), minimum_decimals)
+        return self.written(value, max(self.decimals(), minimum_decimals))
+
+    def written(self, value: float, decimals: int) -> str:
+        """``value`` with ``decimals`` decimals in this field's style (see :meth:`formatted`)."""
         if "e" in self.text or "E" in self.text:
             return f"{value:.{decimals}e}"
         text = f"{value:.{decimals}f}"
@@ -65,7 +68,11 @@ class Field(NamedTuple):
         """Whether ``value`` differs from the written one by less than half a unit of the
         finest place robocal would write: then the text stays as it is (an identity filter is
         byte for byte the program)."""
-        return abs(value - float(self.text)) < 0.5 * 10.0 ** -max(self.decimals(), minimum_decimals)
+        return self.shows(value, max(self.decimals(), minimum_decimals))
+
+    def shows(self, value: float, decimals: int) -> bool:
+        """Whether the written number stands for ``value`` at ``decimals`` decimals (within half a unit)."""
+        return abs(value - float(self.text)) < 0.5 * 10.0 ** -decimals
 
 
 def fields_in(text: str, offset: int = 0) -> list[Field]:
@@ -280,7 +287,10 @@ def check_finite(program: Program) -> None:
     infinity, and a target there would be flagged unreachable rather than refused."""
     for t in program.targets:
         for key, f in t.fields.items():  # (text fields, FANUC's CONFIG letters, are not numbers)
-            if _NUMBER.fullmatch(f.text) and not math.isfinite(f.value):
+            text = f.text
+            # only an exponent or over 300 digits reaches 1.8e308: the rest need no parsing again
+            if (len(text) > 300 or "e" in text or "E" in text) and _NUMBER.fullmatch(text) and \
+                    not math.isfinite(f.value):
                 raise InputError(f"{t.name}: its {key} {f.text} is not a finite number",
                                  source=program.files[t.file].path, where=f"line {t.line}")
     for kind, frames in (("tool", program.tools), ("user frame", program.users)):

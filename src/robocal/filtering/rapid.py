@@ -330,7 +330,7 @@ def write(t: Target, pose: np.ndarray | None, q: np.ndarray | None, config: dict
         return out
     for k, v in zip("xyz", pose[:3, 3]):
         set_number(out, f[k], float(v), DECIMALS["mm"])
-    quat = quaternion(pose[:3, :3], np.array([f[k].value for k in ("q1", "q2", "q3", "q4")]))
+    quat = quaternion(pose[:3, :3], np.array([float(f[k].text) for k in ("q1", "q2", "q3", "q4")]))
     for k, v in zip(("q1", "q2", "q3", "q4"), quat):
         set_number(out, f[k], float(v), DECIMALS["quat"])
     for k, v in config.items():

@@ -6,6 +6,8 @@ Angles in rad.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 #: below this angle (rad) the closed forms cancel catastrophically; series keep full precision
@@ -168,19 +170,27 @@ def quaternion_matrix(q: np.ndarray) -> np.ndarray:
 
 
 def matrix_quaternion(R: np.ndarray) -> np.ndarray:
-    """The unit quaternion (w, x, y, z) of R (3, 3), w ≥ 0, from its largest diagonal term (Shepperd)."""
-    trace = R[0, 0] + R[1, 1] + R[2, 2]
-    k = int(np.argmax([trace, R[0, 0], R[1, 1], R[2, 2]]))
+    """The unit quaternion (w, x, y, z) of R (3, 3), w ≥ 0, from its largest diagonal term (Shepperd).
+    (In Python floats, a program's ten thousand targets one at a time: the same operations as on
+    numpy's scalars, the norm numpy's own.)"""
+    (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = np.asarray(R, float).tolist()
+    trace = r00 + r11 + r22
+    k, largest = 0, trace
+    for i, v in enumerate((r00, r11, r22), 1):  # the first largest, as argmax
+        if v > largest:
+            k, largest = i, v
     if k == 0:
-        s = 2.0 * np.sqrt(1.0 + trace)
-        q = np.array([s / 4, (R[2, 1] - R[1, 2]) / s, (R[0, 2] - R[2, 0]) / s, (R[1, 0] - R[0, 1]) / s])
+        s = 2.0 * math.sqrt(1.0 + trace)
+        q = [s / 4, (r21 - r12) / s, (r02 - r20) / s, (r10 - r01) / s]
     else:
+        M = ((r00, r01, r02), (r10, r11, r12), (r20, r21, r22))
         i, j, m = k - 1, k % 3, (k + 1) % 3
-        s = 2.0 * np.sqrt(1.0 + R[i, i] - R[j, j] - R[m, m])
-        q = np.empty(4)
-        q[0] = (R[m, j] - R[j, m]) / s
+        s = 2.0 * math.sqrt(1.0 + M[i][i] - M[j][j] - M[m][m])
+        q = [0.0] * 4
+        q[0] = (M[m][j] - M[j][m]) / s
         q[1 + i] = s / 4
-        q[1 + j] = (R[j, i] + R[i, j]) / s
-        q[1 + m] = (R[m, i] + R[i, m]) / s
-    q /= np.linalg.norm(q)
-    return -q if q[0] < 0 else q
+        q[1 + j] = (M[j][i] + M[i][j]) / s
+        q[1 + m] = (M[m][i] + M[i][m]) / s
+    out = np.array(q)
+    out /= np.linalg.norm(out)
+    return -out if out[0] < 0 else out
