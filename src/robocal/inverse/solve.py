@@ -248,11 +248,20 @@ def _turned(robot: Robot, q: np.ndarray, lo: np.ndarray, hi: np.ndarray, hint: n
     return chosen, missed, limits_ok, choice
 
 
-def _facts(robot: Robot, q: np.ndarray) -> dict[str, np.ndarray] | None:
-    """The configuration facts (turn-invariant) of solutions (m, k, n)."""
+def _facts(robot: Robot, q: np.ndarray, valid: np.ndarray | None = None) -> dict[str, np.ndarray] | None:
+    """The configuration facts (turn-invariant) of solutions (m, k, n); 0 for those not ``valid``
+    (m, k) (about half of a closed form's eight: no score takes them)."""
     m, k, n = q.shape
-    arm = arm_configuration(robot, np.nan_to_num(q).reshape(-1, n))
-    return None if arm is None else {f: getattr(arm, f).reshape(m, k) for f in ("front", "elbow", "lower")}
+    keep = np.ones(m * k, bool) if valid is None else np.asarray(valid, bool).reshape(-1)
+    arm = arm_configuration(robot, np.nan_to_num(q).reshape(-1, n)[keep])
+    if arm is None:
+        return None
+    out = {}
+    for f in ("front", "elbow", "lower"):
+        fact = np.zeros(m * k, int)
+        fact[keep] = getattr(arm, f)
+        out[f] = fact.reshape(m, k)
+    return out
 
 
 #: where a goal's own data leave the choice free, a solution this close to a joint limit (rad) is taken
@@ -292,7 +301,7 @@ def choose(robot: Robot, solutions: Solutions, requests=None, hint: np.ndarray |
     m, k, n = q.shape
     requests = [None] * m if requests is None else list(requests)
     lo, hi = _intervals(requests, m, n)
-    facts = _facts(robot, q)
+    facts = _facts(robot, q, valid)
     wants = {f: np.array([0 if r is None else getattr(r, f) for r in requests]) for f in ("front", "elbow", "lower")}
     if hint is None and follow:
         hint = np.full((m, n), np.nan)
