@@ -58,3 +58,42 @@ def _walk(text):
             parts.append(text[last:i])
             last = i + 1
     return parts + [text[last:]]
+
+
+_MODULE = """MODULE Cell
+  PERS tooldata gun:=[TRUE,[[0,0,150],[1,0,0,0]],[2,[0,0,50],[1,0,0,0],0,0,0]];
+  PERS wobjdata table:=[FALSE,TRUE,"",[[500,0,200],[1,0,0,0]],[[0,0,0],[1,0,0,0]]];
+  CONST robtarget p1:=[[400,0,500],[0,0,1,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];
+  CONST jointtarget j1:=[ [10,20,-15,30,45,-40],[9E9,9E9,9E9,9E9,9E9,9E9]];
+  VAR robtarget p2:= [ [ 410.5 , 5, 480 ], [0,0,1,0], [-1,0,-1,0], [9E9,9E9,9E9,9E9,9E9,9E9] ];
+  PROC main()
+    MoveL p1,v500,z10,gun;
+    MoveAbsJ j1,v500,fine,gun\\WObj:=table;
+    MoveAbsJ [[0,10,20,0,30,0],[9E9,9E9,9E9,9E9,9E9,9E9]],v500,fine,gun;
+    movel [[420,0,470],[0,0,1,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]],v500,z10,gun;
+    MoveJ Offs(p2,0,0,50),v500,z10,gun;
+    ! MoveL p9,v500,z10,gun;
+  ENDPROC
+ENDMODULE
+"""
+
+
+def test_rapid_reads_the_same_targets_as_with_plain_scans(tmp_path, monkeypatch):
+    from robocal.filtering import rapid
+
+    path = tmp_path / "cell.mod"
+    path.write_text(_MODULE)
+
+    def summary(program):
+        return [(t.name, t.line, t.kind, t.fields, None if t.position is None else t.position.tolist(),
+                 None if t.rotation is None else t.rotation.tolist(), None if t.q is None else t.q.tolist(),
+                 t.config, t.tool, t.user, t.unsupported, [o.text for o in t.offsets]) for t in program.targets]
+
+    fast = summary(rapid.read(path))
+    monkeypatch.setattr(rapid, "keyword_matches", lambda pattern, code, words: pattern.finditer(code))
+    monkeypatch.setattr(rapid, "matches_at", lambda pattern, code, starts: pattern.finditer(code))
+    plain = summary(rapid.read(path))
+    assert fast == plain
+    kinds = [(row[0], row[2]) for row in fast]
+    assert ("p1", "pose") in kinds and ("j1", "joints") in kinds and ("p2", "pose") in kinds
+    assert sum(name.startswith("line") for name, _ in kinds) == 2  # the two inline targets

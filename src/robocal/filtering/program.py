@@ -211,8 +211,14 @@ def keyword_matches(pattern: re.Pattern, code: str, keywords: tuple[str, ...]):
         while i >= 0:
             starts.append(i)
             i = low.find(word, i + 1)
+    yield from matches_at(pattern, code, sorted(starts))
+
+
+def matches_at(pattern: re.Pattern, code: str, starts):
+    """``pattern.finditer(code)`` for a pattern that can match only at ``starts`` (ascending): the
+    same matches, the pattern tried only there."""
     end = 0
-    for i in sorted(starts):
+    for i in starts:
         if i < end:  # finditer goes on where the last match ended
             continue
         m = pattern.match(code, i)

@@ -45,6 +45,7 @@ from .program import (
     blank_comments,
     fields_in,
     keyword_matches,
+    matches_at,
     read_file,
     split_top,
 )
@@ -236,6 +237,8 @@ _JOINTTARGET_FIELDS = re.compile(r"\[\s*" + _CAPTURED_LIST(6) + r"\s*,\s*" + _LI
 
 
 _field = tuple.__new__
+#: where a robtarget or jointtarget can begin: a bracket that opens another
+_NESTED = re.compile(r"\[(?=\s*\[)")
 
 
 def _targets(code: str, program: Program, spans: list, uses: dict, lines: Lines) -> None:
@@ -244,24 +247,35 @@ def _targets(code: str, program: Program, spans: list, uses: dict, lines: Lines)
     poses: list[Target] = []
     # value's start → its declaration
     declarations = {m.end(): m for m in keyword_matches(_DECL, code, ("robtarget", "jointtarget"))}
+    numbers: list[list[float]] = []  # the poses' numbers, made arrays once at the end
+    robtargets: set[int] = set()
     for kind, pattern, keys in (("pose", _ROBTARGET_FIELDS, KEYS_POSE),
                                 ("joints", _JOINTTARGET_FIELDS, tuple(f"q{i + 1}" for i in range(6)))):
-        for m in pattern.finditer(code):  # (tuple.__new__: Field's own __new__ is a Python call, per number)
-            items = dict(zip(keys, [_field(Field, (a, b, s)) for (a, b), s in zip(m.regs[1:], m.groups())]))
-            values = list(map(float, m.groups()))
-            decl = declarations.get(m.start())
-            line = lines.of(m.start())
-            declared = decl and decl.group(1).lower() == ("robtarget" if kind == "pose" else "jointtarget")
+        word = "robtarget" if kind == "pose" else "jointtarget"
+        # both begin "[[" (spaces between); where a robtarget's three numbers stand, six cannot
+        found = pattern.finditer(code) if kind == "pose" else matches_at(pattern, code, (
+            i for i in (m.start() for m in _NESTED.finditer(code)) if i not in robtargets))
+        for m in found:  # (tuple.__new__: Field's own __new__ is a Python call, per number)
+            texts = m.groups()
+            items = dict(zip(keys, [_field(Field, (a, b, s)) for (a, b), s in zip(m.regs[1:], texts)]))
+            values = list(map(float, texts))
+            at = m.start()
+            decl = declarations.get(at)
+            line = lines.of(at)
+            declared = decl is not None and decl.group(1).lower() == word
             name = decl.group(2) if declared else f"line {line}"
             if kind == "pose":
-                t = Target(name, line, "pose", items, np.array(values[:3]), np.array(values[3:7]),
-                           config=dict(zip(KEYS_POSE[7:], map(int, values[7:]))))
+                t = Target(name, line, "pose", items, config=dict(zip(KEYS_POSE[7:], map(int, values[7:]))))
                 poses.append(t)
+                numbers.append(values)
+                robtargets.add(at)
             else:
                 t = Target(name, line, "joints", items, q=np.radians(values))
-            k = bisect.bisect_right(starts, m.start()) - 1
-            inline = [spans[k]] if k >= 0 and m.start() < spans[k][1] else []
-            used = [(s[2], s[3], s[4], s[5]) for s in inline] if not declared else uses.get(name.lower(), [])
+            if declared:
+                used = uses.get(name.lower(), [])
+            else:
+                k = bisect.bisect_right(starts, at) - 1
+                used = [(s[2], s[3], s[4], s[5]) for s in spans[k:k + 1] if k >= 0 and at < s[1]]
             frames = {(u[0], u[1]) for u in used}
             said = next((u[3] for u in used if u[3]), None)
             if said:
@@ -276,10 +290,12 @@ def _targets(code: str, program: Program, spans: list, uses: dict, lines: Lines)
             elif everything:
                 t.unsupported = "no motion of the module reaches it, and its motions use several tools or work objects"
             program.targets.append(t)
-    if poses:  # the quaternions, all at once (a target holds it in .rotation until here)
-        R = _rotations(np.array([t.rotation for t in poses]), program.source, [t.line for t in poses])
-        for t, r in zip(poses, R):
-            t.rotation = r
+    if poses:  # positions and quaternions, all at once
+        V = np.array(numbers)
+        P = V[:, :3].copy()
+        R = _rotations(V[:, 3:7], program.source, [t.line for t in poses])
+        for t, p, r in zip(poses, P, R):
+            t.position, t.rotation = p, r
     read_names = {t.name for t in program.targets}
     for m in declarations.values():
         if m.group(2) not in read_names:
