@@ -75,6 +75,13 @@ class Field(NamedTuple):
         return abs(value - float(self.text)) < 0.5 * 10.0 ** -decimals
 
 
+def in_text_order(t: Target) -> tuple[int, int]:
+    """A target's place in its file: its line, then its first number's (a Field is (start, end, text):
+    the least is the first)."""
+    first = min(t.fields.values(), default=None)
+    return t.line, 0 if first is None else first.start
+
+
 def fields_in(text: str, offset: int = 0) -> list[Field]:
     """Every number of ``text`` as a Field (spans shifted by ``offset``)."""
     return [Field(m.start() + offset, m.end() + offset, m.group()) for m in _NUMBER.finditer(text)]

@@ -44,6 +44,7 @@ from .program import (
     Target,
     blank_comments,
     fields_in,
+    in_text_order,
     keyword_matches,
     matches_at,
     read_file,
@@ -224,7 +225,7 @@ def read(path: Path, frames_file: Path | None = None) -> Program:
                                           "corrects the targets the module holds"))
     if not program.targets:
         raise InputError("no targets found (robtarget or jointtarget data)", source=source)
-    program.targets.sort(key=lambda t: (t.line, min((x.start for x in t.fields.values()), default=0)))
+    program.targets.sort(key=in_text_order)
     return program
 
 

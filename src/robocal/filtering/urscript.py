@@ -36,6 +36,7 @@ from .program import (
     Target,
     blank_comments,
     fields_in,
+    in_text_order,
     read_file,
     split_top,
 )
@@ -227,7 +228,7 @@ class _Reader:
             else:
                 t.tool, t.user = next(iter(frames))
             self.program.targets.append(t)
-        self.program.targets.sort(key=lambda t: (t.line, min((f.start for f in t.fields.values()), default=0)))
+        self.program.targets.sort(key=in_text_order)
         if not self.program.targets:
             raise InputError("no targets found (p[…] poses or joint lists of motions)", source=self.source)
         self.program.tools.update({f"set_tcp line {self.lines.of(at)}": T for at, T in self.tcps})
