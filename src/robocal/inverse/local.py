@@ -101,6 +101,12 @@ def _step(robot, q, e, start, full, rot_weight, lam):
     return step * np.minimum(1.0, MAX_STEP / np.maximum(np.abs(step).max(axis=1), 1e-300))[:, None]
 
 
+def _met(dp: np.ndarray, dr: np.ndarray | None) -> np.ndarray:
+    """Goals met: position within TOL_MM and rotation within TOL_RAD."""
+    re = np.zeros(len(dp)) if dr is None else np.linalg.norm(dr, axis=1)
+    return (np.linalg.norm(dp, axis=1) < TOL_MM) & (re < TOL_RAD)
+
+
 def _statuses(reached, moved, cond, at_limit, stalled) -> list[str]:
     status = []
     for i in range(len(reached)):
@@ -162,12 +168,12 @@ def solve_ik(robot: Robot, position: np.ndarray, rotation: np.ndarray | None, q0
     iters = np.zeros(m, dtype=int)
     residual = _Residual(robot, position, rotation, rot_weight, inputs, targets)
     dp, dr, cost, e = residual(q)
-    done = np.zeros(m, bool)
     stalled = np.zeros(m, bool)
     cond_start = condition_numbers(robot, q, full, rot_weight)
+    # a goal met stays met; a row's test changes only where the row moved (a few goals iterate long
+    # after the rest are met: each pass tests and damps those alone)
+    done = _met(dp, dr)
     for _ in range(max_iter):
-        re = np.zeros(m) if dr is None else np.linalg.norm(dr, axis=1)
-        done |= (np.linalg.norm(dp, axis=1) < TOL_MM) & (re < TOL_RAD)
         act = np.flatnonzero(~done & ~stalled)
         if act.size == 0:
             break
@@ -179,9 +185,10 @@ def solve_ik(robot: Robot, position: np.ndarray, rotation: np.ndarray | None, q0
         q[ok], dp[ok], cost[ok], e[ok] = q_try[better], dp_t[better], c_try[better], e_t[better]
         if dr is not None:
             dr[ok] = dr_t[better]
+        done[ok] = _met(dp_t[better], None if dr is None else dr_t[better])
         lam[ok] = np.maximum(lam[ok] / 3.0, 1e-9)
         lam[act[~better]] *= 4.0
-        stalled |= lam > 1e8
+        stalled[act] |= lam[act] > 1e8
     pe = np.linalg.norm(dp, axis=1)
     re = np.zeros(m) if dr is None else np.linalg.norm(dr, axis=1)
     reached = (pe < TOL_MM * 10) & (re < TOL_RAD * 10)
