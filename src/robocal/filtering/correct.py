@@ -111,6 +111,14 @@ def _facts(arm, i: int) -> dict | None:
     return None if arm is None else {k: int(getattr(arm, k)[i]) for k in ("front", "elbow", "lower")}
 
 
+def _facts_rows(arm) -> list[dict | None]:
+    """:func:`_facts` of every row of ``arm`` (None: an arm whose facts are not defined)."""
+    if arm is None:
+        return []
+    return [{"front": a, "elbow": b, "lower": c} for a, b, c in zip(arm.front.tolist(), arm.elbow.tolist(),
+                                                                     arm.lower.tolist())]
+
+
 @dataclass
 class Frames:
     """The frames a filter is given beside the program's own: ``tcp`` for every target (an unnamed
@@ -261,6 +269,9 @@ def _poses(program: Program, language: Language, cell: Cell, members, hints, see
     arm_nom, arm_acc = arm_configuration(nominal, q_nom[ok]), arm_configuration(nominal, q_acc)
     J_nom, J_acc = nominal.to_controller(q_nom[ok]), nominal.to_controller(q_acc)
     moved_deg = np.degrees(np.max(np.abs(q_acc - q_nom[ok]), axis=1))
+    # per target, Python values taken once (ten thousand targets: numpy's scalars a row cost more than the rest)
+    facts_acc, singular = _facts_rows(arm_acc), singular.tolist()
+    mm_l, deg_l, joints_l = moved_mm.tolist(), turned_deg.tolist(), moved_deg.tolist()
     for j, k in enumerate(ok):
         t, i = targets[k], idx[k]
         before = t.config or language.encode(J_nom[j], _facts(arm_nom, j), {})
@@ -272,9 +283,9 @@ def _poses(program: Program, language: Language, cell: Cell, members, hints, see
         if st != "ok":
             out[i] = Correction(t, st, why, **common)
             continue
-        out[i] = Correction(t, "ok", "corrected", pose=new_prog[j], q=J_acc[j], moved_mm=float(moved_mm[j]),
-                            turned_deg=float(turned_deg[j]), joints_deg=float(moved_deg[j]),
-                            config_after=language.encode(J_acc[j], _facts(arm_acc, j), t.config),
+        out[i] = Correction(t, "ok", "corrected", pose=new_prog[j], q=J_acc[j], moved_mm=mm_l[j],
+                            turned_deg=deg_l[j], joints_deg=joints_l[j],
+                            config_after=language.encode(J_acc[j], facts_acc[j] if facts_acc else None, t.config),
                             offsets=_offset_motions(cell, users[k], T_prog[k], new_prog[j], q_acc[j], q_nom[k],
                                                     t.offsets) if t.offsets else [], **common)
     return out
@@ -373,10 +384,11 @@ def check(program: Program, reread: Program, language: Language, corrections: li
             reached.append((joints, cell.accurate.fk(q_new), np.ones(len(joints), bool)))
             intent.append(cell.to_accurate(cell.nominal.fk(q_old)))
         for (idx, T, solved), want in zip(reached, intent):
-            mm, deg = frame_gap(T, want)
+            mm, deg = (v.tolist() for v in frame_gap(T, want))
+            solved = solved.tolist()
             for k, i in enumerate(idx):
                 c = corrections[i]
-                c.check_mm, c.check_deg = float(mm[k]), float(deg[k])
+                c.check_mm, c.check_deg = mm[k], deg[k]
                 if not solved[k] or mm[k] > CHECK_MM or deg[k] > CHECK_DEG:
                     c.status = "check failed"
                     c.reason = (f"sent back through the nominal inverse and the calibrated model, it lands "
