@@ -68,3 +68,34 @@ def test_quaternions_to_matrices_batched_match_scipy():
     np.testing.assert_allclose(quaternion_matrix(q[7]), want[7], atol=1e-14)
     back = np.array([matrix_quaternion(R) for R in want])
     np.testing.assert_allclose(np.abs(np.sum(back * q, axis=1)), 1.0, atol=1e-12)
+
+
+def _shepperd_numpy(R):
+    """Shepperd's quaternion of R on numpy's scalars: the form a program's quaternions were written
+    with before the Python-float one, which must give the same bits (a filtered program's digits)."""
+    trace = R[0, 0] + R[1, 1] + R[2, 2]
+    k = int(np.argmax([trace, R[0, 0], R[1, 1], R[2, 2]]))
+    if k == 0:
+        s = 2.0 * np.sqrt(1.0 + trace)
+        q = np.array([s / 4, (R[2, 1] - R[1, 2]) / s, (R[0, 2] - R[2, 0]) / s, (R[1, 0] - R[0, 1]) / s])
+    else:
+        i, j, m = k - 1, k % 3, (k + 1) % 3
+        s = 2.0 * np.sqrt(1.0 + R[i, i] - R[j, j] - R[m, m])
+        q = np.empty(4)
+        q[0] = (R[m, j] - R[j, m]) / s
+        q[1 + i] = s / 4
+        q[1 + j] = (R[j, i] + R[i, j]) / s
+        q[1 + m] = (R[m, i] + R[i, m]) / s
+    q /= np.linalg.norm(q)
+    return -q if q[0] < 0 else q
+
+
+def test_matrix_quaternion_in_python_floats_is_numpys_to_the_bit():
+    from robocal.math.so3 import matrix_quaternion
+
+    rng = np.random.default_rng(8)
+    R = Rotation.random(4000, random_state=rng).as_matrix()
+    turns = [np.eye(3), np.diag([1.0, -1.0, -1.0]), np.diag([-1.0, 1.0, -1.0]), np.diag([-1.0, -1.0, 1.0]),
+             Rotation.from_euler("z", 90, degrees=True).as_matrix()]
+    for M in [*R, *turns]:
+        assert np.array_equal(matrix_quaternion(M), _shepperd_numpy(M))
