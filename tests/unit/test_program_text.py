@@ -97,3 +97,62 @@ def test_rapid_reads_the_same_targets_as_with_plain_scans(tmp_path, monkeypatch)
     kinds = [(row[0], row[2]) for row in fast]
     assert ("p1", "pose") in kinds and ("j1", "joints") in kinds and ("p2", "pose") in kinds
     assert sum(name.startswith("line") for name, _ in kinds) == 2  # the two inline targets
+
+
+def _krl_summary(program):
+    return [(t.name, t.line, t.kind, {k: f.text for k, f in t.fields.items()},
+             None if t.position is None else t.position.tolist(), None if t.rotation is None else t.rotation.tolist(),
+             None if t.q is None else t.q.tolist(), {k: v for k, v in t.config.items() if k != "_key"}, t.tool, t.user,
+             t.unsupported) for t in program.targets], sorted(program.tools), sorted(program.users)
+
+
+_SRC = """DEF cell()
+  BAS(#INITMOV, 0)
+  $BASE = {FRAME: X 100,Y 0,Z 10,A 0,B 0,C 0}
+  $TOOL = TOOL_DATA[2]
+  bas (#base, 1)
+  PTP XP1 ; taught
+  lin {X 400,Y 10,Z 500,A 0,B 90,C 0,S 2,T 10} C_DIS
+  FDAT_ACT = FP1
+  CIRC XP2, XP3
+  SPTP XJ1 WITH $TOOL = STOOL2(FP1), $BASE = SBASE(FP1.BASE_NO)
+  SLIN XP4
+  DECL E6POS local={X 410,Y 0,Z 480,A 10,B 80,C 5,S 6,T 0}
+  PTP local
+  PTP_REL {A1 5}
+  Ptp XP5 C_PTP
+END
+"""
+
+_DAT = """DEFDAT cell
+  DECL FDAT FP1={TOOL_NO 3,BASE_NO 4,IPO_FRAME #BASE}
+  DECL E6POS XP1={X 400,Y 0,Z 500,A 0,B 90,C 0,S 2,T 10,E1 0.0}
+  DECL E6POS XP2={X 420,Y 20,Z 500,A 0,B 90,C 0,S 'B010',T 'B1010'}
+  DECL POS XP3={X 440,Y 0,Z 500,A 0,B 90,C 0,S 2,T 10}
+  DECL E6POS XP4={X 400,Y -20,Z 520,A -5.5,B 85,C 1.25,S 2,T 10}
+  DECL E6POS XP5={X 380,Y 0,Z 540,A 0,B 90,C 0}
+  DECL E6AXIS XJ1={A1 10,A2 -80,A3 90,A4 0,A5 30,A6 0}
+  DECL FRAME F1={X 1,Y 2,Z 3,A 0,B 0,C 0}
+ENDDAT
+"""
+
+
+def test_krl_reads_the_same_where_its_lines_are_not_ascii(tmp_path):
+    """The ASCII fast paths (a pattern run only where its words stand, declarations found by their
+    keyword) read what the patterns alone read: every line's code given a trailing no-break space
+    (not ASCII, and space to the patterns) takes the patterns' own path."""
+    from robocal.filtering import krl
+
+    def written(folder, mark):
+        folder.mkdir()
+        for name, text in (("cell.src", _SRC), ("cell.dat", _DAT)):
+            lines = [line.split(";", 1) for line in text.splitlines()]
+            body = "\n".join(parts[0] + mark + (";" + parts[1] if len(parts) > 1 else "") for parts in lines)
+            (folder / name).write_text(body + "\n", encoding="utf-8")
+        return krl.read(folder / "cell.src")
+
+    fast, plain = _krl_summary(written(tmp_path / "a", "")), _krl_summary(written(tmp_path / "b", "\u00a0"))
+    assert fast == plain
+    names = [row[0] for row in fast[0]]
+    assert {"XP1", "XP2", "XP3", "XP4", "XP5", "XJ1", "LOCAL"} <= {n.upper() for n in names}
+    assert any(n.startswith("line") for n in names)  # the inline LIN target

@@ -33,7 +33,7 @@ from ..inverse.solve import Request
 from ..math.se3 import homogeneous
 from ..math.so3 import rpy_to_matrix
 from .language import DECIMALS, Language, angle_decimals, fixed_xyz, keep_on_boundary, set_number, set_text
-from .program import NUMBER, Field, Program, ProgramFile, Target, line_of, read_file
+from .program import NUMBER, Field, Program, ProgramFile, Target, keyword_matches, line_of, read_file
 
 _AGGREGATE = re.compile(r"\{([^{}]*)\}")
 #: an integer in KRL's binary or hex notation (Status and Turn are often written so): 'B110', 'H1A'
@@ -82,10 +82,13 @@ def krl_spelled(value: int, like: str) -> str:
     return str(value)
 
 
+_field = tuple.__new__
+
+
 def _items(body: str, offset: int) -> dict[str, Field]:
     """KEY value pairs of an aggregate body (an optional ``TYPE:`` prefix skipped)."""
-    return {m.group(1).upper(): Field(offset + m.start(2), offset + m.end(2), m.group(2))
-            for m in _ITEM.finditer(body)}
+    return {m.group(1).upper(): _field(Field, (offset + m.start(2), offset + m.end(2), m.group(2)))
+            for m in _ITEM.finditer(body)}  # (tuple.__new__: Field's own __new__ is a Python call, per number)
 
 
 def pose_matrix(f: dict[str, Field]) -> tuple[np.ndarray, np.ndarray]:
@@ -150,7 +153,16 @@ def _parse(text: str, file: int, source: str, program: Program, fdats: dict, use
     start = 0
     for line, raw in enumerate(text.splitlines(keepends=True), 1):
         code = raw.split(";", 1)[0]  # KRL comments and folds run from ';' to the end of the line
-        for m in _SELECT.finditer(code):  # $TOOL = TOOL_DATA[n] | $NULLFRAME | {…}
+        # what each pattern needs in the line, looked for before the pattern runs (a program of ten
+        # thousand points has thirty thousand lines, most of them one statement); ASCII only, where
+        # the lower case is the case folding of re.I
+        if code.isascii():
+            low = code.lower()
+            system, bas, fdat = "$" in low, "bas" in low, "fdat_act" in low
+            moves = "ptp" in low or "lin" in low or "circ" in low or "spl" in low  # (SPTP, SLIN, SCIRC too)
+        else:
+            system = bas = fdat = moves = True
+        for m in (_SELECT.finditer(code) if system else ()):  # $TOOL = TOOL_DATA[n] | $NULLFRAME | {…}
             kind = m.group(1).lower()
             if m.group(4):
                 name = f"${kind.upper()} (line {line})"
@@ -158,18 +170,18 @@ def _parse(text: str, file: int, source: str, program: Program, fdats: dict, use
             else:
                 name = str(int(m.group(3))) if m.group(3) else "0"
             setattr(state, "tool" if kind == "tool" else "base", name)
-        for m in _BAS.finditer(code):
+        for m in (_BAS.finditer(code) if bas else ()):
             setattr(state, m.group(1).lower(), str(int(m.group(2))))
-        for m in _FDAT.finditer(code):
+        for m in (_FDAT.finditer(code) if fdat else ()):
             ref = m.group(1)
             if ref.startswith("{"):
                 _fdat(ref[1:-1], state)
             elif ref.upper() in fdats:
                 _fdat(fdats[ref.upper()], state)
-        for m in _SPLINE_FRAMES.finditer(code):
+        for m in (_SPLINE_FRAMES.finditer(code) if system else ()):
             if m.group(1).upper() in fdats:
                 _fdat(fdats[m.group(1).upper()], state)
-        motion = _MOTION.search(code)
+        motion = _MOTION.search(code) if moves else None
         why = None
         if motion:
             rest = code[motion.end():]
@@ -184,7 +196,7 @@ def _parse(text: str, file: int, source: str, program: Program, fdats: dict, use
             for w in (g for g in (named.groups() if named else ()) if g):
                 uses.setdefault(re.sub(r"\s", "", w).upper(), []).append(
                     (state.tool, state.base, state.external, bool(motion.group(2)), line, why))
-        for m in _AGGREGATE.finditer(code):
+        for m in (_AGGREGATE.finditer(code) if "{" in code else ()):
             before = code[:m.start()]
             items = _items(m.group(1), start + m.start(1))
             is_pose = all(k in items for k in POSE_KEYS)
@@ -225,11 +237,21 @@ def _parse(text: str, file: int, source: str, program: Program, fdats: dict, use
 
 
 def _target(items: dict[str, Field], is_pose: bool, name: str, line: int, file: int) -> Target:
-    if is_pose:
-        p, R = pose_matrix(items)
+    if is_pose:  # its rotation made with every other's once the files are read (:func:`_rotations`)
         config = {k: krl_int(items[k].text) for k in ("S", "T") if k in items}
-        return Target(name, line, "pose", items, p, R, config=config, file=file)
+        return Target(name, line, "pose", items, np.array([items[k].value for k in "XYZ"]), None, config=config,
+                      file=file)
     return Target(name, line, "joints", items, q=np.radians([items[k].value for k in JOINT_KEYS]), file=file)
+
+
+def _rotations(targets: list[Target]) -> None:
+    """The rotations of the pose targets read, all in one batched call (:func:`pose_matrix`'s, row by row:
+    a rotation a target took 50 µs of numpy's small-array overhead)."""
+    poses = [t for t in targets if t.kind == "pose" and t.rotation is None and t.fields]
+    if poses:
+        abc = np.radians([[t.fields["C"].value, t.fields["B"].value, t.fields["A"].value] for t in poses])
+        for t, R in zip(poses, rpy_to_matrix(abc)):
+            t.rotation = R
 
 
 def _assign_frames(program: Program, uses: dict) -> None:
@@ -274,14 +296,19 @@ def read(path: Path, frames_file: Path | None = None) -> Program:
         dat_text, dat_enc = read_file(dat)
         program.files.append(ProgramFile(str(dat), dat_text, dat_enc, ".dat"))
         for m in _AGGREGATE.finditer(dat_text):  # the .dat's FDATs serve the .src's motions
-            decl = _DECL.search(dat_text[max(0, m.start() - 200):m.start()])
+            before = dat_text[max(0, m.start() - 200):m.start()]
+            if before.isascii() and "fdat" not in before.lower():
+                continue  # (no FDAT declaration can end there)
+            decl = _DECL.search(before)
             if decl and decl.group(1).upper() == "FDAT":
                 fdats[decl.group(2).upper()] = m.group(1)
     types = {m.group(2).upper(): m.group(1).upper() for body in (text, dat_text or "")
-             for m in _TYPED.finditer("\n".join(line.split(";", 1)[0] for line in body.splitlines()))}
+             for m in keyword_matches(_TYPED, "\n".join(line.split(";", 1)[0] for line in body.splitlines()),
+                                      ("decl",))}
     _parse(text, 0, str(src), program, fdats, uses, _State(), types)
     if dat_text is not None:
         _parse(dat_text, 1, str(dat), program, fdats, uses, _State(), types)
+    _rotations(program.targets)
     declared = {t.name.upper() for t in program.targets}
     undeclared = [(name, used) for name, used in uses.items() if not name.startswith("#") and name not in declared]
     if undeclared and dat_text is None:
