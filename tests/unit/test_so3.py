@@ -99,3 +99,19 @@ def test_matrix_quaternion_in_python_floats_is_numpys_to_the_bit():
              Rotation.from_euler("z", 90, degrees=True).as_matrix()]
     for M in [*R, *turns]:
         assert np.array_equal(matrix_quaternion(M), _shepperd_numpy(M))
+
+
+def test_one_rotations_angles_are_the_batched_ones_to_the_bit():
+    """matrix_to_rpy of one matrix (numpy's scalars) against the same matrices batched (its arrays):
+    random rotations, pitch at ±90° (gimbal lock) and within 1e-12 rad of it."""
+    from robocal.math.so3 import matrix_to_rpy, rpy_to_matrix
+
+    rng = np.random.default_rng(9)
+    angles = rng.uniform(-3.2, 3.2, (6000, 3))
+    angles[:500, 1] = np.pi / 2 * np.sign(rng.normal(size=500))
+    angles[500:1000, 1] = np.pi / 2 + rng.normal(size=500) * 1e-12
+    R = rpy_to_matrix(angles)
+    batched = matrix_to_rpy(R)
+    one = np.array([matrix_to_rpy(M) for M in R])
+    assert np.array_equal(one, batched)
+    np.testing.assert_allclose(rpy_to_matrix(one), R, atol=1e-9)

@@ -58,12 +58,28 @@ def rpy_to_matrix(rpy: np.ndarray) -> np.ndarray:
 def matrix_to_rpy(R: np.ndarray) -> np.ndarray:
     """Inverse of :func:`rpy_to_matrix`; pitch in [−π/2, π/2], yaw = 0 chosen at gimbal lock."""
     R = np.asarray(R, dtype=float)
+    if R.shape == (3, 3):
+        return _rpy_one(R)
     pitch = np.arcsin(np.clip(-R[..., 2, 0], -1.0, 1.0))
     cp = np.sqrt(R[..., 2, 1] ** 2 + R[..., 2, 2] ** 2)
     lock = cp < 1e-9
     roll = np.where(lock, np.arctan2(-R[..., 1, 2], R[..., 1, 1]), np.arctan2(R[..., 2, 1], R[..., 2, 2]))
     yaw = np.where(lock, 0.0, np.arctan2(R[..., 1, 0], R[..., 0, 0]))
     return np.stack([roll, pitch, yaw], -1)
+
+
+def _rpy_one(R: np.ndarray) -> np.ndarray:
+    """:func:`matrix_to_rpy` of one rotation on numpy's scalars (the same ufuncs, so the same bits; a
+    program's ten thousand targets one at a time, without the arrays' overhead)."""
+    r = R.tolist()
+    pitch = np.arcsin(np.float64(min(max(-r[2][0], -1.0), 1.0)))
+    cp = math.sqrt(r[2][1] * r[2][1] + r[2][2] * r[2][2])
+    if cp < 1e-9:
+        roll, yaw = np.arctan2(np.float64(-r[1][2]), np.float64(r[1][1])), 0.0
+    else:
+        roll, yaw = np.arctan2(np.float64(r[2][1]), np.float64(r[2][2])), np.arctan2(np.float64(r[1][0]),
+                                                                                     np.float64(r[0][0]))
+    return np.array([roll, pitch, yaw], dtype=float)
 
 
 def _rodrigues_coefficients(w: np.ndarray):
