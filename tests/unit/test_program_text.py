@@ -156,3 +156,21 @@ def test_krl_reads_the_same_where_its_lines_are_not_ascii(tmp_path):
     names = [row[0] for row in fast[0]]
     assert {"XP1", "XP2", "XP3", "XP4", "XP5", "XJ1", "LOCAL"} <= {n.upper() for n in names}
     assert any(n.startswith("line") for n in names)  # the inline LIN target
+
+
+def test_rotations_turned_together_are_each_targets_own():
+    """turn_by_angles (every pose target of a program in one call) against rpy_to_matrix of each target's
+    own three numbers, as KRL and FANUC read them one at a time before: the same bits."""
+    from robocal.filtering.program import Field, Target, turn_by_angles
+    from robocal.math.so3 import rpy_to_matrix
+
+    rng = np.random.default_rng(3)
+    angles = rng.uniform(-180.0, 180.0, (300, 3)).round(4)
+    targets = [Target(f"p{i}", i, "pose", {k: Field(0, 1, f"{v:.4f}") for k, v in zip("WPR", a)})
+               for i, a in enumerate(angles)]
+    targets.append(Target("j", 999, "joints", {"J1": Field(0, 1, "10")}, q=np.zeros(6)))
+    targets.append(Target("r", 1000, "pose", {}, unsupported="a register"))
+    turn_by_angles(targets, ("W", "P", "R"))
+    for t, a in zip(targets, angles):
+        assert np.array_equal(t.rotation, rpy_to_matrix(np.radians([float(f"{v:.4f}") for v in a])))
+    assert targets[-2].rotation is None and targets[-1].rotation is None

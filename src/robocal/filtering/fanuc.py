@@ -29,9 +29,8 @@ import numpy as np
 from ..exceptions import InputError
 from ..inverse.configuration import TOLERANCE_RAD
 from ..inverse.solve import Request
-from ..math.so3 import rpy_to_matrix
 from .language import DECIMALS, Language, angle_decimals, fixed_xyz, set_number, set_text
-from .program import NUMBER, Field, Lines, Program, ProgramFile, Target, read_file
+from .program import NUMBER, Field, Lines, Program, ProgramFile, Target, read_file, turn_by_angles
 
 _POSITION = re.compile(r"^P\[(\d+)(?::\s*\"?([^\]\"]*)\"?)?\]\s*\{(.*?)\};", re.S | re.M)
 _GROUP = re.compile(r"\bGP(\d+)\s*:")
@@ -182,6 +181,7 @@ def read(path: Path, frames_file: Path | None = None) -> Program:
     if not program.targets:
         raise InputError("no targets found (positions P[n] of a /POS section)", source=source)
     program.targets.sort(key=lambda t: t.line)
+    turn_by_angles(program.targets, ("W", "P", "R"))
     for t in program.targets:
         for kind, name in (("tool", t.tool), ("user", t.user)):
             if name is not None and name != "0":
@@ -189,6 +189,9 @@ def read(path: Path, frames_file: Path | None = None) -> Program:
                                            f"in the controller: give --{'tool' if kind == 'tool' else 'user-frame'} "
                                            f"{name}=x,y,z,w,p,r")
     return program
+
+
+_field = tuple.__new__
 
 
 def _position(number: str, name: str, body: str, offset: int, line: int, source: str, used: list) -> Target:
@@ -206,12 +209,12 @@ def _position(number: str, name: str, body: str, offset: int, line: int, source:
     if _UNTAUGHT.search(gp1):
         return Target(name, line, "pose", {}, unsupported="untaught: the controller prints its numbers as asterisks "
                       "(a motion that reaches it stops the program there)")
-    values = {v.group(1): Field(gp1_at + v.start(2), gp1_at + v.end(2), v.group(2)) for v in _VALUE.finditer(gp1)}
+    values = {v.group(1): _field(Field, (gp1_at + v.start(2), gp1_at + v.end(2), v.group(2)))
+              for v in _VALUE.finditer(gp1)}  # (tuple.__new__: Field's own __new__ is a Python call, per number)
     if all(k in values for k in POSE_KEYS):
         cfg_fields, config = _config_fields(gp1, gp1_at)
-        p = np.array([values[k].value for k in "XYZ"])
-        R = rpy_to_matrix(np.radians([values[k].value for k in "WPR"]))
-        t = Target(name, line, "pose", {**values, **cfg_fields}, p, R, config=config)
+        p = np.array([values[k].value for k in "XYZ"])  # (its rotation: turn_by_angles, once all are read)
+        t = Target(name, line, "pose", {**values, **cfg_fields}, p, None, config=config)
     elif all(k in values for k in JOINT_KEYS):
         t = Target(name, line, "joints", values, q=np.radians([values[k].value for k in JOINT_KEYS]))
     else:

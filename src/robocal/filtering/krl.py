@@ -33,7 +33,17 @@ from ..inverse.solve import Request
 from ..math.se3 import homogeneous
 from ..math.so3 import rpy_to_matrix
 from .language import DECIMALS, Language, angle_decimals, fixed_xyz, keep_on_boundary, set_number, set_text
-from .program import NUMBER, Field, Program, ProgramFile, Target, keyword_matches, line_of, read_file
+from .program import (
+    NUMBER,
+    Field,
+    Program,
+    ProgramFile,
+    Target,
+    keyword_matches,
+    line_of,
+    read_file,
+    turn_by_angles,
+)
 
 _AGGREGATE = re.compile(r"\{([^{}]*)\}")
 #: an integer in KRL's binary or hex notation (Status and Turn are often written so): 'B110', 'H1A'
@@ -237,21 +247,11 @@ def _parse(text: str, file: int, source: str, program: Program, fdats: dict, use
 
 
 def _target(items: dict[str, Field], is_pose: bool, name: str, line: int, file: int) -> Target:
-    if is_pose:  # its rotation made with every other's once the files are read (:func:`_rotations`)
+    if is_pose:  # its rotation made with every other's once the files are read (turn_by_angles)
         config = {k: krl_int(items[k].text) for k in ("S", "T") if k in items}
         return Target(name, line, "pose", items, np.array([items[k].value for k in "XYZ"]), None, config=config,
                       file=file)
     return Target(name, line, "joints", items, q=np.radians([items[k].value for k in JOINT_KEYS]), file=file)
-
-
-def _rotations(targets: list[Target]) -> None:
-    """The rotations of the pose targets read, all in one batched call (:func:`pose_matrix`'s, row by row:
-    a rotation a target took 50 µs of numpy's small-array overhead)."""
-    poses = [t for t in targets if t.kind == "pose" and t.rotation is None and t.fields]
-    if poses:
-        abc = np.radians([[t.fields["C"].value, t.fields["B"].value, t.fields["A"].value] for t in poses])
-        for t, R in zip(poses, rpy_to_matrix(abc)):
-            t.rotation = R
 
 
 def _assign_frames(program: Program, uses: dict) -> None:
@@ -308,7 +308,7 @@ def read(path: Path, frames_file: Path | None = None) -> Program:
     _parse(text, 0, str(src), program, fdats, uses, _State(), types)
     if dat_text is not None:
         _parse(dat_text, 1, str(dat), program, fdats, uses, _State(), types)
-    _rotations(program.targets)
+    turn_by_angles(program.targets, ("C", "B", "A"))  # R = Rz(A)·Ry(B)·Rx(C)
     declared = {t.name.upper() for t in program.targets}
     undeclared = [(name, used) for name, used in uses.items() if not name.startswith("#") and name not in declared]
     if undeclared and dat_text is None:

@@ -82,6 +82,19 @@ def in_text_order(t: Target) -> tuple[int, int]:
     return t.line, 0 if first is None else first.start
 
 
+def turn_by_angles(targets: list[Target], keys: tuple[str, str, str]) -> None:
+    """The rotation of every pose target read without one, R = Rz(c)·Ry(b)·Rx(a) of its fields ``keys`` =
+    (a, b, c) in degrees, all in one batched call (one at a time, a rotation was 50 µs of numpy's
+    small-array overhead; batched, the same bits)."""
+    from ..math.so3 import rpy_to_matrix
+
+    poses = [t for t in targets if t.kind == "pose" and t.rotation is None and t.fields]
+    if poses:
+        angles = np.radians([[float(t.fields[k].text) for k in keys] for t in poses])
+        for t, R in zip(poses, rpy_to_matrix(angles)):
+            t.rotation = R
+
+
 def fields_in(text: str, offset: int = 0) -> list[Field]:
     """Every number of ``text`` as a Field (spans shifted by ``offset``)."""
     return [Field(m.start() + offset, m.end() + offset, m.group()) for m in _NUMBER.finditer(text)]
