@@ -174,3 +174,34 @@ def test_rotations_turned_together_are_each_targets_own():
     for t, a in zip(targets, angles):
         assert np.array_equal(t.rotation, rpy_to_matrix(np.radians([float(f"{v:.4f}") for v in a])))
     assert targets[-2].rotation is None and targets[-1].rotation is None
+
+
+def test_angle_decimals_made_together_are_each_targets_own():
+    """The decimals a target's angles keep (the file's own where they carry the correction), decided for
+    many targets at once, against the decision on each target's own matrices, as it was made one target
+    at a time: files written with 0 to 4 decimals, corrections that do and do not show at them."""
+    import math
+
+    from robocal.filtering.language import ANGLE_KEEP_DEG, DECIMALS, angle_decimals_many
+    from robocal.filtering.program import Field
+    from robocal.math.so3 import rpy_to_matrix
+
+    def one(fields, values):
+        own = min(f.decimals() for f in fields)
+        if own >= DECIMALS["deg"]:
+            return DECIMALS["deg"]
+        R = rpy_to_matrix(np.radians(np.asarray(values, float)))
+        Q = rpy_to_matrix(np.radians(np.round(np.asarray(values, float), own)))
+        turned = math.degrees(math.acos(max(-1.0, min(1.0, (np.trace(R @ Q.T) - 1.0) / 2.0))))
+        return own if turned <= ANGLE_KEEP_DEG else DECIMALS["deg"]
+
+    rng = np.random.default_rng(5)
+    fields, values = [], []
+    for _ in range(2000):
+        d = int(rng.integers(0, 5))
+        written = rng.uniform(-180.0, 180.0, 3).round(d)
+        fields.append([Field(0, 1, f"{v:.{d}f}") for v in written])
+        values.append(tuple(written + rng.normal(size=3) * 10.0 ** -(d + 1) * rng.choice([0.1, 3.0])))
+    decided = angle_decimals_many(fields, values)
+    assert decided == [one(f, v) for f, v in zip(fields, values)]
+    assert len(set(decided)) >= 3  # both outcomes, several decimals

@@ -29,7 +29,7 @@ import numpy as np
 from ..exceptions import InputError
 from ..inverse.configuration import TOLERANCE_RAD
 from ..inverse.solve import Request
-from .language import DECIMALS, Language, angle_decimals, fixed_xyz, set_number, set_text
+from .language import DECIMALS, Language, corrected_angles, set_number, set_text
 from .program import NUMBER, Field, Lines, Program, ProgramFile, Target, read_file, turn_by_angles
 
 _POSITION = re.compile(r"^P\[(\d+)(?::\s*\"?([^\]\"]*)\"?)?\]\s*\{(.*?)\};", re.S | re.M)
@@ -67,6 +67,8 @@ _HARMLESS = re.compile(
 #: options that change a motion's target as the program runs (named as such)
 _CHANGING = re.compile(r"^\s*(Offset|Tool_Offset|INC|VOFFSET|VTOOL|RTCP|COORD)\b", re.I)
 POSE_KEYS = ("X", "Y", "Z", "W", "P", "R")
+#: (a, b, c) of R = Rz(c)·Ry(b)·Rx(a): FANUC's W, P, R
+ANGLE_KEYS = ("W", "P", "R")
 JOINT_KEYS = ("J1", "J2", "J3", "J4", "J5", "J6")
 
 
@@ -277,7 +279,8 @@ def encode(q: np.ndarray, facts: dict | None, config: dict) -> dict:
     return out
 
 
-def write(t: Target, pose: np.ndarray | None, q: np.ndarray | None, config: dict) -> list[tuple[Field, str]]:
+def write(t: Target, pose: np.ndarray | None, q: np.ndarray | None, config: dict,
+          angles: tuple | None = None) -> list[tuple[Field, str]]:
     f, out = t.fields, []
     if t.kind == "joints":
         for i, key in enumerate(JOINT_KEYS[:len(q)]):
@@ -285,8 +288,8 @@ def write(t: Target, pose: np.ndarray | None, q: np.ndarray | None, config: dict
         return out
     for k, v in zip("XYZ", pose[:3, 3]):
         set_number(out, f[k], float(v), DECIMALS["mm"])
-    wpr = fixed_xyz(pose[:3, :3], (f["W"].value, f["P"].value, f["R"].value))
-    places = angle_decimals([f[k] for k in "WPR"], wpr)  # the file's own where they carry the correction
+    # the angles, in the file's own decimals where they carry the correction
+    wpr, places = angles or corrected_angles([(t, pose)], ANGLE_KEYS)[0]
     for k, v in zip("WPR", wpr):
         set_number(out, f[k], float(v), places)
     for k, v in config.items():
@@ -297,5 +300,6 @@ def write(t: Target, pose: np.ndarray | None, q: np.ndarray | None, config: dict
 
 LANGUAGE = Language(
     name="fanuc", title="FANUC TP (.ls)", suffixes=(".ls",), read=read, write=write, request=request, encode=encode,
+    angle_keys=ANGLE_KEYS,
     units="mm, deg", orientation="R = Rz(R)·Ry(P)·Rx(W)",
     frames="UF and UT numbers of each position; their values given with --user-frame N=… and --tool N=…")

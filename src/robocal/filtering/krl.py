@@ -32,7 +32,7 @@ from ..inverse.configuration import TOLERANCE_RAD
 from ..inverse.solve import Request
 from ..math.se3 import homogeneous
 from ..math.so3 import rpy_to_matrix
-from .language import DECIMALS, Language, angle_decimals, fixed_xyz, keep_on_boundary, set_number, set_text
+from .language import DECIMALS, Language, corrected_angles, keep_on_boundary, set_number, set_text
 from .program import (
     NUMBER,
     Field,
@@ -68,6 +68,8 @@ _HARMLESS = re.compile(r"^(?:\s*(?:C_PTP|C_DIS|C_VEL|C_ORI|C_SPL|CA\s+" + NUMBER
 #: the types whose aggregates are targets (a FRAME is a frame: measured points, base calibrations)
 TARGET_TYPES = ("E6POS", "POS", "E6AXIS", "AXIS")
 POSE_KEYS = ("X", "Y", "Z", "A", "B", "C")
+#: (a, b, c) of R = Rz(c)·Ry(b)·Rx(a): KUKA's C, B, A
+ANGLE_KEYS = ("C", "B", "A")
 JOINT_KEYS = ("A1", "A2", "A3", "A4", "A5", "A6")
 CONFIG_FILE = "$config.dat"
 
@@ -369,7 +371,8 @@ def encode(q: np.ndarray, facts: dict | None, config: dict) -> dict:
     return out
 
 
-def write(t: Target, pose: np.ndarray | None, q: np.ndarray | None, config: dict) -> list[tuple[Field, str]]:
+def write(t: Target, pose: np.ndarray | None, q: np.ndarray | None, config: dict,
+          angles: tuple | None = None) -> list[tuple[Field, str]]:
     f, out = t.fields, []
     if t.kind == "joints":
         for i, key in enumerate(JOINT_KEYS[:len(q)]):
@@ -377,8 +380,8 @@ def write(t: Target, pose: np.ndarray | None, q: np.ndarray | None, config: dict
         return out
     for k, v in zip("XYZ", pose[:3, 3]):
         set_number(out, f[k], float(v), DECIMALS["mm"])
-    c, b, a = fixed_xyz(pose[:3, :3], (f["C"].value, f["B"].value, f["A"].value))
-    places = angle_decimals([f[k] for k in "CBA"], (c, b, a))  # the file's own where they carry the correction
+    # the angles, in the file's own decimals where they carry the correction
+    (c, b, a), places = angles or corrected_angles([(t, pose)], ANGLE_KEYS)[0]
     for k, v in zip("ABC", (a, b, c)):
         set_number(out, f[k], float(v), places)
     for k in ("S", "T"):
@@ -389,6 +392,6 @@ def write(t: Target, pose: np.ndarray | None, q: np.ndarray | None, config: dict
 
 LANGUAGE = Language(
     name="krl", title="KUKA KRL", suffixes=(".src", ".dat"), read=read, write=write, request=request,
-    encode=encode, units="mm, deg", orientation="R = Rz(A)·Ry(B)·Rx(C)",
+    encode=encode, units="mm, deg", orientation="R = Rz(A)·Ry(B)·Rx(C)", angle_keys=ANGLE_KEYS,
     frames="$TOOL/$BASE: TOOL_DATA[n], BASE_DATA[n] from $config.dat, BAS(#TOOL|#BASE, n), FDAT_ACT, inline frames",
     stamp=(r"^\s*DEF(?:FCT)?\b[^\n]*", ";"))

@@ -55,6 +55,10 @@ class Language:
     #: a stamp's place and comment mark: (the line after which it goes, as a regular expression; the mark
     #: that begins a comment line), or None where a comment line would renumber the program (FANUC)
     stamp: tuple[str, str] | None = None
+    #: a Cartesian target's fields (a, b, c) of R = Rz(c)·Ry(b)·Rx(a) where the language writes fixed angles:
+    #: its write then takes ``angles`` = ((a, b, c), decimals), made for all targets at once
+    #: (:func:`corrected_angles`)
+    angle_keys: tuple[str, str, str] | None = None
 
 
 def languages() -> dict[str, Language]:
@@ -90,19 +94,31 @@ DECIMALS = {"mm": 3, "deg": 4, "quat": 8, "ur": 7}
 ANGLE_KEEP_DEG = 5e-4
 
 
-def angle_decimals(fields: list[Field], values) -> int:
-    """The decimals to write a Cartesian target's three angles (deg, R = Rz(c)·Ry(b)·Rx(a) of ``values``
-    a, b, c) with: the file's own where they carry the correction, else :data:`DECIMALS` ``deg``."""
+def angle_decimals_many(fields: list[list[Field]], values: list) -> list[int]:
+    """The decimals to write each Cartesian target's three angles (deg, R = Rz(c)·Ry(b)·Rx(a) of its
+    ``values`` a, b, c) with: the file's own (the least of its ``fields``') where they carry the
+    correction, else :data:`DECIMALS` ``deg``.  The rotations of all the targets are made in batched
+    calls (the same bits as one at a time, which took a second for ten thousand targets)."""
     from ..math.so3 import rpy_to_matrix
 
-    own = min(f.decimals() for f in fields)
-    if own >= DECIMALS["deg"]:
-        return DECIMALS["deg"]
-    exact = np.radians(np.asarray(values, float))
-    rounded = np.radians(np.round(np.asarray(values, float), own))
-    R, Q = rpy_to_matrix(exact), rpy_to_matrix(rounded)
-    turned = math.degrees(math.acos(max(-1.0, min(1.0, (np.trace(R @ Q.T) - 1.0) / 2.0))))
-    return own if turned <= ANGLE_KEEP_DEG else DECIMALS["deg"]
+    own = [min(f.decimals() for f in fs) for fs in fields]
+    out = [DECIMALS["deg"]] * len(own)
+    for d in sorted({o for o in own if o < DECIMALS["deg"]}):
+        rows = [i for i, o in enumerate(own) if o == d]
+        v = np.array([values[i] for i in rows], float)
+        R, Q = rpy_to_matrix(np.radians(v)), rpy_to_matrix(np.radians(np.round(v, d)))
+        for i, trace in zip(rows, np.trace(R @ np.swapaxes(Q, -1, -2), axis1=-2, axis2=-1).tolist()):
+            turned = math.degrees(math.acos(max(-1.0, min(1.0, (trace - 1.0) / 2.0))))
+            out[i] = d if turned <= ANGLE_KEEP_DEG else DECIMALS["deg"]
+    return out
+
+
+def corrected_angles(items: list, keys: tuple[str, str, str]) -> list[tuple[tuple[float, float, float], int]]:
+    """Per (target, pose) of ``items``, the pose's angles (a, b, c) of R = Rz(c)·Ry(b)·Rx(a), nearest the
+    target's own fields ``keys`` (:func:`fixed_xyz`), and the decimals to write them in
+    (:func:`angle_decimals_many`)."""
+    values = [fixed_xyz(pose[:3, :3], tuple(t.fields[k].value for k in keys)) for t, pose in items]
+    return list(zip(values, angle_decimals_many([[t.fields[k] for k in keys] for t, _ in items], values)))
 
 
 def set_number(changes: list, f: Field, value: float, decimals: int) -> None:

@@ -4,13 +4,25 @@
 from __future__ import annotations
 
 from .correct import Correction
-from .language import Language
+from .language import Language, corrected_angles
 from .program import Program, rewrite
 
 
 def target_changes(language: Language, corrections: list[Correction]) -> list[list | None]:
     """Each corrected target's changes of its numbers (None for a target left as it was)."""
-    return [language.write(c.target, c.pose, c.q, c.config_after) if c.corrected else None for c in corrections]
+    angles: dict[int, tuple] = {}
+    if language.angle_keys is not None:
+        poses = [c for c in corrections if c.corrected and c.target.kind == "pose"]
+        angles = dict(zip(map(id, poses), corrected_angles([(c.target, c.pose) for c in poses], language.angle_keys)))
+    out: list[list | None] = []
+    for c in corrections:
+        if not c.corrected:
+            out.append(None)
+        elif id(c) in angles:
+            out.append(language.write(c.target, c.pose, c.q, c.config_after, angles=angles[id(c)]))
+        else:
+            out.append(language.write(c.target, c.pose, c.q, c.config_after))
+    return out
 
 
 def filtered_texts(program: Program, language: Language, corrections: list[Correction],
