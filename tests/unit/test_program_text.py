@@ -205,3 +205,36 @@ def test_angle_decimals_made_together_are_each_targets_own():
     decided = angle_decimals_many(fields, values)
     assert decided == [one(f, v) for f, v in zip(fields, values)]
     assert len(set(decided)) >= 3  # both outcomes, several decimals
+
+
+_UR_WORDS = ("x", "wp", "wp1", "p", "q_near", " ", "[", "]", "[0]", "=", "==", " = ", "(", ")", ",", "1", "\n",
+             "p[0.1, 0.2, 0.3, 0, 0, 0]", "x[1] = 2", "a[b[0]=1", "pose_trans(", "movel(")
+
+
+@pytest.mark.parametrize("seed", range(30))
+def test_urscript_subscripted_names_and_call_arguments_are_the_per_name_searches_and_the_walk(seed):
+    """One pass for the variables changed element by element against a search per name (each name,
+    at a word's start, followed by [...] =), and the bracket scan of a call's arguments against the
+    character walk it replaced, closed calls and unclosed ones, on random URScript-like text."""
+    import re
+
+    from robocal.filtering import urscript
+
+    rng = np.random.default_rng(seed)
+    code = "".join(rng.choice(_UR_WORDS, 120))
+    names = set(re.findall(r"[A-Za-z_]\w*", code))
+    per_name = {n for n in names if re.search(r"\b" + re.escape(n) + r"\s*\[[^\]]*\]\s*=(?!=)", code)}
+    assert set(urscript._SUBSCRIPTED.findall(code)) == per_name
+
+    def walked(code, open_paren):
+        depth, i = 1, open_paren + 1
+        while i < len(code) and depth:
+            depth += {"(": 1, "[": 1, ")": -1, "]": -1}.get(code[i], 0)
+            i += 1
+        return code[open_paren + 1:i - 1]
+
+    for at in [i for i, c in enumerate(code) if c == "("]:
+        args, starts = urscript._call_arguments(code, at)
+        body = walked(code, at)
+        assert ",".join(args) == ",".join(p.strip() for p in split_top(body))
+        assert all(code[s:s + len(a)] == a for a, s in zip(args, starts) if a)

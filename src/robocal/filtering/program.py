@@ -97,7 +97,8 @@ def turn_by_angles(targets: list[Target], keys: tuple[str, str, str]) -> None:
 
 def fields_in(text: str, offset: int = 0) -> list[Field]:
     """Every number of ``text`` as a Field (spans shifted by ``offset``)."""
-    return [Field(m.start() + offset, m.end() + offset, m.group()) for m in _NUMBER.finditer(text)]
+    new = tuple.__new__  # (Field's own __new__ is a Python call, per number)
+    return [new(Field, (m.start() + offset, m.end() + offset, m.group())) for m in _NUMBER.finditer(text)]
 
 
 @dataclass

@@ -48,15 +48,20 @@ _ASSIGN = re.compile(r"(?:\bglobal\s+|\blocal\s+)?\b([A-Za-z_]\w*)\s*=(?!=)\s*")
 _MOVE = re.compile(r"\b(movej|movel|movep|movec|servoj)\s*\(")
 _TCP = re.compile(r"\bset_tcp\s*\(\s*p\[(" + ",".join([_N] * 6) + r")\]")
 _NAME = re.compile(r"[A-Za-z_]\w*")
+_BRACKET = re.compile(r"[()\[\]]")
+#: a variable assigned element by element, ``x[i] = …`` (a look-ahead: at every word's start, overlapping)
+_SUBSCRIPTED = re.compile(r"\b(?=([A-Za-z_]\w*)\s*\[[^\]]*\]\s*=(?!=))")
 POSE_KEYS = ("x", "y", "z", "rx", "ry", "rz")
 
 
 def _call_arguments(code: str, open_paren: int) -> tuple[list[str], list[int]]:
     """The top-level arguments of the call whose ``(`` is at ``open_paren`` and where each starts."""
-    depth, i = 1, open_paren + 1
-    while i < len(code) and depth:
-        depth += {"(": 1, "[": 1, ")": -1, "]": -1}.get(code[i], 0)
-        i += 1
+    depth, i = 1, len(code)  # (unclosed: to the end, less its last character, as the walk it replaces)
+    for m in _BRACKET.finditer(code, open_paren + 1):  # only the brackets move the depth
+        depth += 1 if m.group() in "([" else -1
+        if not depth:
+            i = m.end()
+            break
     body = code[open_paren + 1:i - 1]
     parts = split_top(body)
     starts, at = [], open_paren + 1
@@ -85,11 +90,15 @@ class _Reader:
         for m in _ASSIGN.finditer(self.code):
             name = m.group(1)
             self.assignments[name] = self.assignments.get(name, 0) + 1
-            rest = self.code[m.end():]
             for kind, pattern in (("pose", POSE), ("joints", JOINTS)):
-                lit = pattern.match(rest)
+                # (matched where the value begins, not on the rest of the code sliced off: that copied the
+                # program once an assignment, quadratic in its length; what the patterns look behind is
+                # the assignment's "=" or a space either way)
+                lit = pattern.match(self.code, m.end())
                 if lit:
-                    self.literals.setdefault(name, []).append((kind, m.end() + lit.start(), m.end() + lit.end()))
+                    self.literals.setdefault(name, []).append((kind, lit.start(), lit.end()))
+        # the variables changed element by element (x[i] = …), each name at a word's start: one pass
+        self.subscripted = set(_SUBSCRIPTED.findall(self.code))
         self.uses: dict[str, list] = {}  # variable → [(tool, user, hint, line)]
         self.through: dict[str, str] = {}  # variable → how a motion reaches it through a computation
         self.offsets: dict[str, list] = {}  # variable → the motions that reach it through a literal offset
@@ -99,8 +108,7 @@ class _Reader:
         return f"set_tcp line {self.lines.of(self.tcps[before[-1]][0])}" if before else None
 
     def changed(self, name: str) -> bool:
-        return self.assignments.get(name, 0) > 1 or re.search(r"\b" + re.escape(name) + r"\s*\[[^\]]*\]\s*=(?!=)",
-                                                              self.code) is not None
+        return self.assignments.get(name, 0) > 1 or name in self.subscripted
 
     def target(self, kind: str, start: int, end: int, name: str, line: int) -> Target:
         inner = self.code[start:end]
