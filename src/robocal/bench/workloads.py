@@ -551,6 +551,110 @@ def w7_command_line(repeats: int = 3, n: int = 10_000) -> list[Row]:
                 note="median of paired runs")]
 
 
+def _taught(robot_name: str, n: int, seed: int):
+    """A robot, joints (n, 6) taught at random inside its limits, their poses and configuration facts."""
+    from ..inverse.configuration import arm_configuration
+
+    robot = load_robot(robot_name)
+    lim = robot.limits + np.radians([10.0, -10.0])
+    q = np.random.default_rng(seed).uniform(lim[:, 0], lim[:, 1], (n, robot.n_joints))
+    arm = arm_configuration(robot, q)
+    facts = [{"front": a, "elbow": b, "lower": c} for a, b, c in zip(arm.front.tolist(), arm.elbow.tolist(),
+                                                                      arm.lower.tolist())]
+    return robot, robot.to_controller(q), robot.fk(q), facts
+
+
+def program_files(language: str, n: int, seed: int = 0) -> dict[str, str]:
+    """File name → text of a program of ``n`` Cartesian targets in ``language`` (``rapid``: IRB 120,
+    :func:`rapid_module`; ``krl``: KR5 arc, E6POS in the .dat reached by PTP/LIN; ``fanuc``: LR Mate 200iD,
+    P[n] of /POS; ``urscript``: UR10, PolyScope's waypoint pairs ``W_p``/``W_q``, movel and movej through
+    get_inverse_kin), each target with its configuration data."""
+    from ..math.so3 import matrix_to_rpy
+
+    if language == "rapid":
+        return {"cell.mod": rapid_module(n, seed)}
+    if language == "krl":
+        from ..filtering.krl import encode
+
+        robot, qc, T, facts = _taught("kr5-arc", n, seed)
+        cba = np.degrees(matrix_to_rpy(T[:, :3, :3]))
+        src, dat = ["DEF cell()", "  BAS(#INITMOV, 0)", "  BAS(#TOOL, 0)", "  BAS(#BASE, 0)"], ["DEFDAT cell"]
+        for i in range(n):
+            st = encode(qc[i], facts[i], {"S": 0, "T": 0})
+            src.append(f"  {'PTP' if i % 2 else 'LIN'} XP{i + 1}")
+            dat.append(f"  DECL E6POS XP{i + 1}={{X {T[i, 0, 3]:.3f},Y {T[i, 1, 3]:.3f},Z {T[i, 2, 3]:.3f},"
+                       f"A {cba[i, 2]:.4f},B {cba[i, 1]:.4f},C {cba[i, 0]:.4f},S {st['S']},T {st['T']},E1 0.0,E2 0.0,"
+                       "E3 0.0,E4 0.0,E5 0.0,E6 0.0}")
+        return {"cell.src": "\r\n".join(src + ["END", ""]), "cell.dat": "\r\n".join(dat + ["ENDDAT", ""])}
+    if language == "fanuc":
+        from ..filtering.fanuc import encode
+
+        robot, qc, T, facts = _taught("lrmate200id", n, seed)
+        wpr = np.degrees(matrix_to_rpy(T[:, :3, :3]))
+        lines = ["/PROG  CELL", "/ATTR", "/MN"]
+        lines += [f"{i + 1:4d}:{'J' if i % 2 else 'L'} P[{i + 1}] {'100%' if i % 2 else '500mm/sec'} FINE    ;"
+                  for i in range(n)]
+        lines.append("/POS")
+        for i in range(n):
+            c = encode(qc[i], facts[i], {"flip": "N", "elbow": "U", "side": "T", "t1": 0, "t4": 0, "t6": 0})
+            lines += [f"P[{i + 1}]{{", "   GP1:",
+                      f"\tUF : 0, UT : 0,\t\tCONFIG : '{c['flip']} {c['elbow']} {c['side']}, {c['t1']}, {c['t4']}, "
+                      f"{c['t6']}',",
+                      f"\tX = {T[i, 0, 3]:9.3f}  mm,\tY = {T[i, 1, 3]:9.3f}  mm,\tZ = {T[i, 2, 3]:9.3f}  mm,",
+                      f"\tW = {wpr[i, 0]:9.3f} deg,\tP = {wpr[i, 1]:9.3f} deg,\tR = {wpr[i, 2]:9.3f} deg", "};"]
+        return {"cell.ls": "\r\n".join(lines + ["/END", ""])}
+    if language == "urscript":
+        from scipy.spatial.transform import Rotation
+
+        robot, qc, T, _ = _taught("ur10", n, seed)
+        rv = Rotation.from_matrix(T[:, :3, :3]).as_rotvec()
+        lines = ["def cell():", "  set_tcp(p[0.0,0.0,0.0,0.0,0.0,0.0])"]
+        for i in range(n):
+            p = T[i, :3, 3] / 1000.0
+            lines.append(f"  global W{i}_p=p[{p[0]:.12f}, {p[1]:.12f}, {p[2]:.12f}, {rv[i, 0]:.12f}, {rv[i, 1]:.12f}, "
+                         f"{rv[i, 2]:.12f}]")
+            lines.append(f"  global W{i}_q=[{', '.join(f'{v:.12f}' for v in qc[i])}]")
+        lines += [f"  movej(get_inverse_kin(W{i}_p, qnear=W{i}_q), a=1.4, v=1.05)" if i % 2 else
+                  f"  movel(W{i}_p, a=1.2, v=0.25)" for i in range(n)]
+        return {"cell.script": "\n".join(lines + ["end", ""])}
+    raise ValueError(f"no program generator for {language!r}")
+
+
+def w7_languages(repeats: int = 3, n: int = 10_000) -> list[Row]:
+    """W7's reading in each language: a program of ``n`` Cartesian targets (:func:`program_files`) read as
+    ``robocal filter`` reads it (the cyclic collector held off), the median of ``repeats``; the time
+    a target beside RAPID's.  (URScript's reading was quadratic in the program's length until it was
+    measured here.)"""
+    import gc
+    import tempfile
+
+    from ..filtering import load_program
+
+    rows, rapid = [], None
+    with tempfile.TemporaryDirectory() as d:
+        for language in ("rapid", "krl", "fanuc", "urscript"):
+            files = program_files(language, n)
+            for name, text in files.items():
+                (Path(d) / name).write_text(text)
+            path = Path(d) / next(iter(files))
+            was = gc.isenabled()
+            gc.disable()
+            try:
+                times = []
+                for _ in range(repeats):
+                    t = time.perf_counter()
+                    program = load_program(path)
+                    times.append(time.perf_counter() - t)
+            finally:
+                if was:
+                    gc.enable()
+            s = statistics.median(times)
+            rapid = rapid or s
+            rows.append(Row(f"W7 read {n} targets, {language}", s, "s", "—", None,
+                            note=f"{len(program.targets)} targets; {s / rapid:.2f}× RAPID's"))
+    return rows
+
+
 #: Universal Robots' published UR5 table (a, α, θ, d in mm and deg): the arm of W8
 UR5_TOML = 'name = "UR5"\nconvention = "dh"\n' + "".join(
     f"[[joint]]\na = {a}\nalpha = {alpha}\ntheta = 0.0\nd = {d}\nlimits = [-360.0, 360.0]\n"
@@ -637,8 +741,8 @@ def run_all(quick: bool = False, say: Callable[[str], None] = lambda s: None) ->
     say("running W1 beside the numpy path, quiet, and as whole processes")
     rows += w1_naive_ratio(3 if quick else 5) + w1_first_run(2 if quick else 3) + w1_whole_process(3 if quick else 5)
     if not quick:
-        say("running W7 on the command line beside evaluate")
-        rows += w7_command_line(3)
+        say("running W7 on the command line beside evaluate, and its reading in each language")
+        rows += w7_command_line(3) + w7_languages(3)
     with busy_cores() as busy:
         say(f"running W1{'' if quick else ' and W6'} with {busy.n} busy processes in the background")
         rows += w1_naive_ratio(3 if quick else 5, label=f" ({busy.n} busy)", target=0.10)
