@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import math
 import re
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -300,6 +301,6 @@ def write(t: Target, pose: np.ndarray | None, q: np.ndarray | None, config: dict
 
 LANGUAGE = Language(
     name="fanuc", title="FANUC TP (.ls)", suffixes=(".ls",), read=read, write=write, request=request, encode=encode,
-    angle_keys=ANGLE_KEYS,
+    write_angles=partial(corrected_angles, keys=ANGLE_KEYS),
     units="mm, deg", orientation="R = Rz(R)·Ry(P)·Rx(W)",
     frames="UF and UT numbers of each position; their values given with --user-frame N=… and --tool N=…")

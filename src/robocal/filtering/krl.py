@@ -23,6 +23,7 @@ set when axis i + 1 is negative.  Higher bits are kept as written.
 from __future__ import annotations
 
 import re
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -392,6 +393,7 @@ def write(t: Target, pose: np.ndarray | None, q: np.ndarray | None, config: dict
 
 LANGUAGE = Language(
     name="krl", title="KUKA KRL", suffixes=(".src", ".dat"), read=read, write=write, request=request,
-    encode=encode, units="mm, deg", orientation="R = Rz(A)·Ry(B)·Rx(C)", angle_keys=ANGLE_KEYS,
+    encode=encode, units="mm, deg", orientation="R = Rz(A)·Ry(B)·Rx(C)",
+    write_angles=partial(corrected_angles, keys=ANGLE_KEYS),
     frames="$TOOL/$BASE: TOOL_DATA[n], BASE_DATA[n] from $config.dat, BAS(#TOOL|#BASE, n), FDAT_ACT, inline frames",
     stamp=(r"^\s*DEF(?:FCT)?\b[^\n]*", ";"))

@@ -55,10 +55,10 @@ class Language:
     #: a stamp's place and comment mark: (the line after which it goes, as a regular expression; the mark
     #: that begins a comment line), or None where a comment line would renumber the program (FANUC)
     stamp: tuple[str, str] | None = None
-    #: a Cartesian target's fields (a, b, c) of R = Rz(c)·Ry(b)·Rx(a) where the language writes fixed angles:
-    #: its write then takes ``angles`` = ((a, b, c), decimals), made for all targets at once
-    #: (:func:`corrected_angles`)
-    angle_keys: tuple[str, str, str] | None = None
+    #: the orientation numbers of many Cartesian targets at once, [(target, pose)] → one value a target (made
+    #: in batched calls: one at a time, numpy's and scipy's small-array overhead was most of the writing),
+    #: which write takes as ``angles``; None where write makes its own
+    write_angles: Callable | None = None
 
 
 def languages() -> dict[str, Language]:
@@ -157,11 +157,20 @@ def quaternion(R: np.ndarray, original: np.ndarray) -> np.ndarray:
     return -q if q @ original < 0 else q
 
 
-def rotation_vector(R: np.ndarray, original: np.ndarray) -> np.ndarray:
-    """The rotation vector of R nearest the original's (a turn of θ or of θ − 2π the other way)."""
+def rotation_vectors(items: list, keys: tuple[str, str, str]) -> list[np.ndarray]:
+    """Per (target, pose) of ``items``, the rotation vector of the pose's rotation nearest the target's own
+    fields ``keys`` (a turn of θ, or of θ − 2π the other way), the rotations converted in one batched call
+    (the same bits as one at a time)."""
     from scipy.spatial.transform import Rotation  # only URScript's targets: its import is a large share of a run
 
-    r = Rotation.from_matrix(R).as_rotvec()
+    if not items:
+        return []
+    r = Rotation.from_matrix(np.array([pose[:3, :3] for _, pose in items])).as_rotvec()
+    return [_nearest_turn(v, np.array([t.fields[k].value for k in keys])) for (t, _), v in zip(items, r)]
+
+
+def _nearest_turn(r: np.ndarray, original: np.ndarray) -> np.ndarray:
+    """The rotation vector r, or the same rotation turned θ − 2π the other way, whichever is nearer the original."""
     angle = np.linalg.norm(r)
     if angle > 1e-12:
         other = r * (1.0 - 2.0 * math.pi / angle)

@@ -19,13 +19,14 @@ reach through any other computation is flagged.
 from __future__ import annotations
 
 import re
+from functools import partial
 from pathlib import Path
 
 import numpy as np
 
 from ..exceptions import InputError
 from ..math.se3 import homogeneous
-from .language import DECIMALS, Language, rotation_vector, set_number
+from .language import DECIMALS, Language, rotation_vectors, set_number
 from .program import (
     SPACED_NUMBER,
     Field,
@@ -52,6 +53,7 @@ _BRACKET = re.compile(r"[()\[\]]")
 #: a variable assigned element by element, ``x[i] = …`` (a look-ahead: at every word's start, overlapping)
 _SUBSCRIPTED = re.compile(r"\b(?=([A-Za-z_]\w*)\s*\[[^\]]*\]\s*=(?!=))")
 POSE_KEYS = ("x", "y", "z", "rx", "ry", "rz")
+ROTATION_KEYS = POSE_KEYS[3:]
 
 
 def _call_arguments(code: str, open_paren: int) -> tuple[list[str], list[int]]:
@@ -102,6 +104,7 @@ class _Reader:
         self.uses: dict[str, list] = {}  # variable → [(tool, user, hint, line)]
         self.through: dict[str, str] = {}  # variable → how a motion reaches it through a computation
         self.offsets: dict[str, list] = {}  # variable → the motions that reach it through a literal offset
+        self.turning: list = []  # (pose target, its rotation vector): their rotations made at the end, at once
 
     def tool_at(self, index: int) -> str | None:
         before = [i for i, (at, _) in enumerate(self.tcps) if at < index]
@@ -117,9 +120,11 @@ class _Reader:
         if len(f) != 6:
             raise InputError(f"{name}: expected six numbers in {body.strip()!r}", source=self.source,
                              where=f"line {line}")
-        if kind == "pose":
-            p, R = _pose_of([x.value for x in f])
-            return Target(name, line, "pose", dict(zip(POSE_KEYS, f)), p, R)
+        if kind == "pose":  # its rotation made with every other's at the end of the reading (the same bits)
+            v = np.array([x.value for x in f])
+            t = Target(name, line, "pose", dict(zip(POSE_KEYS, f)), v[:3] * 1000.0, None)
+            self.turning.append((t, v[3:]))
+            return t
         return Target(name, line, "joints", {f"q{i + 1}": x for i, x in enumerate(f)}, q=np.array([x.value for x in f]))
 
     def flag(self, what: str, index: int, why: str) -> None:
@@ -236,6 +241,12 @@ class _Reader:
             else:
                 t.tool, t.user = next(iter(frames))
             self.program.targets.append(t)
+        if self.turning:
+            from scipy.spatial.transform import Rotation
+
+            turned = Rotation.from_rotvec(np.array([v for _, v in self.turning])).as_matrix()
+            for (t, _), R in zip(self.turning, turned):
+                t.rotation = R
         self.program.targets.sort(key=in_text_order)
         if not self.program.targets:
             raise InputError("no targets found (p[…] poses or joint lists of motions)", source=self.source)
@@ -266,7 +277,8 @@ def encode(q: np.ndarray, facts: dict | None, config: dict) -> dict:
             "wrist": word[int(np.sign(round(q[4], 12)))]}
 
 
-def write(t: Target, pose: np.ndarray | None, q: np.ndarray | None, config: dict) -> list[tuple[Field, str]]:
+def write(t: Target, pose: np.ndarray | None, q: np.ndarray | None, config: dict,
+          angles: np.ndarray | None = None) -> list[tuple[Field, str]]:
     f, out = t.fields, []
     if t.kind == "joints":
         for i in range(len(q)):
@@ -274,7 +286,7 @@ def write(t: Target, pose: np.ndarray | None, q: np.ndarray | None, config: dict
         return out
     for k, v in zip(("x", "y", "z"), pose[:3, 3] / 1000.0):
         set_number(out, f[k], float(v), DECIMALS["ur"])
-    r = rotation_vector(pose[:3, :3], np.array([f[k].value for k in ("rx", "ry", "rz")]))
+    r = angles if angles is not None else rotation_vectors([(t, pose)], ROTATION_KEYS)[0]
     for k, v in zip(("rx", "ry", "rz"), r):
         set_number(out, f[k], float(v), DECIMALS["ur"])
     return out
@@ -283,5 +295,6 @@ def write(t: Target, pose: np.ndarray | None, q: np.ndarray | None, config: dict
 LANGUAGE = Language(
     name="urscript", title="URScript", suffixes=(".script", ".urscript"), read=read, write=write, request=request,
     encode=encode, units="m, rad", orientation="rotation vector (axis × angle, rad)",
+    write_angles=partial(rotation_vectors, keys=ROTATION_KEYS),
     frames="set_tcp(p[…]); pose_trans(FEATURE, target) with FEATURE a pose variable",
     stamp=(r"^\s*def\s+\w+\s*\([^\n]*", "#"))

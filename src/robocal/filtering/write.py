@@ -4,16 +4,16 @@
 from __future__ import annotations
 
 from .correct import Correction
-from .language import Language, corrected_angles
+from .language import Language
 from .program import Program, rewrite
 
 
 def target_changes(language: Language, corrections: list[Correction]) -> list[list | None]:
     """Each corrected target's changes of its numbers (None for a target left as it was)."""
-    angles: dict[int, tuple] = {}
-    if language.angle_keys is not None:
+    angles: dict[int, object] = {}
+    if language.write_angles is not None:
         poses = [c for c in corrections if c.corrected and c.target.kind == "pose"]
-        angles = dict(zip(map(id, poses), corrected_angles([(c.target, c.pose) for c in poses], language.angle_keys)))
+        angles = dict(zip(map(id, poses), language.write_angles([(c.target, c.pose) for c in poses])))
     out: list[list | None] = []
     for c in corrections:
         if not c.corrected:
