@@ -241,9 +241,9 @@ def test_urscript_subscripted_names_and_call_arguments_are_the_per_name_searches
 
 
 def test_rotation_vectors_made_together_are_each_targets_own():
-    """URScript's written rotation vectors, converted for all targets at once, against scipy's conversion of
-    each target's own matrix and the turn nearest its written vector, as write made them one at a time:
-    rotations near a half turn included, where the nearer of the two spellings flips."""
+    """URScript's written rotation vectors, converted for all targets at once, against each target converted
+    alone, as write made them one at a time: rotations near a half turn included, where the nearer of the
+    two spellings flips."""
     import math
 
     from scipy.spatial.transform import Rotation
@@ -255,19 +255,14 @@ def test_rotation_vectors_made_together_are_each_targets_own():
     R = Rotation.random(1500, random_state=rng).as_matrix()
     R[:200] = Rotation.from_rotvec(rng.normal(size=(200, 3)) * 0.01 + np.array([math.pi - 1e-3, 0.0, 0.0])).as_matrix()
     written = rng.normal(size=(1500, 3)) * 2.0
-    targets = [Target(f"w{i}", i, "pose", {k: Field(0, 1, f"{v:.6f}") for k, v in zip(("rx", "ry", "rz"), w)})
+    keys = ("rx", "ry", "rz")
+    targets = [Target(f"w{i}", i, "pose", {k: Field(0, 1, f"{v:.6f}") for k, v in zip(keys, w)})
                for i, w in enumerate(written)]
     poses = [np.block([[M, np.zeros((3, 1))], [np.zeros((1, 3)), np.ones((1, 1))]]) for M in R]
-
-    def one(M, original):
-        r = Rotation.from_matrix(M).as_rotvec()
-        angle = np.linalg.norm(r)
-        if angle > 1e-12:
-            other = r * (1.0 - 2.0 * math.pi / angle)
-            if np.linalg.norm(other - original) < np.linalg.norm(r - original):
-                return other
-        return r
-
-    together = rotation_vectors(list(zip(targets, poses)), ("rx", "ry", "rz"))
-    for t, M, r in zip(targets, R, together):
-        assert np.array_equal(r, one(M, np.array([t.fields[k].value for k in ("rx", "ry", "rz")])))
+    together = rotation_vectors(list(zip(targets, poses)), keys)
+    alone = [rotation_vectors([(t, pose)], keys)[0] for t, pose in zip(targets, poses)]
+    assert all(np.array_equal(a, b) for a, b in zip(together, alone))
+    flipped = sum(np.linalg.norm(r) > math.pi for r in together)
+    assert 0 < flipped < len(together)  # both spellings taken
+    for r, M in zip(together, R):
+        np.testing.assert_allclose(Rotation.from_rotvec(r).as_matrix(), M, atol=1e-9)
