@@ -372,8 +372,8 @@ def check(program: Program, reread: Program, language: Language, corrections: li
             T_old = homogeneous(np.stack([corrections[i].target.rotation for i in idx]),
                                 np.stack([corrections[i].target.position for i in idx]))
             goals = cell.goal([u for _, u in poses], T_new)
-            start = np.where(np.isnan(hints[idx]), np.stack([nominal.from_controller(corrections[i].q_nominal)
-                                                              for i in idx]), hints[idx])
+            start = np.where(np.isnan(hints[idx]), nominal.from_controller(np.stack([corrections[i].q_nominal
+                                                                                     for i in idx])), hints[idx])
             q, status, _, _ = controller_joints(cell.nominal, goals, start, [language.request(t) for t in new], seed)
             q = np.where(np.isfinite(q), q, 0.0)
             reached.append((idx, cell.accurate.fk(q), np.array([s == "ok" for s in status])))
