@@ -184,7 +184,7 @@ def read(path: Path, frames_file: Path | None = None) -> Program:
     if not program.targets:
         raise InputError("no targets found (positions P[n] of a /POS section)", source=source)
     program.targets.sort(key=lambda t: t.line)
-    turn_by_angles(program.targets, ("W", "P", "R"))
+    turn_by_angles(program.targets, ANGLE_KEYS)
     for t in program.targets:
         for kind, name in (("tool", t.tool), ("user", t.user)):
             if name is not None and name != "0":

@@ -311,7 +311,7 @@ def read(path: Path, frames_file: Path | None = None) -> Program:
     _parse(text, 0, str(src), program, fdats, uses, _State(), types)
     if dat_text is not None:
         _parse(dat_text, 1, str(dat), program, fdats, uses, _State(), types)
-    turn_by_angles(program.targets, ("C", "B", "A"))  # R = Rz(A)·Ry(B)·Rx(C)
+    turn_by_angles(program.targets, ANGLE_KEYS)  # R = Rz(A)·Ry(B)·Rx(C)
     declared = {t.name.upper() for t in program.targets}
     undeclared = [(name, used) for name, used in uses.items() if not name.startswith("#") and name not in declared]
     if undeclared and dat_text is None:
