@@ -31,9 +31,10 @@ class Language:
     """One program language.
 
     read(path, frames_file) → :class:`~.program.Program` (frames_file: a controller's file of
-    frames given on the command line, or None); write(target, pose, q, config) → the changes of
-    a corrected target's numbers (pose: 4×4 mm in its user frame, for a Cartesian target; q: the
-    controller's joints, rad, for a joint target; config: as :attr:`encode` gives it);
+    frames given on the command line, or None); write(target, pose, q, config[, angles]) → the
+    changes of a corrected target's numbers (pose: 4×4 mm in its user frame, for a Cartesian target;
+    q: the controller's joints, rad, for a joint target; config: as :attr:`encode` gives it; angles:
+    its orientation numbers from :attr:`write_angles`, where the language has it);
     request(target) → what its configuration data say of its solution, or None; encode(q,
     facts, config) → its configuration data at the controller's joints q (rad) with the arm's
     facts (``front``, ``elbow``, ``lower``: ±1, 0 on a boundary, where the target's own ``config``
