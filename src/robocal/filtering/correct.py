@@ -107,14 +107,11 @@ def _plain(config: dict) -> dict:
     return {k: (int(v) if isinstance(v, (int, np.integer)) else v) for k, v in config.items()}
 
 
-def _facts(arm, i: int) -> dict | None:
-    return None if arm is None else {k: int(getattr(arm, k)[i]) for k in ("front", "elbow", "lower")}
-
-
-def _facts_rows(arm) -> list[dict | None]:
-    """:func:`_facts` of every row of ``arm`` (None: an arm whose facts are not defined)."""
+def _facts_rows(arm, n: int) -> list[dict | None]:
+    """Each of the n rows' configuration facts (``front``, ``elbow``, ``lower``) as Python ints, None for
+    every row of an arm whose facts are not defined (``arm`` None)."""
     if arm is None:
-        return []
+        return [None] * n
     return [{"front": a, "elbow": b, "lower": c} for a, b, c in zip(arm.front.tolist(), arm.elbow.tolist(),
                                                                      arm.lower.tolist())]
 
@@ -270,11 +267,11 @@ def _poses(program: Program, language: Language, cell: Cell, members, hints, see
     J_nom, J_acc = nominal.to_controller(q_nom[ok]), nominal.to_controller(q_acc)
     moved_deg = np.degrees(np.max(np.abs(q_acc - q_nom[ok]), axis=1))
     # per target, Python values taken once (ten thousand targets: numpy's scalars a row cost more than the rest)
-    facts_acc, singular = _facts_rows(arm_acc), singular.tolist()
+    facts_nom, facts_acc, singular = _facts_rows(arm_nom, len(ok)), _facts_rows(arm_acc, len(ok)), singular.tolist()
     mm_l, deg_l, joints_l = moved_mm.tolist(), turned_deg.tolist(), moved_deg.tolist()
     for j, k in enumerate(ok):
         t, i = targets[k], idx[k]
-        before = t.config or language.encode(J_nom[j], _facts(arm_nom, j), {})
+        before = t.config or language.encode(J_nom[j], facts_nom[j], {})
         common = dict(q_nominal=J_nom[j], config_before=before, tool=t.tool, user=t.user, tcp=cell.label)
         st = "singular" if singular[j] and sol.status[j] in ("ok", "branch") else sol.status[j]
         # (a Cartesian target's joints are the controller's to find: near a wrist singularity its own
@@ -285,7 +282,7 @@ def _poses(program: Program, language: Language, cell: Cell, members, hints, see
             continue
         out[i] = Correction(t, "ok", "corrected", pose=new_prog[j], q=J_acc[j], moved_mm=mm_l[j],
                             turned_deg=deg_l[j], joints_deg=joints_l[j],
-                            config_after=language.encode(J_acc[j], facts_acc[j] if facts_acc else None, t.config),
+                            config_after=language.encode(J_acc[j], facts_acc[j], t.config),
                             offsets=_offset_motions(cell, users[k], T_prog[k], new_prog[j], q_acc[j], q_nom[k],
                                                     t.offsets) if t.offsets else [], **common)
     return out

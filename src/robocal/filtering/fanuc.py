@@ -31,7 +31,7 @@ from ..exceptions import InputError
 from ..inverse.configuration import TOLERANCE_RAD
 from ..inverse.solve import Request
 from .language import DECIMALS, Language, corrected_angles, set_number, set_text
-from .program import NUMBER, Field, Lines, Program, ProgramFile, Target, read_file, turn_by_angles
+from .program import NUMBER, Field, Lines, Program, ProgramFile, Target, field_of, read_file, turn_by_angles
 
 _POSITION = re.compile(r"^P\[(\d+)(?::\s*\"?([^\]\"]*)\"?)?\]\s*\{(.*?)\};", re.S | re.M)
 _GROUP = re.compile(r"\bGP(\d+)\s*:")
@@ -194,9 +194,6 @@ def read(path: Path, frames_file: Path | None = None) -> Program:
     return program
 
 
-_field = tuple.__new__
-
-
 def _position(number: str, name: str, body: str, offset: int, line: int, source: str, used: list) -> Target:
     """One position of /POS as a target: its group 1's pose or joints, its frames, what its motions
     say of it.  An untaught position (asterisks), one with no group 1 (another group's alone) and
@@ -212,8 +209,7 @@ def _position(number: str, name: str, body: str, offset: int, line: int, source:
     if _UNTAUGHT.search(gp1):
         return Target(name, line, "pose", {}, unsupported="untaught: the controller prints its numbers as asterisks "
                       "(a motion that reaches it stops the program there)")
-    values = {v.group(1): _field(Field, (gp1_at + v.start(2), gp1_at + v.end(2), v.group(2)))
-              for v in _VALUE.finditer(gp1)}  # (tuple.__new__: Field's own __new__ is a Python call, per number)
+    values = {v.group(1): field_of((gp1_at + v.start(2), gp1_at + v.end(2), v.group(2))) for v in _VALUE.finditer(gp1)}
     if all(k in values for k in POSE_KEYS):
         cfg_fields, config = _config_fields(gp1, gp1_at)
         p = np.array([values[k].value for k in "XYZ"])  # (its rotation: turn_by_angles, once all are read)

@@ -40,6 +40,7 @@ from .program import (
     Program,
     ProgramFile,
     Target,
+    field_of,
     keyword_matches,
     line_of,
     read_file,
@@ -95,13 +96,10 @@ def krl_spelled(value: int, like: str) -> str:
     return str(value)
 
 
-_field = tuple.__new__
-
-
 def _items(body: str, offset: int) -> dict[str, Field]:
     """KEY value pairs of an aggregate body (an optional ``TYPE:`` prefix skipped)."""
-    return {m.group(1).upper(): _field(Field, (offset + m.start(2), offset + m.end(2), m.group(2)))
-            for m in _ITEM.finditer(body)}  # (tuple.__new__: Field's own __new__ is a Python call, per number)
+    return {m.group(1).upper(): field_of((offset + m.start(2), offset + m.end(2), m.group(2)))
+            for m in _ITEM.finditer(body)}
 
 
 def pose_matrix(f: dict[str, Field]) -> tuple[np.ndarray, np.ndarray]:

@@ -43,6 +43,7 @@ from .program import (
     ProgramFile,
     Target,
     blank_comments,
+    field_of,
     fields_in,
     in_text_order,
     keyword_matches,
@@ -237,7 +238,6 @@ _ROBTARGET_FIELDS = re.compile(r"\[\s*" + _CAPTURED_LIST(3) + r"\s*,\s*" + _CAPT
 _JOINTTARGET_FIELDS = re.compile(r"\[\s*" + _CAPTURED_LIST(6) + r"\s*,\s*" + _LIST(6) + r"\s*\]")
 
 
-_field = tuple.__new__
 #: where a robtarget or jointtarget can begin: a bracket that opens another
 _NESTED = re.compile(r"\[(?=\s*\[)")
 
@@ -256,9 +256,9 @@ def _targets(code: str, program: Program, spans: list, uses: dict, lines: Lines)
         # both begin "[[" (spaces between); where a robtarget's three numbers stand, six cannot
         found = pattern.finditer(code) if kind == "pose" else matches_at(pattern, code, (
             i for i in (m.start() for m in _NESTED.finditer(code)) if i not in robtargets))
-        for m in found:  # (tuple.__new__: Field's own __new__ is a Python call, per number)
+        for m in found:
             texts = m.groups()
-            items = dict(zip(keys, [_field(Field, (a, b, s)) for (a, b), s in zip(m.regs[1:], texts)]))
+            items = dict(zip(keys, [field_of((a, b, s)) for (a, b), s in zip(m.regs[1:], texts)]))
             values = list(map(float, texts))
             at = m.start()
             decl = declarations.get(at)
