@@ -213,7 +213,13 @@ def test_positions_skip_the_orientation_outputs_and_equal_the_whole_pose_s(rng, 
         robot = load_robot("ur10").replace(residual=correction)
         whole = robot.fk(fresh)
         np.testing.assert_array_equal(robot.positions(fresh), whole[:, :3, 3])
-        assert not np.array_equal(whole[:, :3, :3], robot.fk(fresh, rotations=False)[:, :3, :3])
+        # the rotations it would give without the orientation outputs are NaN, never a plausible wrong one
+        assert np.isnan(robot.fk(fresh, rotations=False)[:, :3, :3]).all() == (correction.outputs == 6)
+    # a correction of positions alone leaves the rotations as they are: the whole pose, either way
+    three = TreeResidual(ensembles[:3], q, np.full(6, 1.0), 0.5, inside=0.01, prior=0.09,
+                         importance=np.full((3, 6), 1 / 6), taken=np.ones(6))
+    robot = load_robot("ur10").replace(residual=three)
+    np.testing.assert_array_equal(robot.fk(fresh, rotations=False), robot.fk(fresh))
     walked = []
     monkeypatch.setattr(Ensemble, "predict", lambda self, X, backend="auto": walked.append(self) or np.zeros(len(X)))
     load_robot("ur10").replace(residual=trees).positions(fresh)

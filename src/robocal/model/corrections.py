@@ -66,7 +66,7 @@ class Stacked:
         return np.maximum(self.trees.weight(q), self.process.weight(q))
 
     def correct(self, q, R, p, base_rotation, rotations: bool = True):
-        return apply_correction(self.predict(q, positions=not rotations), self.axes, R, p, base_rotation, rotations)
+        return apply_correction(self, q, R, p, base_rotation, rotations)
 
     def summary(self) -> dict:
         return {"kind": "gradient-boosted trees, then a gaussian process on what they leave",

@@ -53,14 +53,18 @@ def rbf(a: np.ndarray, b: np.ndarray, length_scales: np.ndarray, amplitude: floa
     return amplitude * np.exp(-0.5 * np.maximum(sq, 0.0))
 
 
-def apply_correction(d: np.ndarray, axes: np.ndarray, R: np.ndarray, p: np.ndarray, base_rotation: np.ndarray,
+def apply_correction(model, q: np.ndarray, R: np.ndarray, p: np.ndarray, base_rotation: np.ndarray,
                      rotations: bool = True):
-    """p ← p + R_b R_o δp and, with orientations, R ← Exp(R_b R_o δr) R (see :mod:`robocal.model.residual`);
-    ``rotations`` False: R as it came (the positions alone are wanted)."""
-    turn = base_rotation @ axes
+    """The pose (R (m, 3, 3), p (m, 3) mm, measuring frame) with a correction's δ = ``model.predict(q)``
+    added: p ← p + R_b R_o δp and, with orientations, R ← Exp(R_b R_o δr) R (see
+    :mod:`robocal.model.residual`).  ``rotations`` False: the positions alone are worked out (the
+    orientation outputs are not predicted), and a correction that has orientation outputs returns R
+    as NaN: a rotation without them would be a plausible wrong one."""
+    d = model.predict(q, positions=not rotations)
+    turn = base_rotation @ model.axes
     p = p + d[:, :3] @ turn.T
-    if d.shape[1] == 6 and rotations:
-        R = exp_so3(d[:, 3:] @ turn.T) @ R
+    if d.shape[1] == 6:
+        R = exp_so3(d[:, 3:] @ turn.T) @ R if rotations else np.full_like(R, np.nan)
     return R, p
 
 
@@ -214,7 +218,7 @@ class ResidualModel:
         """The pose (R (m, 3, 3), p (m, 3) mm, measuring frame) with the correction at q added;
         base_rotation (3, 3): the robot base's orientation in the measuring frame; ``rotations``
         False: p alone is corrected (the orientation outputs are not worked out)."""
-        return apply_correction(self.predict(q, positions=not rotations), self.axes, R, p, base_rotation, rotations)
+        return apply_correction(self, q, R, p, base_rotation, rotations)
 
     def summary(self) -> dict:
         """What the result JSON says of the model (the model itself goes to a file of its own)."""

@@ -157,8 +157,8 @@ class Robot:
         robot's joint terms (on the poses' :class:`~robocal.model.terms.JointInputs`: torques,
         payload, directions of motion, time, where they need them) and its residual correction
         (:mod:`robocal.model.residual`).  A tree's rows name their chain (``chains``).  ``rotations``
-        False: the residual correction's orientation outputs are not worked out, and the poses'
-        rotations lack them (what :meth:`positions` asks for)."""
+        False: the positions alone (what :meth:`positions` asks for): a residual correction's
+        orientation outputs are not worked out, and where it has them the rotations are NaN."""
         q = np.atleast_2d(np.asarray(q, float))
         qe = self.effective_joints(q, inputs)
         if self.tree is not None and chains is not None:  # a row without a target is on its chain's own tool

@@ -323,7 +323,7 @@ class TreeResidual:
                 rotations: bool = True):
         """The pose (R (m, 3, 3), p (m, 3) mm, measuring frame) with the correction at q added
         (``rotations`` False: p alone)."""
-        return apply_correction(self.predict(q, positions=not rotations), self.axes, R, p, base_rotation, rotations)
+        return apply_correction(self, q, R, p, base_rotation, rotations)
 
     def summary(self) -> dict:
         names = ["x", "y", "z", "rx", "ry", "rz"][: self.outputs]
