@@ -433,26 +433,34 @@ def w6_auto(repeats: int = 1, data: Path = UR10_DATA) -> list[Row]:
     ]
 
 
+def _taught(robot_name: str, n: int, seed: int, tool: np.ndarray | None = None):
+    """The controller's joints (n, 6) of poses a robot was taught at, at random 10° inside its limits,
+    the poses (with ``tool``, else the robot's own) and their configuration facts."""
+    from ..inverse.configuration import arm_configuration
+
+    robot = load_robot(robot_name)
+    lim = robot.limits + np.radians([10.0, -10.0])
+    q = np.random.default_rng(seed).uniform(lim[:, 0], lim[:, 1], (n, robot.n_joints))
+    arm = arm_configuration(robot, q)
+    facts = [{"front": a, "elbow": b, "lower": c} for a, b, c in zip(arm.front.tolist(), arm.elbow.tolist(),
+                                                                      arm.lower.tolist())]
+    return robot.to_controller(q), (robot if tool is None else robot.with_tool(tool)).fk(q), facts
+
+
 def rapid_module(n: int, seed: int = 0) -> str:
     """An IRB 120 module of ``n`` robtargets (tool ``gun``, 150 mm), taught at random joints inside
     the limits, each with its configuration data, reached by MoveL."""
-    from ..filtering.rapid import encode
-    from ..inverse.configuration import arm_configuration
-
-    robot = load_robot("irb120")
-    lim = robot.limits + np.radians([10.0, -10.0])
-    q = np.random.default_rng(seed).uniform(lim[:, 0], lim[:, 1], (n, 6))
-    tool = np.eye(4)
-    tool[2, 3] = 150.0
-    T = robot.with_tool(tool).fk(q)
-    arm = arm_configuration(robot, q)
     from scipy.spatial.transform import Rotation
 
+    from ..filtering.rapid import encode
+
+    tool = np.eye(4)
+    tool[2, 3] = 150.0
+    q, T, facts = _taught("irb120", n, seed, tool)
     quat = Rotation.from_matrix(T[:, :3, :3]).as_quat()
     lines = ["MODULE Cell", "  PERS tooldata gun:=[TRUE,[[0,0,150],[1,0,0,0]],[2,[0,0,50],[1,0,0,0],0,0,0]];"]
     for i in range(n):
-        facts = {k: int(getattr(arm, k)[i]) for k in ("front", "elbow", "lower")}
-        cf = encode(q[i], facts, {"cf1": 0, "cf4": 0, "cf6": 0, "cfx": 0})
+        cf = encode(q[i], facts[i], {"cf1": 0, "cf4": 0, "cf6": 0, "cfx": 0})
         x, y, z, w = quat[i]
         lines.append(f"  CONST robtarget p{i}:=[[{T[i, 0, 3]:.3f},{T[i, 1, 3]:.3f},{T[i, 2, 3]:.3f}],"
                      f"[{w:.8f},{x:.8f},{y:.8f},{z:.8f}],[{cf['cf1']},{cf['cf4']},{cf['cf6']},{cf['cfx']}],"
@@ -551,19 +559,6 @@ def w7_command_line(repeats: int = 3, n: int = 10_000) -> list[Row]:
                 note="median of paired runs")]
 
 
-def _taught(robot_name: str, n: int, seed: int):
-    """A robot, joints (n, 6) taught at random inside its limits, their poses and configuration facts."""
-    from ..inverse.configuration import arm_configuration
-
-    robot = load_robot(robot_name)
-    lim = robot.limits + np.radians([10.0, -10.0])
-    q = np.random.default_rng(seed).uniform(lim[:, 0], lim[:, 1], (n, robot.n_joints))
-    arm = arm_configuration(robot, q)
-    facts = [{"front": a, "elbow": b, "lower": c} for a, b, c in zip(arm.front.tolist(), arm.elbow.tolist(),
-                                                                      arm.lower.tolist())]
-    return robot, robot.to_controller(q), robot.fk(q), facts
-
-
 def program_files(language: str, n: int, seed: int = 0) -> dict[str, str]:
     """File name → text of a program of ``n`` Cartesian targets in ``language`` (``rapid``: IRB 120,
     :func:`rapid_module`; ``krl``: KR5 arc, E6POS in the .dat reached by PTP/LIN; ``fanuc``: LR Mate 200iD,
@@ -576,7 +571,7 @@ def program_files(language: str, n: int, seed: int = 0) -> dict[str, str]:
     if language == "krl":
         from ..filtering.krl import encode
 
-        robot, qc, T, facts = _taught("kr5-arc", n, seed)
+        qc, T, facts = _taught("kr5-arc", n, seed)
         cba = np.degrees(matrix_to_rpy(T[:, :3, :3]))
         src, dat = ["DEF cell()", "  BAS(#INITMOV, 0)", "  BAS(#TOOL, 0)", "  BAS(#BASE, 0)"], ["DEFDAT cell"]
         for i in range(n):
@@ -589,7 +584,7 @@ def program_files(language: str, n: int, seed: int = 0) -> dict[str, str]:
     if language == "fanuc":
         from ..filtering.fanuc import encode
 
-        robot, qc, T, facts = _taught("lrmate200id", n, seed)
+        qc, T, facts = _taught("lrmate200id", n, seed)
         wpr = np.degrees(matrix_to_rpy(T[:, :3, :3]))
         lines = ["/PROG  CELL", "/ATTR", "/MN"]
         lines += [f"{i + 1:4d}:{'J' if i % 2 else 'L'} P[{i + 1}] {'100%' if i % 2 else '500mm/sec'} FINE    ;"
@@ -606,7 +601,7 @@ def program_files(language: str, n: int, seed: int = 0) -> dict[str, str]:
     if language == "urscript":
         from scipy.spatial.transform import Rotation
 
-        robot, qc, T, _ = _taught("ur10", n, seed)
+        qc, T, _ = _taught("ur10", n, seed)
         rv = Rotation.from_matrix(T[:, :3, :3]).as_rotvec()
         lines = ["def cell():", "  set_tcp(p[0.0,0.0,0.0,0.0,0.0,0.0])"]
         for i in range(n):
