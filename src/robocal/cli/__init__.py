@@ -7,6 +7,6 @@ stderr and exit code 2.  Heavy modules are imported inside the commands, so ``ro
 --help`` starts fast.
 """
 
-from .app import app, main
+from .app import app, main, run
 
-__all__ = ["app", "main"]
+__all__ = ["app", "main", "run"]

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import sys
 from pathlib import Path
 
@@ -102,6 +103,31 @@ def main(argv: list[str] | None = None) -> int:
     return code
 
 
+def run() -> None:
+    """The ``robocal`` program (console script and ``python -m robocal``): :func:`main`, then the
+    process ends at once.
+
+    Tearing down the ~1200 modules a calibration imports (numba's, scipy's) takes 0.2–0.3 s
+    of a command's wall time and does nothing a finished command needs.  The exit handlers
+    still run, and stdout and stderr are flushed; where another thread is still alive, the
+    interpreter ends as usual, so that it is waited for.  ``main`` itself returns, for callers
+    in a process that goes on (tests, notebooks).
+    """
+    import atexit
+    import threading
+
+    code = main()
+    if any(t.is_alive() and not t.daemon for t in threading.enumerate() if t is not threading.main_thread()):
+        sys.exit(code)
+    atexit._run_exitfuncs()  # what Python's own exit runs first (logging's flush, finalizers)
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):  # a closed pipe: nothing more to say
+            pass
+    os._exit(code)
+
+
 #: where a command's JSON document goes to a file: ``--json PATH`` was its old spelling
 _JSON_FILE = {"compensate": "--summary", "filter": "--summary", "plan": "--summary", "iso9283": "--summary",
               "calibrate": "--out"}
@@ -124,16 +150,34 @@ def _old_spelling(argv: list[str]) -> str | None:
     return None
 
 
+def _narrowed(argv: list[str]) -> typer.Typer:
+    """The app with only the command that ``argv`` names, where it names one of the top level
+    first: building every command's parameters and help (the others' too) costs 30 ms of a
+    command that may take 0.5 s.  Anything else (``--help``, ``--version``, a group, a
+    misspelled command and its suggestions) gets the whole app."""
+    name = str(argv[0]) if argv else ""
+    info = next((c for c in app.registered_commands if c.name == name), None)
+    if info is None:
+        return app
+    import copy
+
+    one = copy.copy(app)  # the same settings, root callback (--version) and help
+    one.registered_commands, one.registered_groups = [info], []
+    return one
+
+
 def _run(argv: list[str] | None) -> int:
     old = _old_spelling([str(a) for a in (sys.argv[1:] if argv is None else argv)])
     if old is not None:
         print(f"robocal: usage error: {old}", file=sys.stderr)
         return 2
     try:
+        from .coercion import plain_coercion
         from .help import tidy
 
-        command = typer.main.get_command(app)
+        command = typer.main.get_command(_narrowed(sys.argv[1:] if argv is None else argv))
         tidy(command)  # every command's --help: panels, placeholders, texts as written
+        plain_coercion(command)
         result = command.main(args=argv, prog_name="robocal", standalone_mode=False)
     except InputError as exc:
         print(f"robocal: error: {one_line(exc.render(cli=True))}", file=sys.stderr)
