@@ -251,10 +251,45 @@ class worker_pool:
                           stacklevel=2)
             return [fn(item) for item in items]
 
+    def submit(self, fn, items) -> Pending:
+        """``map`` begun now and collected later (:meth:`Pending.result`): on the workers the pieces
+        start at once, ahead of any later ``map``'s, whose pieces then fill the cores they leave
+        idle; without workers they run here when collected.  Either way the results are ``map``'s."""
+        items = list(items)
+        if self._pool is None:
+            return Pending(self, fn, items, None)
+        import warnings
+        from concurrent.futures.process import BrokenProcessPool
+
+        try:
+            with warnings.catch_warnings():  # as in map
+                warnings.simplefilter("ignore", DeprecationWarning)
+                return Pending(self, fn, items, [self._pool.submit(fn, item) for item in items])
+        except BrokenProcessPool:
+            return Pending(self, fn, items, None)
+
     def __exit__(self, *exc):
         if self._pool is not None:
             self._pool.shutdown(wait=True, cancel_futures=True)
         return False
+
+
+class Pending:
+    """Pieces handed to :meth:`worker_pool.submit`: ``result()`` gives their results in order, as
+    ``map`` would (should a worker have died, ``map`` runs them here and says so)."""
+
+    def __init__(self, pool: worker_pool, fn, items: list, futures: list | None):
+        self.pool, self.fn, self.items, self.futures = pool, fn, items, futures
+
+    def result(self) -> list:
+        if self.futures is not None:
+            from concurrent.futures.process import BrokenProcessPool
+
+            try:
+                return [f.result() for f in self.futures]
+            except BrokenProcessPool:
+                pass
+        return self.pool.map(self.fn, self.items)
 
 
 #: the pieces run in this process, one after the other (see :class:`worker_pool`)

@@ -116,6 +116,40 @@ def test_worker_pool_gives_the_serial_results_in_order(monkeypatch):
         assert serial.map(_pid_and_square, range(3)) == [(os.getpid(), x * x) for x in range(3)]
 
 
+def _slow_square(x):
+    import time
+
+    time.sleep(0.3 if x == 0 else 0.0)
+    return os.getpid(), x * x, time.perf_counter()
+
+
+def test_submitted_pieces_start_first_and_give_map_s_results(monkeypatch):
+    """Pieces handed over with ``submit`` run on the workers ahead of a later ``map``, whose pieces
+    fill the core the slow one leaves; ``result()`` gives map's results in order, and without
+    workers (or with a worker dead) the same results, here."""
+    import robocal.backend as backend
+    from robocal.exceptions import RobocalWarning
+
+    monkeypatch.setattr(backend, "idle_cores", lambda now=False: 2)
+    with backend.worker_pool() as pool:
+        early = pool.submit(_slow_square, [0, 1])
+        later = pool.map(_pid_and_square, range(6))
+        mapped = time.perf_counter()  # the same monotonic clock as the workers' on Linux
+        got = early.result()
+        with pytest.raises(ValueError, match="piece"):
+            pool.submit(_fails, range(2)).result()
+    assert [v for _, v, _ in got] == [0, 1] and [v for _, v in later] == [x * x for x in range(6)]
+    if sys.platform == "linux":
+        # the 0.3 s piece was still running when map returned: map did not wait behind it
+        assert got[0][2] > mapped and {pid for pid, _, _ in got} - {os.getpid()}
+    with backend.SERIAL as serial:
+        pending = serial.submit(_pid_and_square, range(3))
+        assert pending.result() == [(os.getpid(), x * x) for x in range(3)]
+    if sys.platform == "linux":
+        with backend.worker_pool() as pool, pytest.warns(RobocalWarning, match="worker process ended abruptly"):
+            assert pool.submit(_dies_in_a_worker, range(4)).result() == [1, 2, 3, 4]
+
+
 def test_residual_tuning_on_workers_equals_tuning_here(monkeypatch):
     """The tunings from several starts give the same kernel on workers as in this process (to
     the rounding of BLAS on one thread there and on this process's threads here)."""

@@ -16,7 +16,15 @@ from ..fit.parametric import Fit
 from ..timing import staged
 from .choice import Candidate, model_name
 from .crossval import K_FOLDS, CrossValidation, FoldData, residual_errors
-from .residual import best_kernel, fit_residual, minimised, neg_log_likelihood, scratch_pieces, tune_kernels
+from .residual import (
+    begin_tuning,
+    best_kernel,
+    fit_residual,
+    minimised,
+    neg_log_likelihood,
+    scratch_pieces,
+    tune_kernels,
+)
 from .trees import Settings, TreeCandidate, choose_settings, fit_trees
 
 #: L-BFGS-B iterations with which each fold re-tunes the residual kernel on its own training poses
@@ -116,18 +124,31 @@ def _conditioned(piece) -> np.ndarray:
     return fit_residual(q_train, e_train, seed, kernels)[0].predict(q_test)
 
 
+def begin_screen(data: FoldData, seed: int | None, pool: worker_pool = SERIAL):
+    """The kernel tuning of a screen (:func:`screened_processes`) handed to the pool's workers now:
+    its two starts are the longest pieces of the learned stage, and the pieces of whatever the
+    caller runs next fill the cores the shorter one leaves."""
+    return begin_tuning(data.q, data.e[:, :3], seed, points=SCREEN_POINTS, pool=pool)
+
+
 @staged("model")
-def screened_process(data: FoldData, cv: CrossValidation, seed: int | None, pool: worker_pool = SERIAL) -> np.ndarray:
-    """Held-out position errors (m, 3) mm of a quick residual process on a parametric fit: its
-    kernel tuned on :data:`SCREEN_POINTS` poses of all the data, each fold conditioned on its
-    training poses without re-tuning.  Near the full figure, on either side: its kernel has seen
-    the held-out poses (optimistic) but fewer poses (it may miss structure)."""
-    kernels = tune_kernels(data.q, data.e[:, :3], seed, points=SCREEN_POINTS, pool=pool)
-    pieces = [args for _, args in data.process_folds(seed, kernels)]
-    corrected = np.array(cv.errors, copy=True)
-    for (test, _), prediction in zip(data.folds, pool.map(_conditioned, pieces)):
-        corrected[test] -= prediction
-    return corrected
+def screened_processes(screens: list[tuple[FoldData, CrossValidation, object]], seed: int | None,
+                       pool: worker_pool = SERIAL) -> list[np.ndarray]:
+    """Held-out position errors (m, 3) mm of a quick residual process on each parametric fit of
+    ``screens`` ((its data, its cross-validation, its :func:`begin_screen`)): the kernel tuned on
+    :data:`SCREEN_POINTS` poses of all the data, each fold conditioned on its training poses
+    without re-tuning (every screen's folds one batch of pieces).  Near the full figure, on
+    either side: its kernel has seen the held-out poses (optimistic) but fewer poses (it may
+    miss structure)."""
+    pieces = [[args for _, args in data.process_folds(seed, tuning())] for data, _, tuning in screens]
+    predictions = iter(pool.map(_conditioned, [piece for each in pieces for piece in each]))
+    out = []
+    for data, cv, _ in screens:
+        corrected = np.array(cv.errors, copy=True)
+        for test, _ in data.folds:
+            corrected[test] -= next(predictions)
+        out.append(corrected)
+    return out
 
 
 def screen_loses(screen: np.ndarray, base: np.ndarray, best: Candidate, groups: np.ndarray) -> bool:

@@ -99,9 +99,23 @@ def _tuned(q, y, start: Kernel | None, iterations: int | None, pool: worker_pool
     ``start`` for at most ``iterations`` L-BFGS-B iterations."""
     if start is not None:
         return Kernel(_minimised((q, y, start.theta, iterations))[0])
+    return _scratch(q, y, pool).result()[0]
+
+
+class _Tuning:
+    """Tunings from scratch handed to a pool (:meth:`worker_pool.submit`); ``result()``: the most
+    likely kernel and its negative log likelihood."""
+
+    def __init__(self, pending):
+        self.pending = pending
+
+    def result(self) -> tuple[Kernel, float]:
+        return best_kernel(self.pending.result())
+
+
+def _scratch(q, y, pool: worker_pool) -> _Tuning:
     # every start to convergence: after ten iterations the eventual winner was not always ahead
-    runs = pool.map(_minimised, [(q, y, Kernel.start(q.shape[1], ls).theta, None) for ls in STARTS])
-    return Kernel(min(runs, key=lambda run: run[1])[0])
+    return _Tuning(pool.submit(_minimised, [(q, y, Kernel.start(q.shape[1], ls).theta, None) for ls in STARTS]))
 
 
 #: random probes of the stochastic trace estimate of a process's degrees of freedom
@@ -147,10 +161,26 @@ def _blocks(errors: np.ndarray):
     return (slice(0, 3), slice(3, 6))[: errors.shape[1] // 3]
 
 
+def _picked(order: np.ndarray, k: int, points: int | None) -> np.ndarray:
+    """The poses block k is tuned on: the first ``points`` of ``order`` (default its block's cap)."""
+    return order[:points or (HYPER_POINTS if k == 0 else ORIENTATION_HYPER_POINTS)]
+
+
 def _tune_block(q, y, order, k: int, start, iterations: int | None, points: int | None, pool: worker_pool):
-    cap = points or (HYPER_POINTS if k == 0 else ORIENTATION_HYPER_POINTS)
-    pick = order[:cap]
+    pick = _picked(order, k, points)
     return _tuned(q[pick], y[pick], start, iterations, pool)
+
+
+def begin_tuning(q: np.ndarray, errors: np.ndarray, seed: int | None = 0, points: int | None = None,
+                 pool: worker_pool = SERIAL):
+    """:func:`tune_kernels` from scratch, its tunings handed to the pool's workers now while the
+    caller goes on; the function returned gives the kernels ``tune_kernels(q, errors, seed,
+    points=points, pool=pool)`` gives."""
+    q, errors = np.asarray(q, float), np.asarray(errors, float)
+    order = np.random.default_rng(seed).permutation(len(q))
+    tunings = [_scratch(q[pick], errors[:, cols][pick], pool) for k, cols in enumerate(_blocks(errors))
+               for pick in [_picked(order, k, points)]]
+    return lambda: tuple(t.result()[0] for t in tunings)
 
 
 def _tuning_poses(q: np.ndarray, y: np.ndarray, seed: int | None) -> tuple[np.ndarray, np.ndarray]:

@@ -65,6 +65,7 @@ from .learned import (
     MIN_RESIDUAL_POSES,
     SCREEN_POINTS,
     SCREEN_RATIO,
+    begin_screen,
     chained_kernels,
     cross_validate_residuals,
     cross_validate_stacked,
@@ -74,7 +75,7 @@ from .learned import (
     process_candidates,
     scratch_kernel,
     screen_loses,
-    screened_process,
+    screened_processes,
     stacked_candidate,
     tree_candidates,
     warm_kernels,
@@ -303,6 +304,9 @@ def fit_model(inputs: Inputs, config: CalibrationConfig, progress=None, stages=N
             # first on the model kept: a learned correction that cannot improve it cannot, on geometry
             # alone (less), beat it; the trees (the cheaper) first
             tell(f"{model_name(kept[0].terms + ('trees',))}: inner cross-validation")
+            # the model kept's screen is needed whatever the trees do: its tuning goes to the workers
+            # first, and the trees' pieces fill the cores beside it
+            kept_screen = begin_screen(data[-1], config.seed, pool)
             settings = choose_settings(data[-1].q, data[-1].e, data[-1].groups, config.seed, pool)
             trees = tree_candidates([kept], data[-1:], settings, meas, config.seed, pool, tell)
             # a quick process first on each base a process would be tried on: where it takes nothing
@@ -311,13 +315,18 @@ def fit_model(inputs: Inputs, config: CalibrationConfig, progress=None, stages=N
             both = bool(geometry) and pays(trees)
             tried = on if both else [kept]
             tell(f"{', '.join(model_name(c.terms + ('residual',)) for c, _ in tried)}: screen")
-            screens = [screened_process(d, cv, config.seed, pool)
-                       for d, (_, cv) in zip(data if both else data[-1:], tried)]
+            tunings = [begin_screen(data[0], config.seed, pool), kept_screen] if both else [kept_screen]
+            # with both bases, geometry's trees are needed whatever the screens say: their pieces run
+            # beside geometry's screen tuning
+            geometry_trees = tree_candidates(geometry, data[:1], settings, meas, config.seed, pool, tell) \
+                if both else []
+            screens = screened_processes(list(zip(data if both else data[-1:], [cv for _, cv in tried], tunings)),
+                                         config.seed, pool)
             against = trees[0]
             if all(screen_loses(e, cv.errors, against, groups) for e, (_, cv) in zip(screens, tried)):
                 processes = []
                 if both:
-                    trees = tree_candidates(geometry, data[:1], settings, meas, config.seed, pool, tell) + trees
+                    trees = geometry_trees + trees
                 elif geometry:
                     skipped = kept[0]
                 screened = [LadderRow(model_name(c.terms + ("residual",)), rms(e), c.fit.n_params, screened=True)
@@ -326,7 +335,7 @@ def fit_model(inputs: Inputs, config: CalibrationConfig, progress=None, stages=N
                 tell(f"{', '.join(model_name(c.terms + ('residual',)) for c, _ in on)}: kernels")
                 kernels = chained_kernels(data, config.seed, pool)
                 processes = process_candidates(list(zip(on, data, kernels)), config.seed, pool, tell)
-                trees = tree_candidates(geometry, data[:1], settings, meas, config.seed, pool, tell) + trees
+                trees = geometry_trees + trees
             else:
                 tell(f"{model_name(kept[0].terms + ('residual',))}: kernels")
                 kernel, nll = scratch_kernel(data[-1], config.seed, pool)
