@@ -96,9 +96,14 @@ def cross_validate_residuals(ladder: list[tuple[FoldData, CrossValidation, tuple
     Every fold of every fit is one piece of work for the pool's workers.
     """
     pieces = [piece for data, _, kernels in ladder for piece in data.process_folds(seed, kernels)]
-    done = iter(pool.map(_piece, pieces))
+    return _less_folds([(data, cv) for data, cv, _ in ladder], pool.map(_piece, pieces))
+
+
+def _less_folds(bases: list[tuple[FoldData, CrossValidation]], predictions: list) -> list[np.ndarray]:
+    """Each base's held-out errors less its folds' predictions, the folds of every base in turn."""
+    done = iter(predictions)
     out = []
-    for data, cv, _ in ladder:
+    for data, cv in bases:
         corrected = np.array(cv.errors, copy=True)
         for test, _ in data.folds:
             corrected[test] -= next(done)
@@ -140,15 +145,8 @@ def screened_processes(screens: list[tuple[FoldData, CrossValidation, object]], 
     without re-tuning (every screen's folds one batch of pieces).  Near the full figure, on
     either side: its kernel has seen the held-out poses (optimistic) but fewer poses (it may
     miss structure)."""
-    pieces = [[args for _, args in data.process_folds(seed, tuning())] for data, _, tuning in screens]
-    predictions = iter(pool.map(_conditioned, [piece for each in pieces for piece in each]))
-    out = []
-    for data, cv, _ in screens:
-        corrected = np.array(cv.errors, copy=True)
-        for test, _ in data.folds:
-            corrected[test] -= next(predictions)
-        out.append(corrected)
-    return out
+    pieces = [args for data, _, tuning in screens for _, args in data.process_folds(seed, tuning())]
+    return _less_folds([(data, cv) for data, cv, _ in screens], pool.map(_conditioned, pieces))
 
 
 def screen_loses(screen: np.ndarray, base: np.ndarray, best: Candidate, groups: np.ndarray) -> bool:
