@@ -122,6 +122,13 @@ def _joint_columns(table: CsvTable, n_joints: int | None, required: bool, robot_
         raise InputError("no joint columns (q1, q2, …)", source=table.source)
     numbers_ = [k for k, _ in joints]
     if numbers_ and numbers_ != list(range(1, len(numbers_) + 1)):
+        # a q0 (numbered from 0) or the same joint twice (q1 and q01) leaves no gap to name
+        if numbers_[0] == 0:
+            raise InputError(f"joint column '{joints[0][1]}': joints are numbered from 1 (q1, q2, …)",
+                             source=table.source)
+        twice = next(((a, b) for (k, a), (m, b) in zip(joints, joints[1:]) if k == m), None)
+        if twice is not None:
+            raise InputError(f"joint columns '{twice[0]}' and '{twice[1]}' name the same joint", source=table.source)
         missing = sorted(set(range(1, max(numbers_) + 1)) - set(numbers_))
         raise InputError(f"joint column 'q{missing[0]}' is missing", source=table.source)
     if numbers_ and n_joints is not None and len(numbers_) not in (n_joints, n_joints - n_coupled):
