@@ -155,3 +155,12 @@ def test_program_ends_at_once_with_its_code_its_output_and_exit_handlers(tmp_pat
         run()
     """, tmp_path)
     assert proc.returncode == 2 and proc.stderr.count("\n") == 1 and late.read_text() == "done"
+
+
+def test_without_typer_s_internal_reader_nothing_is_changed(monkeypatch):
+    """An older typer (click's parsing) or a newer one without ``typer._coercion``: every option
+    keeps typer's reader, and the command line still runs."""
+    monkeypatch.setitem(sys.modules, "typer._coercion", None)  # its import now fails
+    command = _command(int, 0)
+    plain_coercion(command)
+    assert next(p for p in command.params if p.name == "value")._runtime_param is None

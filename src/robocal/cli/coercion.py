@@ -102,4 +102,7 @@ def plain_coercion(command: Any) -> None:
         for sub in getattr(cmd, "commands", {}).values():
             visit(sub, ctx)
 
-    visit(command, None)
+    try:
+        visit(command, None)
+    except (AttributeError, TypeError):  # typer's internals changed shape: its own readers stay
+        pass
