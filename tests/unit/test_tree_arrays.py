@@ -174,6 +174,16 @@ def test_a_learned_correction_s_bound_holds_everywhere_and_the_map_that_uses_it_
     assert kept.over == "workspace" and len(kept.position) == 300
     np.testing.assert_allclose(kept.position, every_one.position, rtol=0, atol=1e-9)
     np.testing.assert_allclose(kept.sigma, every_one.sigma, rtol=1e-12)
+    # the map corrects the candidates a batch at a time until it has enough: its points are the first
+    # 300 of its rounds' draws whose corrected TCP is in the box, as correcting every draw finds
+    draws, found = np.random.default_rng(4), []
+    while sum(len(f) for f in found) < 300:
+        corrected = robot.positions(robot.couple(draws.uniform(low, high, (3000, 6))))
+        local = in_base(robot, corrected)
+        found.append(corrected[np.all((local >= box[0]) & (local <= box[1]), axis=1)])
+    assert len(found) > 1  # rounds of candidates, each corrected in batches
+    np.testing.assert_array_equal(kept.position, np.concatenate(found)[:300])
+    np.testing.assert_array_equal(every_one.position, np.concatenate(found)[:300])  # every draw near: batches
 
 
 def test_the_compiled_walk_and_numpy_s_give_every_tree_s_leaf_alike(rng, backend):

@@ -110,6 +110,14 @@ def in_base(robot, points: np.ndarray) -> np.ndarray:
     return points @ B[:3, :3].T + B[:3, 3]
 
 
+def _keep_inside(robot, q: np.ndarray, p: np.ndarray, box: np.ndarray, kept_q: list, kept_p: list) -> None:
+    """Append the joint sets q and TCPs p (mm) whose TCP lies in ``box`` (the robot's base frame)."""
+    local = in_base(robot, p)
+    inside = np.all((local >= box[0]) & (local <= box[1]), axis=1)
+    kept_q.append(q[inside])
+    kept_p.append(p[inside])
+
+
 def uncertainty_map(robot, q_low: np.ndarray, q_high: np.ndarray, n: int = 2000, seed: int = 0,
                     at_poses: np.ndarray | None = None, box: np.ndarray | None = None) -> UncertaintyMap:
     """The whole model's σ of the TCP at ``n`` joint sets drawn uniformly (seeded) between q_low
@@ -135,12 +143,21 @@ def uncertainty_map(robot, q_low: np.ndarray, q_high: np.ndarray, n: int = 2000,
             p = plain.positions(q, chains=chains(len(q)))
             if plain is not robot:
                 local = in_base(robot, p)
-                near = np.all((local >= box[0] - bound) & (local <= box[1] + bound), axis=1)
-                q, p = q[near], robot.positions(q[near])
-            local = in_base(robot, p)
-            inside = np.all((local >= box[0]) & (local <= box[1]), axis=1)
-            kept_q.append(q[inside])
-            kept_p.append(p[inside])
+                near = np.flatnonzero(np.all((local >= box[0] - bound) & (local <= box[1] + bound), axis=1))
+                # the correction on the near candidates in draw order, a batch at a time, until enough
+                # are inside: the map keeps the first n inside, and each pose's correction is its own
+                start, size = 0, n + n // 4
+                while start < len(near):
+                    part, start = near[start:start + size], start + size
+                    had = sum(len(k) for k in kept_q)
+                    _keep_inside(robot, q[part], robot.positions(q[part]), box, kept_q, kept_p)
+                    got = sum(len(k) for k in kept_q)
+                    if got >= n:
+                        break
+                    # the next batch sized by the share of this one inside, with a quarter to spare
+                    size = max(n // 4, int(1.25 * (n - got) * len(part) / max(got - had, 1)))
+            else:
+                _keep_inside(robot, q, p, box, kept_q, kept_p)
             if sum(len(k) for k in kept_q) >= n:
                 break
         q, p = np.concatenate(kept_q)[:n], np.concatenate(kept_p)[:n]
