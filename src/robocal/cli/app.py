@@ -167,7 +167,8 @@ def _narrowed(argv: list[str]) -> typer.Typer:
 
 
 def _run(argv: list[str] | None) -> int:
-    old = _old_spelling([str(a) for a in (sys.argv[1:] if argv is None else argv)])
+    given = sys.argv[1:] if argv is None else argv
+    old = _old_spelling([str(a) for a in given])
     if old is not None:
         print(f"robocal: usage error: {old}", file=sys.stderr)
         return 2
@@ -175,7 +176,7 @@ def _run(argv: list[str] | None) -> int:
         from .coercion import plain_coercion
         from .help import tidy
 
-        command = typer.main.get_command(_narrowed(sys.argv[1:] if argv is None else argv))
+        command = typer.main.get_command(_narrowed(given))
         tidy(command)  # every command's --help: panels, placeholders, texts as written
         plain_coercion(command)
         result = command.main(args=argv, prog_name="robocal", standalone_mode=False)

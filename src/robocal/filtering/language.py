@@ -124,7 +124,7 @@ def corrected_angles(items: list, keys: tuple[str, str, str]) -> list[tuple[tupl
 
 def set_number(changes: list, f: Field, value: float, decimals: int) -> None:
     """Change a number unless the new value would not show at the precision written."""
-    places = max(f.decimals(), decimals)  # (Field.unchanged and Field.formatted, its decimals counted once)
+    places = max(f.decimals(), decimals)  # the field's own decimals at least, counted once
     if not f.shows(value, places):
         changes.append((f, f.written(value, places)))
 

@@ -46,14 +46,10 @@ class Field(NamedTuple):
         dot = mantissa.find(".")
         return len(mantissa) - dot - 1 if dot >= 0 else 0
 
-    def formatted(self, value: float, minimum_decimals: int) -> str:
-        """``value`` written in this field's style: as many decimals as it had, at least
-        ``minimum_decimals`` (enough for the correction), an explicit sign if it had one, no
-        leading zero if it had none (FANUC's ``-.500``)."""
-        return self.written(value, max(self.decimals(), minimum_decimals))
-
     def written(self, value: float, decimals: int) -> str:
-        """``value`` with ``decimals`` decimals in this field's style (see :meth:`formatted`)."""
+        """``value`` with ``decimals`` decimals in this field's style: an explicit sign if it had one,
+        no leading zero if it had none (FANUC's ``-.500``).  A corrected number keeps at least the
+        decimals it had (:func:`~robocal.filtering.language.set_number`)."""
         if "e" in self.text or "E" in self.text:
             return f"{value:.{decimals}e}"
         text = f"{value:.{decimals}f}"
@@ -65,14 +61,9 @@ class Field(NamedTuple):
             text = text.replace("0.", ".", 1) if text.lstrip("+-").startswith("0.") else text
         return text
 
-    def unchanged(self, value: float, minimum_decimals: int) -> bool:
-        """Whether ``value`` differs from the written one by less than half a unit of the
-        finest place robocal would write: then the text stays as it is (an identity filter is
-        byte for byte the program)."""
-        return self.shows(value, max(self.decimals(), minimum_decimals))
-
     def shows(self, value: float, decimals: int) -> bool:
-        """Whether the written number stands for ``value`` at ``decimals`` decimals (within half a unit)."""
+        """Whether the written number stands for ``value`` at ``decimals`` decimals (within half a unit):
+        then its text stays as it is (an identity filter is byte for byte the program)."""
         return abs(value - float(self.text)) < 0.5 * 10.0 ** -decimals
 
 

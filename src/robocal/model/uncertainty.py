@@ -110,12 +110,14 @@ def in_base(robot, points: np.ndarray) -> np.ndarray:
     return points @ B[:3, :3].T + B[:3, 3]
 
 
-def _keep_inside(robot, q: np.ndarray, p: np.ndarray, box: np.ndarray, kept_q: list, kept_p: list) -> None:
-    """Append the joint sets q and TCPs p (mm) whose TCP lies in ``box`` (the robot's base frame)."""
+def _keep_inside(robot, q: np.ndarray, p: np.ndarray, box: np.ndarray, kept_q: list, kept_p: list) -> int:
+    """Append the joint sets q and TCPs p (mm) whose TCP lies in ``box`` (the robot's base frame);
+    how many they were."""
     local = in_base(robot, p)
     inside = np.all((local >= box[0]) & (local <= box[1]), axis=1)
     kept_q.append(q[inside])
     kept_p.append(p[inside])
+    return int(np.count_nonzero(inside))
 
 
 def uncertainty_map(robot, q_low: np.ndarray, q_high: np.ndarray, n: int = 2000, seed: int = 0,
@@ -137,7 +139,7 @@ def uncertainty_map(robot, q_low: np.ndarray, q_high: np.ndarray, n: int = 2000,
         # the model without it says which candidates cannot be in the box
         bound = 0.0 if robot.residual is None else robot.residual.position_bound()
         plain = robot if robot.residual is None else robot.replace(residual=None)
-        kept_q, kept_p = [], []
+        kept_q, kept_p, got = [], [], 0
         for _ in range(20):  # rounds of candidates: a box a tenth of the reach keeps a few per cent
             q = robot.couple(rng.uniform(q_low, q_high, (10 * n, len(q_low))))
             p = plain.positions(q, chains=chains(len(q)))
@@ -147,18 +149,15 @@ def uncertainty_map(robot, q_low: np.ndarray, q_high: np.ndarray, n: int = 2000,
                 # the correction on the near candidates in draw order, a batch at a time, until enough
                 # are inside: the map keeps the first n inside, and each pose's correction is its own
                 start, size = 0, n + n // 4
-                while start < len(near):
+                while start < len(near) and got < n:
                     part, start = near[start:start + size], start + size
-                    had = sum(len(k) for k in kept_q)
-                    _keep_inside(robot, q[part], robot.positions(q[part]), box, kept_q, kept_p)
-                    got = sum(len(k) for k in kept_q)
-                    if got >= n:
-                        break
+                    new = _keep_inside(robot, q[part], robot.positions(q[part]), box, kept_q, kept_p)
+                    got += new
                     # the next batch sized by the share of this one inside, with a quarter to spare
-                    size = max(n // 4, int(1.25 * (n - got) * len(part) / max(got - had, 1)))
+                    size = max(n // 4, int(1.25 * (n - got) * len(part) / max(new, 1)))
             else:
-                _keep_inside(robot, q, p, box, kept_q, kept_p)
-            if sum(len(k) for k in kept_q) >= n:
+                got += _keep_inside(robot, q, p, box, kept_q, kept_p)
+            if got >= n:
                 break
         q, p = np.concatenate(kept_q)[:n], np.concatenate(kept_p)[:n]
         if len(q) >= n // 4:

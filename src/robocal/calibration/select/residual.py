@@ -113,9 +113,14 @@ class _Tuning:
         return best_kernel(self.pending.result())
 
 
+def _start_pieces(q, y) -> list[tuple]:
+    """A tuning from scratch as pieces of work for :func:`_minimised`: one per start of :data:`STARTS`,
+    each to convergence (after ten iterations the eventual winner was not always ahead)."""
+    return [(q, y, Kernel.start(q.shape[1], ls).theta, None) for ls in STARTS]
+
+
 def _scratch(q, y, pool: worker_pool) -> _Tuning:
-    # every start to convergence: after ten iterations the eventual winner was not always ahead
-    return _Tuning(pool.submit(_minimised, [(q, y, Kernel.start(q.shape[1], ls).theta, None) for ls in STARTS]))
+    return _Tuning(pool.submit(_minimised, _start_pieces(q, y)))
 
 
 #: random probes of the stochastic trace estimate of a process's degrees of freedom
@@ -194,8 +199,7 @@ def scratch_pieces(q: np.ndarray, errors: np.ndarray, seed: int | None) -> list[
     """The position kernel's tunings from scratch (one per start of :data:`STARTS`), as pieces
     of work for :func:`minimised`; :func:`best_kernel` of their results is :func:`tune_kernels`'
     position kernel."""
-    q, y = _tuning_poses(q, np.asarray(errors, float)[:, :3], seed)
-    return [(q, y, Kernel.start(q.shape[1], ls).theta, None) for ls in STARTS]
+    return _start_pieces(*_tuning_poses(q, np.asarray(errors, float)[:, :3], seed))
 
 
 def best_kernel(runs: list[tuple[np.ndarray, float]]) -> tuple[Kernel, float]:
