@@ -65,16 +65,16 @@ def _runnable_now(looks: int = 5, interval: float = 0.005) -> int | None:
     return min(counts)
 
 
-def idle_cores(now: bool = False) -> int:
+def idle_cores(now: bool = False, looks: int = 5) -> int:
     """Cores this process may use that the rest of the system leaves free (at least 1): the
     1-minute load less this process's own running thread, or with ``now`` (Linux) the threads
-    runnable at this moment (the 1-minute load lags a minute behind work that starts or ends,
-    this process's own just-ended workers included)."""
+    runnable at this moment, the least of ``looks`` looks 5 ms apart (the 1-minute load lags a
+    minute behind work that starts or ends, this process's own just-ended workers included)."""
     try:
         cores = len(os.sched_getaffinity(0))
     except AttributeError:  # not on Linux
         cores = os.cpu_count() or 1
-    runnable = _runnable_now() if now else None
+    runnable = _runnable_now(looks) if now else None
     if runnable is not None:
         return max(1, min(cores, cores - (runnable - 1)))
     try:
@@ -84,45 +84,38 @@ def idle_cores(now: bool = False) -> int:
     return max(1, min(cores, int(cores - busy + 0.5)))
 
 
-def kernel_threads(work: int) -> int:
+def kernel_threads(work: int, now: bool = False) -> int:
     """Threads for a numba kernel call of ``work`` chain evaluations: one below
-    :data:`PARALLEL_MIN_WORK`, else the idle cores (never more than numba was started with)."""
+    :data:`PARALLEL_MIN_WORK` or in a child process, else the idle cores (never more than numba was
+    started with; ``now``: those idle at this moment, one look, for a call that follows work of this
+    process's own that the 1-minute load still counts).  A child's cores are its parent's to share
+    out (a study's or a pool's workers), and numba's OpenMP layer aborts a forked child that starts it."""
     if work < PARALLEL_MIN_WORK:
+        return 1
+    import multiprocessing
+
+    if multiprocessing.parent_process() is not None:
         return 1
     import numba
 
-    return max(1, min(numba.config.NUMBA_NUM_THREADS, idle_cores()))
+    return max(1, min(numba.config.NUMBA_NUM_THREADS, idle_cores(now=True, looks=1) if now else idle_cores()))
 
 
-class threads_for:
-    """Run numba kernels on :func:`kernel_threads` threads for the block (this thread only, as
-    numba's setting is), restoring the previous count after."""
-
-    def __init__(self, work: int):
-        self.work = work
-
-    def __enter__(self):
-        import numba
-
-        self.previous = numba.get_num_threads()
-        numba.set_num_threads(min(self.previous, kernel_threads(self.work)))
-        return self
-
-    def __exit__(self, *exc):
-        import numba
-
-        numba.set_num_threads(self.previous)
-        return False
-
-
-def run_kernel(serial, parallel, work: int, *args):
+def run_kernel(serial, parallel, work: int, *args, now: bool = False):
     """A compiled kernel's call of ``work`` chain evaluations: its serial entry point where one
-    thread is all the call should have (:func:`kernel_threads`; a serial kernel also starts no
-    OpenMP layer), else its parallel one on the idle cores."""
-    if kernel_threads(work) == 1:
+    thread is all the call should have (:func:`kernel_threads`, ``now`` as there; a serial kernel
+    also starts no OpenMP layer), else its parallel one on the idle cores."""
+    threads = kernel_threads(work, now)
+    if threads == 1:
         return serial(*args)
-    with threads_for(work):
+    import numba
+
+    previous = numba.get_num_threads()
+    numba.set_num_threads(min(previous, threads))
+    try:
         return parallel(*args)
+    finally:
+        numba.set_num_threads(previous)
 
 
 #: matrices smaller than this on a side run BLAS/LAPACK on one thread: on the 2-core development

@@ -24,9 +24,9 @@ def _auto(meas):
 def test_auto_on_workers_equals_auto_here(monkeypatch):
     meas = simulate(load_robot("kr5-arc"), 60, deviations="uniform:0.2,0.001", noise=0.02, angle_noise=2e-5,
                     harmonics={2: [[0.01, 0.005]]}, seed=3).measurements
-    monkeypatch.setattr(backend, "idle_cores", lambda now=False: 1)
+    monkeypatch.setattr(backend, "idle_cores", lambda now=False, looks=5: 1)
     here, _ = _auto(meas)
-    monkeypatch.setattr(backend, "idle_cores", lambda now=False: 2)
+    monkeypatch.setattr(backend, "idle_cores", lambda now=False, looks=5: 2)
     there, said = _auto(meas)
     assert not [s for s in said if "worker" in s]
     assert [r.model for r in there.model_selection] == [r.model for r in here.model_selection]

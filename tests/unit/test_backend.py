@@ -104,7 +104,7 @@ def test_worker_pool_gives_the_serial_results_in_order(monkeypatch):
     come back as the serial map gives them; a piece's error reaches the caller."""
     import robocal.backend as backend
 
-    monkeypatch.setattr(backend, "idle_cores", lambda now=False: 2)
+    monkeypatch.setattr(backend, "idle_cores", lambda now=False, looks=5: 2)
     with backend.worker_pool() as pool:
         out = pool.map(_pid_and_square, range(12))
         with pytest.raises(ValueError, match="piece"):
@@ -130,7 +130,7 @@ def test_submitted_pieces_start_first_and_give_map_s_results(monkeypatch):
     import robocal.backend as backend
     from robocal.exceptions import RobocalWarning
 
-    monkeypatch.setattr(backend, "idle_cores", lambda now=False: 2)
+    monkeypatch.setattr(backend, "idle_cores", lambda now=False, looks=5: 2)
     with backend.worker_pool() as pool:
         early = pool.submit(_slow_square, [0, 1])
         later = pool.map(_pid_and_square, range(6))
@@ -162,7 +162,7 @@ def test_residual_tuning_on_workers_equals_tuning_here(monkeypatch):
     q = rng.uniform(-2, 2, (90, 6))
     e = np.column_stack([np.sin(2 * q[:, 0]), np.cos(q[:, 1]), q[:, 2] * 0.1]) + rng.normal(0, 0.05, (90, 3))
     here = fit_residual(q, e, seed=0)[1][0]
-    monkeypatch.setattr(backend, "idle_cores", lambda now=False: 2)
+    monkeypatch.setattr(backend, "idle_cores", lambda now=False, looks=5: 2)
     with backend.worker_pool() as pool:
         there = fit_residual(q, e, seed=0, pool=pool)[1][0]
     np.testing.assert_allclose(here.theta, there.theta, rtol=1e-6)
@@ -183,7 +183,7 @@ def test_a_pool_whose_worker_dies_runs_the_pieces_here_and_says_so(monkeypatch):
 
     if sys.platform != "linux":
         pytest.skip("workers are forked on Linux only")
-    monkeypatch.setattr(backend, "idle_cores", lambda now=False: 2)
+    monkeypatch.setattr(backend, "idle_cores", lambda now=False, looks=5: 2)
     with backend.worker_pool() as pool, pytest.warns(RobocalWarning, match="worker process ended abruptly"):
         assert pool.map(_dies_in_a_worker, range(4)) == [1, 2, 3, 4]
 
@@ -361,3 +361,27 @@ def test_no_writable_cache_folder_means_numpy_and_each_install_has_its_own(tmp_p
     one, two = compiled.state_folder(tmp_path / "a" / "robocal"), compiled.state_folder(tmp_path / "b" / "robocal")
     assert one != two and one.parent == two.parent == tmp_path / "cache" / "robocal"
     assert oct(one.stat().st_mode)[-3:] == "700"
+
+
+def _threads_here(_):
+    from robocal.backend import kernel_threads
+
+    return kernel_threads(10 ** 9), kernel_threads(10 ** 9, now=True)
+
+
+def test_a_child_process_runs_kernels_on_one_thread(monkeypatch):
+    """A kernel large enough for every idle core gets them in this process, and one thread in a
+    forked worker: its cores are shared out already, and numba's OpenMP layer aborts a forked
+    child that starts it."""
+    import robocal.backend as backend
+
+    if not backend.numba_installed() or sys.platform != "linux":
+        pytest.skip("numba's threads, forked workers")
+    import numba
+
+    monkeypatch.setattr(backend, "idle_cores", lambda now=False, looks=5: 2)
+    here = _threads_here(None)
+    assert here == (min(2, numba.config.NUMBA_NUM_THREADS),) * 2
+    assert backend.kernel_threads(backend.PARALLEL_MIN_WORK - 1) == 1
+    with backend.worker_pool() as pool:
+        assert pool.map(_threads_here, range(2)) == [(1, 1), (1, 1)]

@@ -231,6 +231,71 @@ def test_positions_skip_the_orientation_outputs_and_equal_the_whole_pose_s(rng, 
     robot = load_robot("ur10").replace(residual=three)
     np.testing.assert_array_equal(robot.fk(fresh, rotations=False), robot.fk(fresh))
     walked = []
-    monkeypatch.setattr(Ensemble, "predict", lambda self, X, backend="auto": walked.append(self) or np.zeros(len(X)))
-    load_robot("ur10").replace(residual=trees).positions(fresh)
+    monkeypatch.setattr(TreeResidual, "_predictions",
+                        lambda self, walk, X: walked.extend(walk) or [np.zeros(len(X))] * len(walk))
+    # a copy: the correction above keeps its walks of these poses
+    load_robot("ur10").replace(residual=trees.with_inside(0.01)).positions(fresh)
     assert walked == list(ensembles[:3])
+
+
+def _six(rng, m=300):
+    q = rng.uniform(-2, 2, (m, 6))
+    wavy = np.column_stack([_step(q), 1e-3 * np.sin(q[:, :3])])
+    _, ensembles = _ensembles(q, wavy + rng.normal(0, 0.01, (m, 6)), trees=40)
+    return q, TreeResidual(ensembles, q, np.full(6, 1.0), 0.5, inside=0.01, prior=0.09,
+                           importance=np.full((6, 6), 1 / 6), taken=np.ones(6))
+
+
+@pytest.mark.parametrize("threads", [1, 2])
+def test_all_outputs_walked_at_once_equal_each_ensemble_s_own_walk(rng, monkeypatch, threads):
+    """The six outputs' trees walked in one call, serial or on two threads, give each output what
+    its own ensemble predicts, to the bit (numpy's level-by-level walk as the reference)."""
+    import robocal.backend as backend
+    from robocal.backend import numba_installed
+
+    if threads == 2 and not numba_installed():
+        pytest.skip("the parallel walk is numba's")
+    monkeypatch.setattr(backend, "kernel_threads", lambda work, now=False: threads)
+    q, trees = _six(rng)
+    fresh = np.vstack([rng.uniform(-2, 2, (400, 6)), rng.uniform(-9, 9, (20, 6)), q[:5]])
+    fresh[-2:, 1] = np.nan
+    expected = np.stack([e.predict(fresh, "numpy") for e in trees.ensembles], axis=1)
+    np.testing.assert_array_equal(trees.raw(fresh), expected)
+    np.testing.assert_array_equal(trees.with_inside(0.01).raw(fresh, positions=True)[:, :3], expected[:, :3])
+    if numba_installed():  # the kernels themselves, on an ensemble's arrays
+        from robocal.model.kernels import tree_walk, tree_walk_parallel
+
+        e = trees.ensembles[0]
+        arrays = (e.feature, e.threshold, e.left, e.right, e.roots, e.value, np.ascontiguousarray(fresh))
+        np.testing.assert_array_equal(tree_walk_parallel(*arrays), tree_walk(*arrays))
+
+
+def test_a_correction_recalls_its_walk_of_the_same_joints_and_only_of_those(rng, monkeypatch):
+    """Applied to the same joints again, the trees are not walked again and give the same numbers;
+    other joints, the same joints changed in place, or orientations after positions alone are
+    walked afresh; the walks kept are not pickled with the correction."""
+    import pickle
+
+    q, trees = _six(rng)
+    calls = []
+    walk = TreeResidual._predictions
+    monkeypatch.setattr(TreeResidual, "_predictions", lambda self, e, X: calls.append(len(e)) or walk(self, e, X))
+    joints = rng.uniform(-2, 2, (50, 6))
+    first = trees.raw(joints, positions=True)
+    assert calls == [3]
+    whole = trees.raw(joints)  # orientations too: walked
+    assert calls == [3, 6]
+    np.testing.assert_array_equal(trees.raw(joints.copy()), whole)
+    np.testing.assert_array_equal(trees.raw(joints, positions=True), first)
+    assert calls == [3, 6]
+    joints[7, 2] += 1e-9  # the caller's array changed in place: not the joints walked
+    changed = trees.raw(joints)
+    assert calls == [3, 6, 6]
+    np.testing.assert_array_equal(changed, np.stack([e.predict(joints, "numpy") for e in trees.ensembles], 1))
+    for _ in range(5):  # more joints than it keeps: the oldest are walked again
+        trees.raw(rng.uniform(-2, 2, (10, 6)))
+    trees.raw(joints)
+    assert calls[-1] == 6 and len(calls) == 3 + 5 + 1
+    back = pickle.loads(pickle.dumps(trees))
+    assert not [k for k in vars(back) if k.startswith("_")]
+    np.testing.assert_array_equal(back.raw(joints), changed)

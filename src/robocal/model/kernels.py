@@ -321,14 +321,25 @@ def _walk_tree(feature, threshold, left, right, root, value, X, out, t):
 @njit(cache=True)
 def tree_walk(feature, threshold, left, right, roots, value, X):  # pragma: no cover
     """:meth:`robocal.model.trees.Ensemble.per_tree`: each tree's leaf value (m, trees) at X (m, n),
-    a tree at a time (its nodes stay in the first-level cache while every pose walks it).  Serial:
-    it runs in the ladder's forked workers too, where an OpenMP layer may not start."""
+    a tree at a time (its nodes stay in the first-level cache while every pose walks it).  The
+    ladder's forked workers run this serial one, where an OpenMP layer may not start
+    (:func:`robocal.backend.kernel_threads` gives a child process one thread)."""
     out = np.empty((X.shape[0], roots.shape[0]))
     for t in range(roots.shape[0]):
         _walk_tree(feature, threshold, left, right, roots[t], value, X, out, t)
     return out
 
 
+@njit(cache=True, parallel=True)
+def tree_walk_parallel(feature, threshold, left, right, roots, value, X):  # pragma: no cover
+    """:func:`tree_walk`, trees in parallel (each tree's column is written by one thread: the same
+    values)."""
+    out = np.empty((X.shape[0], roots.shape[0]))
+    for t in prange(roots.shape[0]):
+        _walk_tree(feature, threshold, left, right, roots[t], value, X, out, t)
+    return out
+
+
 #: each serial kernel and its parallel twin (:func:`robocal.backend.run_kernel` picks one per call)
 TWINS = ((objective, objective_parallel), (objective_joints, objective_joints_parallel),
-         (apply_right_jacobian_inv, apply_right_jacobian_inv_parallel))
+         (apply_right_jacobian_inv, apply_right_jacobian_inv_parallel), (tree_walk, tree_walk_parallel))

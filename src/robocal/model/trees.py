@@ -96,9 +96,7 @@ class Ensemble:
         from .compiled import resolve
 
         if resolve(backend) == "numba":
-            from .kernels import tree_walk
-
-            return tree_walk(self.feature, self.threshold, self.left, self.right, self.roots, self.value, X)
+            return _compiled_walk(self.feature, self.threshold, self.left, self.right, self.roots, self.value, X)
         feature, threshold, children, order, busy = self._walk()
         flat = X.ravel()
         offset = np.arange(len(X)) * X.shape[1]
@@ -214,6 +212,25 @@ def sklearn_layout(model) -> None:
                            f"reads them: robocal supports scikit-learn {SKLEARN_TESTED}")
 
 
+#: the walks a tree correction keeps (:meth:`TreeResidual.raw`), and the most poses one may have
+RECALLED, RECALLED_POSES = 4, 20_000
+
+#: pose-tree walks worth one chain evaluation of :data:`robocal.backend.PARALLEL_MIN_WORK` (a walk
+#: down a 200-tree ensemble's tree takes about a third of a 6-joint chain's evaluation)
+WALKS_PER_EVALUATION = 3
+
+
+def _compiled_walk(feature, threshold, left, right, roots, value, X) -> np.ndarray:
+    """Each tree's leaf value (m, trees) at X (m, n) by numba's walk, on the cores idle now where
+    the call is long enough to pay for a second thread (a correction is applied after a pool's
+    workers end, which the 1-minute load still counts as busy)."""
+    from ..backend import run_kernel
+    from .kernels import tree_walk, tree_walk_parallel
+
+    return run_kernel(tree_walk, tree_walk_parallel, len(X) * len(roots) // WALKS_PER_EVALUATION,
+                      feature, threshold, left, right, roots, value, X, now=True)
+
+
 def _tree_of_nodes(roots: np.ndarray, n: int) -> np.ndarray | None:
     """Each of the n nodes' tree, where the nodes run tree by tree from the first root (as
     :meth:`Ensemble.of_sklearn` lays them out), else None."""
@@ -266,6 +283,9 @@ class TreeResidual:
 
     kind = "trees"
 
+    def __getstate__(self) -> dict:  # the walks kept (see _recalled) stay in this process
+        return {k: v for k, v in self.__dict__.items() if not k.startswith("_")}
+
     @property
     def outputs(self) -> int:
         return len(self.ensembles)
@@ -297,11 +317,50 @@ class TreeResidual:
     def raw(self, q: np.ndarray, positions: bool = False) -> np.ndarray:
         """The trees' own prediction (m, outputs), unfaded (``positions``: the orientations' columns 0)."""
         q = np.atleast_2d(np.asarray(q, float))
-        if positions and self.outputs > 3:
-            out = np.zeros((len(q), self.outputs))
-            out[:, :3] = np.stack([e.predict(q) for e in self.ensembles[:3]], axis=1)
-            return out
-        return np.stack([e.predict(q) for e in self.ensembles], axis=1)
+        k = 3 if positions and self.outputs > 3 else self.outputs
+        out = np.zeros((len(q), self.outputs))
+        out[:, :k] = self._recalled(q, k)
+        return out
+
+    def _recalled(self, q: np.ndarray, k: int) -> np.ndarray:
+        """The first k ensembles' predictions (m, k) at q: walked, or the walk of the same joints
+        (equal to the bit) kept from one of the last :data:`RECALLED` calls.  A calibration applies
+        its correction to the same poses several times (its figures, its validation, its report)."""
+        recent = self.__dict__.setdefault("_recent", [])
+        for i, (joints, predictions) in enumerate(recent):
+            if predictions.shape[1] >= k and joints.shape == q.shape and np.array_equal(joints, q):
+                recent.insert(0, recent.pop(i))
+                return predictions[:, :k]
+        predictions = np.stack(self._predictions(self.ensembles[:k], q), axis=1)
+        if len(q) <= RECALLED_POSES:
+            recent.insert(0, (q.copy(), predictions))
+            del recent[RECALLED:]
+        return predictions
+
+    def _predictions(self, ensembles: tuple[Ensemble, ...], q: np.ndarray) -> list[np.ndarray]:
+        """Each ensemble's prediction (m,) at q: with numba's kernels, all their trees walked in one
+        call (on the idle cores, where it is long enough to pay), each ensemble's columns then summed
+        as :meth:`Ensemble.predict` sums its own."""
+        from .compiled import resolve
+
+        if len(ensembles) < 2 or resolve("auto") != "numba":
+            return [e.predict(q) for e in ensembles]
+        key = f"_stacked{len(ensembles)}"
+        if self.__dict__.get(key) is None:  # the ensembles' nodes end to end, each tree's indices shifted
+            offsets = np.cumsum([0] + [len(e.feature) for e in ensembles[:-1]])
+            shifted = [(np.where(e.feature < 0, -1, e.left + o), np.where(e.feature < 0, -1, e.right + o))
+                       for e, o in zip(ensembles, offsets)]
+            self.__dict__[key] = (np.concatenate([e.feature for e in ensembles]),
+                                  np.concatenate([e.threshold for e in ensembles]),
+                                  np.concatenate([lr[0] for lr in shifted]), np.concatenate([lr[1] for lr in shifted]),
+                                  np.concatenate([e.roots + o for e, o in zip(ensembles, offsets)]),
+                                  np.concatenate([e.value for e in ensembles]),
+                                  np.cumsum([0] + [e.n_trees for e in ensembles]))
+        *arrays, bounds = self.__dict__[key]
+        walked = _compiled_walk(*arrays, np.ascontiguousarray(q, float))
+        # a copy per ensemble: its columns summed in the order and layout of its own walk's
+        return [np.ascontiguousarray(walked[:, a:b]).sum(axis=1) + e.baseline
+                for e, a, b in zip(ensembles, bounds[:-1], bounds[1:])]
 
     def predict(self, q: np.ndarray, positions: bool = False) -> np.ndarray:
         """δ (m, 3 or 6) at commanded joints q (m, n) rad, faded outside the data (``positions``:

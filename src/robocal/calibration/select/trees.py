@@ -230,14 +230,17 @@ class TreeCandidate:
         hyper = self.settings.to_dict()
         if e.shape[1] == 6:
             hyper["trees_orientation"] = [ens.n_trees for ens in ensembles[3:]]
-        taken = np.sqrt(np.mean(np.stack([ens.predict(q) for ens in ensembles], 1) ** 2, axis=0))
+        taken = np.sqrt(np.mean(np.stack([parts[a][2] for a in sorted(parts)], 1) ** 2, axis=0))
         keep = np.sort(np.random.default_rng(seed).permutation(len(q))[:MAX_SUPPORT])
         return TreeResidual(tuple(ensembles), q[keep].copy(), self.scale, self.reach, self.inside, self.prior,
                             dof=self.dof, importance=importance, taken=taken, hyper=hyper)
 
 
 def _ensembles_piece(piece):
-    return _ensembles(*piece)
+    """An output's ensembles and importance (:func:`_ensembles`), and its prediction at the poses
+    it was grown on (m,): walked where it was grown, beside the other outputs'."""
+    ensembles, importance = _ensembles(*piece)
+    return ensembles, importance, ensembles[0].predict(piece[0])
 
 
 def metric_scale(q: np.ndarray, importance: np.ndarray) -> np.ndarray:
