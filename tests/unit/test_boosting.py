@@ -146,3 +146,21 @@ def test_another_scikit_learn_release_fits_its_own_trees(monkeypatch):
     monkeypatch.setattr(boosting, "_sklearn_release", lambda: (1, 9))
     monkeypatch.setenv("ROBOCAL_NO_NUMBA", "1")
     assert not boosting.compiled()
+
+
+def test_the_loop_is_loaded_beside_the_parent_s_work_or_not_at_all(monkeypatch, capsys):
+    """Where the compiled loop grows the trees, a thread loads it into this process (so that the
+    workers forked after inherit it); where scikit-learn grows them, nothing starts; a loop that
+    fails to load there ends the thread quietly (it is said where the loop is used)."""
+    from robocal.calibration.select import boost_kernels
+
+    monkeypatch.setattr(boosting, "compiled", lambda: False)
+    assert boosting.load_beside() is None
+    monkeypatch.setattr(boosting, "compiled", lambda: True)
+    thread = boosting.load_beside()
+    thread.join(60)
+    assert not thread.is_alive() and boost_kernels.grow_trees.signatures
+    monkeypatch.setattr(boosting, "compile_boosting", lambda: 1 / 0)
+    failing = boosting.load_beside()
+    failing.join(60)
+    assert not failing.is_alive() and "ZeroDivisionError" not in capsys.readouterr().err

@@ -48,7 +48,7 @@ from ..fit.parametric import Fit, fit_parametric, term_spec, unsupported_terms
 from ..inputs import Inputs
 from ..result import BudgetRow, LadderRow
 from ..timing import stage
-from .boosting import worker_preparation
+from .boosting import load_beside, worker_preparation
 from .choice import SIGNIFICANCE, TRIAL_ORDER, Candidate, choose, learned_of, model_name, with_term
 from .crossval import (
     K_FOLDS,
@@ -269,12 +269,17 @@ def fit_model(inputs: Inputs, config: CalibrationConfig, progress=None, stages=N
         config = choice.config
         geometric, geometric_cv = choice.fit, choice.cv
     rung_config = CalibrationConfig.build(config, backend="numpy")
-    # the workers start while geometry is fitted here (importing scikit-learn where it grows the trees)
+    # the workers start while geometry is fitted here (importing scikit-learn where it grows the
+    # trees); where the compiled loop grows them, it is loaded here meanwhile, and the workers are
+    # forked after, at the first round
+    loading = load_beside() if residuals else None
     with worker_pool(prepare=worker_preparation() if residuals else ()) as pool:
         if choice is None:
             say(0, work, f"model 1/{steps}: geometric, fit and {K_FOLDS} folds")
             geometric = fit_parametric(inputs, config, term_spec((), meas, config), progress)
             geometric_cv = cross_validate(geometric, config)
+        if loading is not None:
+            loading.join()
         ladder.append((Candidate((), "", geometric, geometric_cv.errors), geometric_cv))
         parametric = ladder[0][0]
         while True:
