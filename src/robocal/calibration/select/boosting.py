@@ -206,8 +206,8 @@ def load_beside():
 
 def worker_preparation() -> tuple[str, ...]:
     """What a worker of the ``auto`` ladder loads as it starts (:class:`robocal.backend.worker_pool`'s
-    ``prepare``): nothing where the compiled loop grows the trees (a worker is forked from a process
-    whose numba is started, and loads the loop at its first piece: loading it, or scikit-learn, as
-    the workers start took a core from the geometric fit beside them; UR10 auto 6.7 → 6.2 s on the
+    ``prepare``): nothing where the compiled loop grows the trees (the workers are forked from a
+    process that has loaded it, :func:`load_beside`: loading it, or scikit-learn, in the workers as
+    they start took a core from the geometric fit beside them; UR10 auto 6.7 → 6.2 s on the
     command line, W8 3.1 → 2.7 s), else scikit-learn's trees, which take a second to import."""
     return () if compiled() else ("sklearn.ensemble",)
