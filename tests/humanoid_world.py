@@ -27,6 +27,7 @@ _ARM = [(0.0, 0.0, 0.0), (0.0, 0.0, 0.10), (0.0, 0.0, 0.15), (0.0, 0.0, 0.15), (
 _ARM_AXES = "zyzyzyz"
 _SHOULDERS = {"left": ((0.0, 0.20, 0.25), (-np.pi / 2, 0.0, 0.0)), "right": ((0.0, -0.20, 0.25), (np.pi / 2, 0.0, 0.0))}
 _MARKER = (0.02, 0.0, 0.10)
+_UNIT = {k: np.array([float(v) for v in text.split()]) for k, text in _AXES.items()}
 #: the coupled joint: torso_4 = −torso_3
 MIMIC = ("torso_4", "torso_3", -1.0)
 
@@ -103,19 +104,28 @@ class Truth:
 
     def torques(self, values: dict[str, float]) -> dict[str, float]:
         """The moment of gravity (N·m) about each joint's axis of the links it carries."""
-        masses = _masses()
-        frames = {link: self.model.transform("base_link", link, values) for link in masses}
+        masses, carried = self._layout()
+        frames = self.model.frames("base_link", values)
+        weight = np.array([0.0, 0.0, -G])
+        # each link's centre and weight, once: the moments about every joint that carries it
+        centres = {link: frames[link][:3, :3] @ centre + frames[link][:3, 3] for link, (_, centre) in masses.items()}
         out = {}
-        for name, _, child, kind, _, _, axis in joints():
-            if kind == "fixed":
-                continue
+        for name, child, axis in carried:
             T = frames[child]
-            a, p = T[:3, :3] @ np.array([float(v) for v in _AXES[axis].split()]), T[:3, 3]
-            carried = [link for link in masses if link == child or self._below(link, child)]
-            moment = sum(np.cross(frames[link][:3, :3] @ masses[link][1] + frames[link][:3, 3] - p,
-                                  masses[link][0] * np.array([0.0, 0.0, -G])) for link in carried)
+            a, p = T[:3, :3] @ _UNIT[axis], T[:3, 3]
+            moment = sum(np.cross(centres[link] - p, masses[link][0] * weight) for link in carried[(name, child, axis)])
             out[name] = float(a @ moment)
         return out
+
+    def _layout(self):
+        """The links' masses and, per movable joint (name, child link, axis), the links it carries
+        in the order of :func:`_masses` (worked out once: they do not move)."""
+        if "_carried" not in self.__dict__:
+            masses = _masses()
+            self.__dict__["_carried"] = (masses, {
+                (name, child, axis): [link for link in masses if link == child or self._below(link, child)]
+                for name, _, child, kind, _, _, axis in joints() if kind != "fixed"})
+        return self.__dict__["_carried"]
 
     def _below(self, link: str, above: str) -> bool:
         j = self.model.joints.get(link)

@@ -44,15 +44,36 @@ class Urdf:
             link = self.joints[link]["parent"]
         return out[::-1]
 
+    def frames(self, base: str, q: dict[str, float]) -> dict[str, np.ndarray]:
+        """Pose (m) in ``base`` of every link below it: :meth:`transform`'s products, each link's
+        from its parent's (the same products in the same order)."""
+        out = {base: np.eye(4)}
+        pending = [link for link in self.joints if link != base]
+        while pending:
+            later = []
+            for link in pending:
+                j = self.joints[link]
+                if j["parent"] not in out:
+                    later.append(link)
+                    continue
+                out[link] = out[j["parent"]] @ j["origin"] @ self._motion(j, q)
+            if len(later) == len(pending):  # links of another tree than base's
+                break
+            pending = later
+        return out
+
+    def _motion(self, j: dict, q: dict[str, float]) -> np.ndarray:
+        M = np.eye(4)
+        if j["type"] in ("revolute", "continuous"):
+            M[:3, :3] = Rotation.from_rotvec(j["axis"] * q[j["name"]]).as_matrix()
+        elif j["type"] == "prismatic":
+            M[:3, 3] = j["axis"] * q[j["name"]]
+        return M
+
     def transform(self, base: str, tip: str, q: dict[str, float]) -> np.ndarray:
         """Pose of ``tip`` in ``base`` (m), joint values by joint name (rad or m)."""
         T = np.eye(4)
         for link in self._path(base, tip):
             j = self.joints[link]
-            M = np.eye(4)
-            if j["type"] in ("revolute", "continuous"):
-                M[:3, :3] = Rotation.from_rotvec(j["axis"] * q[j["name"]]).as_matrix()
-            elif j["type"] == "prismatic":
-                M[:3, 3] = j["axis"] * q[j["name"]]
-            T = T @ j["origin"] @ M
+            T = T @ j["origin"] @ self._motion(j, q)
         return T
