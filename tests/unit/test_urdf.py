@@ -257,3 +257,27 @@ def test_a_urdf_robot_round_trips_through_a_robot_file(rng):
     q = rng.uniform(-1, 1, (30, 4)) * [1, 300, 1, 1]
     np.testing.assert_allclose(back.fk(q), calibrated.fk(q), atol=1e-9)
     np.testing.assert_allclose(back.limits, robot.limits)
+
+
+def test_a_chain_s_origin_rotations_made_at_once_are_each_joint_s_own(rng):
+    """A chain's walk makes every joint's origin rotation in one call (and the Jacobian every
+    J_l(−r)): to the bit each joint's own, with particles and poses batched, identified rotations
+    and prismatic joints among them."""
+    from robocal.math.so3 import left_jacobian
+    from robocal.model import urdf
+
+    for lead in [(), (4,), (2, 3)]:
+        geom = np.zeros(lead + (6, urdf.WIDTH))
+        geom[..., :7] = rng.normal(0, 1, lead + (6, 7)) * [100, 100, 100, 0.01, 0.01, 0.01, 0.02]
+        geom[..., urdf.ROLL:urdf.YAW + 1] = rng.uniform(-3, 3, lead + (6, 3))
+        axes = rng.normal(size=lead + (6, 3))
+        geom[..., urdf.AX:urdf.AZ + 1] = axes / np.linalg.norm(axes, axis=-1, keepdims=True)
+        geom[..., urdf.PRISMATIC] = rng.uniform(size=lead + (6,)) < 0.3
+        q = rng.uniform(-2, 2, lead + (9, 6))
+        together, own = urdf.origin_rotation(geom), left_jacobian(-geom[..., urdf.RX:urdf.RZ + 1])
+        for i in range(6):
+            alone = urdf.joint_transforms(geom, q, i)
+            for a, b in zip(alone, urdf.joint_transforms(geom, q, i, together)):
+                np.testing.assert_array_equal(a, b)
+            np.testing.assert_array_equal(left_jacobian(-geom[..., None, i, urdf.RX:urdf.RZ + 1]),
+                                          own[..., None, i, :, :])

@@ -51,10 +51,12 @@ def _motion(axis: np.ndarray, t: np.ndarray, prismatic: np.ndarray):
     return R, k * (t * prismatic)[..., None]
 
 
-def joint_transforms(geom: np.ndarray, q: np.ndarray, i: int):
-    """Origin (R_o (..., 1, 3, 3), p (..., 1, 3)) and motion (R_m, p_m (..., m, …)) of joint i."""
+def joint_transforms(geom: np.ndarray, q: np.ndarray, i: int, origins: np.ndarray | None = None):
+    """Origin (R_o (..., 1, 3, 3), p (..., 1, 3)) and motion (R_m, p_m (..., m, …)) of joint i;
+    ``origins``: every joint's :func:`origin_rotation` (..., n, 3, 3), made once for a chain's walk
+    (the same numbers as joint i's own: each is its own products)."""
     g = geom[..., None, i, :]
-    R_o = origin_rotation(geom[..., None, i, :])
+    R_o = origin_rotation(g) if origins is None else origins[..., None, i, :, :]
     p = g[..., X:Z + 1]
     R_m, p_m = _motion(g[..., AX:AZ + 1], q[..., i] + g[..., OFFSET], g[..., PRISMATIC])
     return R_o, p, R_m, p_m
@@ -69,8 +71,9 @@ def chain_frames(geom: np.ndarray, q: np.ndarray, base: np.ndarray | None = None
     else:
         R, o = base[..., None, :3, :3], base[..., None, :3, 3]
     Rs, origins, Rp, op = [R], [o], [], []
+    rotations = origin_rotation(geom)
     for i in range(n):
-        R_o, p, R_m, p_m = joint_transforms(geom, q, i)
+        R_o, p, R_m, p_m = joint_transforms(geom, q, i, rotations)
         o = o + (R @ p[..., None])[..., 0]
         R = R @ R_o
         Rp.append(R)
@@ -88,8 +91,9 @@ def apply_chain(geom: np.ndarray, q: np.ndarray, V: np.ndarray) -> np.ndarray:
     n = geom.shape[-2]
     e = np.zeros(V.shape[-1])
     e[-1] = 1.0
+    rotations = origin_rotation(geom)
     for i in range(n - 1, -1, -1):
-        R_o, p, R_m, p_m = joint_transforms(geom, q, i)
+        R_o, p, R_m, p_m = joint_transforms(geom, q, i, rotations)
         V = R_m @ V + p_m[..., :, None] * e
         V = R_o @ V + p[..., :, None] * e
     return V
@@ -105,12 +109,13 @@ def twist_jacobian(geom: np.ndarray, q: np.ndarray, base=None, tool=None):
     R_e, p_e, shape = end_frame(R_f, origins[-1], tool)
     n = geom.shape[-2]
     J = np.zeros((n, len(KINDS)) + shape + (6,))
+    # J_r(r) = J_l(−r): the origin's own axes, as the perturbation sees them (every joint's at once)
+    own = left_jacobian(-geom[..., RX:RZ + 1])
     for i in range(n):
         g = geom[..., None, i, :]
         for k in range(3):
             J[i, X + k, ..., :3] = Rs[i][..., :, k]
-        # J_r(r) = J_l(−r): the origin's own axes, as the perturbation sees them
-        W = Rp[i] @ left_jacobian(-g[..., RX:RZ + 1])
+        W = Rp[i] @ own[..., None, i, :, :]
         r = p_e - op[i]
         for k in range(3):
             w = W[..., :, k]
