@@ -380,6 +380,7 @@ def test_a_child_process_runs_kernels_on_one_thread(monkeypatch):
     import numba
 
     monkeypatch.setattr(backend, "idle_cores", lambda now=False, looks=5: 2)
+    monkeypatch.delenv("ROBOCAL_WORKERS", raising=False)
     here = _threads_here(None)
     assert here == (min(2, numba.config.NUMBA_NUM_THREADS),) * 2
     assert backend.kernel_threads(backend.PARALLEL_MIN_WORK - 1) == 1
