@@ -185,7 +185,7 @@ def load_beside():
     """Where the compiled loop grows the trees: a thread loading it into this process (starting
     numba's compiler, about 0.4 s on a process that has not yet, then the loop from the cache), so
     that workers forked once it is joined have it loaded, instead of each loading it at its first
-    piece (W8: 0.3–0.45 s of each worker).  It runs beside this process's own work; None where
+    piece (W8: 0.2–0.45 s of each worker).  It runs beside this process's own work; None where
     scikit-learn grows the trees.  A loop that fails to load here fails again, and says so, where
     it is used."""
     import threading
