@@ -150,3 +150,24 @@ def test_a_swarm_s_chain_keeps_no_numbers_of_the_call_before_in_any_thread(conve
         if k < len(cases):  # three particles of each against the textbook
             np.testing.assert_allclose(at_once[k][:3], textbook(case[0][:3], case[1]), rtol=0, atol=1e-8)
         np.testing.assert_array_equal(ours(case), at_once[k])
+
+
+@pytest.mark.parametrize("convention", CONVENTIONS)
+def test_a_large_chain_call_gives_each_pose_what_small_calls_give(convention):
+    """A call too large for the kept factor arrays broadcasts each joint's constant factors rather
+    than laying them out at every pose: the same numbers to the bit as calls of a few hundred poses
+    (laid out), particles and a hayati β included."""
+    from robocal.model.dh import SCRATCH_BYTES, apply_chain
+
+    rng = np.random.default_rng(4)
+    for particles in ((), (3,)):
+        nominal = load_robot("er10l-c10").geometry
+        geom = np.broadcast_to(nominal, particles + nominal.shape).copy()
+        geom[..., :5] += rng.normal(0, 0.01, geom[..., :5].shape)
+        m = SCRATCH_BYTES // (8 * 6 * 4) + 500  # past the kept arrays' size
+        q = rng.uniform(-3, 3, particles + (m, 6))
+        V = np.broadcast_to(rng.normal(size=(3, 4)), particles + (m, 3, 4)).copy()
+        whole = apply_chain(convention, geom, q, V)
+        parts = [apply_chain(convention, geom, q[..., k:k + 400, :], V[..., k:k + 400, :, :])
+                 for k in range(0, m, 400)]
+        np.testing.assert_array_equal(whole, np.concatenate(parts, axis=-3))

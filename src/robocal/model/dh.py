@@ -170,12 +170,17 @@ def apply_chain(convention: str, geom: np.ndarray, q: np.ndarray, V: np.ndarray)
     def per_joint(slot, values):  # (..., m or 1, n) → (n, ..., m, c), contiguous
         return _laid_out(slot, _joint_first(values)[..., None], (n,) + full)
 
+    def per_chain(slot, values):  # (..., 1, n): the same at every pose
+        if 8 * n * math.prod(full) > SCRATCH_BYTES:  # a large call: broadcast by each product, not copied
+            return _joint_first(values)[..., None]
+        return per_joint(slot, values)
+
     CT, ST = per_joint("ct", ct), per_joint("st", st)
     alpha = geom[..., None, :, ALPHA]
-    CA, SA = per_joint("ca", np.cos(alpha)), per_joint("sa", np.sin(alpha))
+    CA, SA = per_chain("ca", np.cos(alpha)), per_chain("sa", np.sin(alpha))
     if convention == "hayati":
         beta = geom[..., None, :, BETA]
-        CB, SB = per_joint("cb", np.cos(beta)), per_joint("sb", np.sin(beta))
+        CB, SB = per_chain("cb", np.cos(beta)), per_chain("sb", np.sin(beta))
     a = _joint_first(np.broadcast_to(geom[..., None, :, A], full[:-1] + (n,)))
     d = _joint_first(np.broadcast_to(d, full[:-1] + (n,)))
     x, y, z = (np.array(np.broadcast_to(V[..., r, :], full)) for r in range(3))  # own copies: added to in place
