@@ -51,12 +51,12 @@ def _motion(axis: np.ndarray, t: np.ndarray, prismatic: np.ndarray):
     return R, k * (t * prismatic)[..., None]
 
 
-def joint_transforms(geom: np.ndarray, q: np.ndarray, i: int, origins: np.ndarray | None = None):
+def joint_transforms(geom: np.ndarray, q: np.ndarray, i: int, origins: np.ndarray):
     """Origin (R_o (..., 1, 3, 3), p (..., 1, 3)) and motion (R_m, p_m (..., m, …)) of joint i;
     ``origins``: every joint's :func:`origin_rotation` (..., n, 3, 3), made once for a chain's walk
     (the same numbers as joint i's own: each is its own products)."""
     g = geom[..., None, i, :]
-    R_o = origin_rotation(g) if origins is None else origins[..., None, i, :, :]
+    R_o = origins[..., None, i, :, :]
     p = g[..., X:Z + 1]
     R_m, p_m = _motion(g[..., AX:AZ + 1], q[..., i] + g[..., OFFSET], g[..., PRISMATIC])
     return R_o, p, R_m, p_m
