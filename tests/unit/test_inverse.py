@@ -183,6 +183,54 @@ def test_whole_turns_follow_kuka_t_and_fanuc_turn_numbers(rng):
     np.testing.assert_allclose(near.q, q, atol=1e-7)
 
 
+def test_each_joints_turn_is_chosen_by_the_rule_read_one_joint_at_a_time(rng):
+    """The batched choice of whole turns against the rule applied to each joint of each solution in plain
+    Python: inside the limits, then inside the target's interval, then nearest the hint (where it has one),
+    else the fewest turns; the first of equal costs.  Joints on their limits, on an interval's ends, a
+    sliding joint, hints NaN in part and half-open intervals are all drawn."""
+    import types
+
+    from robocal.inverse.configuration import TOLERANCE_RAD
+    from robocal.inverse.solve import TURNS, _turned
+
+    base = load_robot("kr5-arc")
+    m, k, n = 40, 8, base.n_joints
+    for trial in range(12):
+        slide = np.zeros(n, bool)
+        slide[2] = trial % 4 == 3
+        robot = types.SimpleNamespace(prismatic=slide, limits=base.limits)
+        q = rng.uniform(-7.0, 7.0, (m, k, n))
+        on_limit = rng.random((m, k, n)) < 0.05
+        q[on_limit] = np.broadcast_to(base.limits[:, 1], (m, k, n))[on_limit]
+        lo = np.where(rng.random((m, n)) < 0.5, -np.inf, rng.uniform(-4.0, 2.0, (m, n)))
+        hi = np.where(rng.random((m, n)) < 0.5, np.inf, np.where(np.isinf(lo), 1.0, lo) + rng.uniform(0, 3, (m, n)))
+        ends = np.isfinite(lo[:, 1])
+        q[ends, 0, 1] = lo[ends, 1]  # on an interval's end
+        hint = None if trial % 3 == 0 else np.where(rng.random((m, n)) < 0.2, np.nan, rng.uniform(-4, 4, (m, n)))
+        chosen, missed, limits_ok, choice = _turned(robot, q, lo - TOLERANCE_RAD, hi + TOLERANCE_RAD, hint)
+        lim = base.limits + np.array([-TOLERANCE_RAD, TOLERANCE_RAD])
+        for i in range(m):
+            for s in range(k):
+                misses, fits, several = 0, True, False
+                for j in range(n):
+                    best = None
+                    allowed = 0
+                    for turn in ([0] * len(TURNS) if slide[j] else TURNS):
+                        v = float(q[i, s, j]) + 2.0 * np.pi * int(turn)
+                        inside = bool(lim[j, 0] <= v <= lim[j, 1])
+                        wanted = bool(lo[i, j] - TOLERANCE_RAD <= v <= hi[i, j] + TOLERANCE_RAD)
+                        allowed += inside and wanted
+                        near = abs(int(turn)) if hint is None or np.isnan(hint[i, j]) else abs(v - hint[i, j])
+                        cost = (0.0 if inside else np.inf) + (0.0 if wanted else 1e6) + near
+                        if best is None or cost < best[0]:
+                            best = (cost, v)
+                    assert chosen[i, s, j] == best[1], (trial, i, s, j)
+                    fits &= bool(np.isfinite(best[0]))
+                    misses += bool(np.isfinite(best[0]) and best[0] >= 1e6)
+                    several |= allowed > 1
+                assert (missed[i, s], limits_ok[i, s], choice[i, s]) == (misses, fits, several), (trial, i, s)
+
+
 def test_controller_joints_say_what_went_wrong():
     robot = load_robot("irb120")
     far = np.eye(4)
