@@ -69,48 +69,76 @@ def _tool_columns(tools, tidx, S):
 
 
 @njit(cache=True, inline="always")
+def _dh_column(X, Y, Z, j, ct, st, ca, sa, ta, td):
+    """Column j of X, Y, Z turned by a DH joint, Rz(q+θ)·Tz(d)·Tx(a)·Rx(α) (ta, td: 0 for an axis)."""
+    x, y, z = X[j], Y[j], Z[j]
+    y, z = ca * y - sa * z, sa * y + ca * z
+    x += ta
+    X[j], Y[j], Z[j] = ct * x - st * y, st * x + ct * y, z + td
+
+
+@njit(cache=True, inline="always")
+def _hayati_column(X, Y, Z, j, ct, st, ca, sa, cb, sb, ta, td):
+    """Column j turned by a Hayati joint, Rz(q+θ)·Tz(d)·Tx(a)·Rx(α)·Ry(β)."""
+    x, y, z = X[j], Y[j], Z[j]
+    x, z = cb * x + sb * z, cb * z - sb * x
+    y, z = ca * y - sa * z, sa * y + ca * z
+    x += ta
+    X[j], Y[j], Z[j] = ct * x - st * y, st * x + ct * y, z + td
+
+
+@njit(cache=True, inline="always")
+def _craig_column(X, Y, Z, j, ct, st, ca, sa, ta, td):
+    """Column j turned by a Craig joint, Rx(α)·Tx(a)·Rz(q+θ)·Tz(d)."""
+    x, y, z = X[j], Y[j], Z[j] + td
+    x, y = ct * x - st * y + ta, st * x + ct * y
+    X[j], Y[j], Z[j] = x, ca * y - sa * z, sa * y + ca * z
+
+
+@njit(cache=True, inline="always")
 def _chain_columns(conv, g, q, S, first):
-    """Turn the columns of S (12, m) from column ``first`` on (3: the point alone) by
-    A_n, …, A_1 in turn, each joint over all poses in one loop (the compiler's vector lanes
-    take several poses at once).  DH and Hayati A_i = Rz(q+θ)·Tz(d)·Tx(a)·Rx(α)[·Ry(β)], Craig
-    Rx(α)·Tx(a)·Rz(q+θ)·Tz(d); q (n, 2, m) from :func:`joint_trig`, g (n, 8)."""
+    """Turn the columns of S (12, m) from column ``first`` on (3: the point alone; else 0) by
+    A_n, …, A_1 in turn, each joint over all poses in one loop that turns every column of a pose
+    (the compiler's vector lanes take several poses at once; the columns' twelve rows are read and
+    written once a joint).  DH and Hayati A_i = Rz(q+θ)·Tz(d)·Tx(a)·Rx(α)[·Ry(β)], Craig
+    Rx(α)·Tx(a)·Rz(q+θ)·Tz(d); q (n, 2, m) from :func:`joint_trig`, g (n, 8).  The axes' columns
+    take a and d as 0.0, added all the same: the same operations, and bits, as one column at a
+    time."""
     m = S.shape[1]
-    CT = np.empty(m)  # cos and sin of q + θ at every pose: once a joint, for all four columns
-    ST = np.empty(m)
+    X0, Y0, Z0, X1, Y1, Z1 = S[0], S[1], S[2], S[3], S[4], S[5]
+    X2, Y2, Z2, X3, Y3, Z3 = S[6], S[7], S[8], S[9], S[10], S[11]
+    axes = first == 0
     for i in range(g.shape[0] - 1, -1, -1):
         a, ca, sa, c0, s0, d, cb, sb = g[i, 0], g[i, 1], g[i, 2], g[i, 3], g[i, 4], g[i, 5], g[i, 6], g[i, 7]
         cq = q[i, 0]
         sq = q[i, 1]
-        for j in range(m):
-            CT[j] = cq[j] * c0 - sq[j] * s0  # cos(q + θ)
-            ST[j] = sq[j] * c0 + cq[j] * s0
-        for col in range(first, 4):
-            X = S[3 * col]
-            Y = S[3 * col + 1]
-            Z = S[3 * col + 2]
-            ta = a if col == 3 else 0.0
-            td = d if col == 3 else 0.0
-            if conv == 2:
-                for j in range(m):
-                    ct, st = CT[j], ST[j]
-                    x, y, z = X[j], Y[j], Z[j] + td
-                    x, y = ct * x - st * y + ta, st * x + ct * y
-                    X[j], Y[j], Z[j] = x, ca * y - sa * z, sa * y + ca * z
-            elif conv == 1:
-                for j in range(m):
-                    ct, st = CT[j], ST[j]
-                    x, y, z = X[j], Y[j], Z[j]
-                    x, z = cb * x + sb * z, cb * z - sb * x
-                    y, z = ca * y - sa * z, sa * y + ca * z
-                    x += ta
-                    X[j], Y[j], Z[j] = ct * x - st * y, st * x + ct * y, z + td
-            else:
-                for j in range(m):
-                    ct, st = CT[j], ST[j]
-                    x, y, z = X[j], Y[j], Z[j]
-                    y, z = ca * y - sa * z, sa * y + ca * z
-                    x += ta
-                    X[j], Y[j], Z[j] = ct * x - st * y, st * x + ct * y, z + td
+        if conv == 2:
+            for j in range(m):
+                ct = cq[j] * c0 - sq[j] * s0  # cos(q + θ)
+                st = sq[j] * c0 + cq[j] * s0
+                if axes:
+                    _craig_column(X0, Y0, Z0, j, ct, st, ca, sa, 0.0, 0.0)
+                    _craig_column(X1, Y1, Z1, j, ct, st, ca, sa, 0.0, 0.0)
+                    _craig_column(X2, Y2, Z2, j, ct, st, ca, sa, 0.0, 0.0)
+                _craig_column(X3, Y3, Z3, j, ct, st, ca, sa, a, d)
+        elif conv == 1:
+            for j in range(m):
+                ct = cq[j] * c0 - sq[j] * s0
+                st = sq[j] * c0 + cq[j] * s0
+                if axes:
+                    _hayati_column(X0, Y0, Z0, j, ct, st, ca, sa, cb, sb, 0.0, 0.0)
+                    _hayati_column(X1, Y1, Z1, j, ct, st, ca, sa, cb, sb, 0.0, 0.0)
+                    _hayati_column(X2, Y2, Z2, j, ct, st, ca, sa, cb, sb, 0.0, 0.0)
+                _hayati_column(X3, Y3, Z3, j, ct, st, ca, sa, cb, sb, a, d)
+        else:
+            for j in range(m):
+                ct = cq[j] * c0 - sq[j] * s0
+                st = sq[j] * c0 + cq[j] * s0
+                if axes:
+                    _dh_column(X0, Y0, Z0, j, ct, st, ca, sa, 0.0, 0.0)
+                    _dh_column(X1, Y1, Z1, j, ct, st, ca, sa, 0.0, 0.0)
+                    _dh_column(X2, Y2, Z2, j, ct, st, ca, sa, 0.0, 0.0)
+                _dh_column(X3, Y3, Z3, j, ct, st, ca, sa, a, d)
 
 
 @njit(cache=True, inline="always")
