@@ -68,3 +68,29 @@ def test_points_kernel_equals_numpy(convention, rng):
                          np.ascontiguousarray(robot.tool), kernels.joint_trig(q))
     ref = chain_points(convention, geom, q, base, robot.tool[None, None])
     assert np.abs(got - ref).max() < 1e-9
+
+
+@pytest.mark.parametrize("convention", CONVENTIONS)
+def test_each_parallel_twin_gives_its_serial_kernels_numbers_to_the_bit(convention, rng):
+    """The twins share one chain; a call large enough for the parallel one gives, particle by particle,
+    what the serial one gives, with and without orientations, both objectives, joints alone or frames."""
+    from robocal.model import kernels
+
+    robot = _robot(convention, rng)
+    space = ParameterSpace.of(robot)
+    geom, base, tools = space.expand(rng.normal(size=(9, space.size)) * 1e-2)
+    m = 301  # not a multiple of any vector width
+    q, tidx = kernels.joint_trig(rng.uniform(-3, 3, (m, 6))), rng.integers(0, tools.shape[1], m).astype(np.int64)
+    pm = np.ascontiguousarray(rng.normal(size=(m, 3)) * 500)
+    Rm = np.ascontiguousarray(np.stack([xyz_rpy_to_transform([0, 0, 0], r)[:3, :3] for r in rng.normal(size=(m, 3))]))
+    conv = kernels.CONVENTION_CODE[convention]
+    cols = np.array([0, 3, 7, 12, 16, 22], np.int64)
+    X = rng.normal(size=(9, len(cols))) * 1e-2
+    for use_rot in (True, False):
+        for kind in (0, 1):
+            args = (q, tidx, pm, Rm, use_rot, 0.7, kind)
+            serial = kernels.objective(conv, geom, base, tools, *args)
+            assert np.array_equal(kernels.objective_parallel(conv, geom, base, tools, *args), serial)
+            shared = (conv, np.ascontiguousarray(robot.geometry), cols, X, base[0], tools[0])
+            assert np.array_equal(kernels.objective_joints_parallel(*shared, *args),
+                                  kernels.objective_joints(*shared, *args))
