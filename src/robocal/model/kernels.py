@@ -88,51 +88,55 @@ def _turn_column(conv, X, Y, Z, j, ct, st, ca, sa, cb, sb, ta, td):
 
 @njit(cache=True, inline="always")
 def _chain_columns(conv, g, q, S, first):
-    """Turn the columns of S (12, m) from column ``first`` on (3: the point alone; else 0) by
-    A_n, …, A_1 in turn (:func:`_turn_column`); q (n, 2, m) from :func:`joint_trig`, g (n, 8).
+    """Turn the columns of S (12, m) from column ``first`` on (0: the frame's axes and its point; 3: the
+    point alone) by A_n, …, A_1 in turn (:func:`_turn_column`); q (n, 2, m) from :func:`joint_trig`,
+    g (n, 8).
 
-    Each joint runs over all poses in one loop per convention (a constant there), which turns a
-    pose's four columns one after the other: the compiler keeps its twelve numbers in registers and
-    its vector lanes take several poses at once.  A loop per column, as before, read and wrote
-    every row four times a joint (W1's objective 54 → 33 µs a generation, 2000 poses 9.1 → 3.2 ms;
-    the same operations, the same bits); compiling the kernels takes a quarter longer."""
+    Each joint takes cos and sin of q + θ at every pose, then turns the three axes' columns of a pose
+    one after the other in one loop over the poses, then the point's in another, each loop with the
+    convention a constant: the compiler keeps a pose's numbers in registers and its vector lanes take
+    several poses at once.  A loop per column read and wrote every row four times a joint (W1's
+    objective 54 → 33 µs a generation, 40 particles × 2000 full poses 6.3 → 3.5 ms; position-only
+    calls as before; the same operations, the same bits)."""
     m = S.shape[1]
-    axes = first == 0
     X0, Y0, Z0, X1, Y1, Z1 = S[0], S[1], S[2], S[3], S[4], S[5]
     X2, Y2, Z2, X3, Y3, Z3 = S[6], S[7], S[8], S[9], S[10], S[11]
+    CT = np.empty(m)  # cos and sin of q + θ at every pose: once a joint, for every column
+    ST = np.empty(m)
     for i in range(g.shape[0] - 1, -1, -1):
         a, ca, sa, c0, s0, d, cb, sb = g[i, 0], g[i, 1], g[i, 2], g[i, 3], g[i, 4], g[i, 5], g[i, 6], g[i, 7]
         cq = q[i, 0]
         sq = q[i, 1]
+        for j in range(m):
+            CT[j] = cq[j] * c0 - sq[j] * s0
+            ST[j] = sq[j] * c0 + cq[j] * s0
         # the convention a constant in each loop, so that each compiles without a branch (written out: the
-        # loop as an inlined helper took 5 s more to compile; numba's literal_unroll kept prange serial)
+        # loops as an inlined helper took 5 s more to compile; numba's literal_unroll kept prange serial; one
+        # loop for all four columns, with the axes' behind a flag, made position-only calls 25-40 % slower)
         if conv == 2:
+            if first == 0:
+                for j in range(m):
+                    _turn_column(2, X0, Y0, Z0, j, CT[j], ST[j], ca, sa, cb, sb, 0.0, 0.0)
+                    _turn_column(2, X1, Y1, Z1, j, CT[j], ST[j], ca, sa, cb, sb, 0.0, 0.0)
+                    _turn_column(2, X2, Y2, Z2, j, CT[j], ST[j], ca, sa, cb, sb, 0.0, 0.0)
             for j in range(m):
-                ct = cq[j] * c0 - sq[j] * s0
-                st = sq[j] * c0 + cq[j] * s0
-                if axes:
-                    _turn_column(2, X0, Y0, Z0, j, ct, st, ca, sa, cb, sb, 0.0, 0.0)
-                    _turn_column(2, X1, Y1, Z1, j, ct, st, ca, sa, cb, sb, 0.0, 0.0)
-                    _turn_column(2, X2, Y2, Z2, j, ct, st, ca, sa, cb, sb, 0.0, 0.0)
-                _turn_column(2, X3, Y3, Z3, j, ct, st, ca, sa, cb, sb, a, d)
+                _turn_column(2, X3, Y3, Z3, j, CT[j], ST[j], ca, sa, cb, sb, a, d)
         elif conv == 1:
+            if first == 0:
+                for j in range(m):
+                    _turn_column(1, X0, Y0, Z0, j, CT[j], ST[j], ca, sa, cb, sb, 0.0, 0.0)
+                    _turn_column(1, X1, Y1, Z1, j, CT[j], ST[j], ca, sa, cb, sb, 0.0, 0.0)
+                    _turn_column(1, X2, Y2, Z2, j, CT[j], ST[j], ca, sa, cb, sb, 0.0, 0.0)
             for j in range(m):
-                ct = cq[j] * c0 - sq[j] * s0
-                st = sq[j] * c0 + cq[j] * s0
-                if axes:
-                    _turn_column(1, X0, Y0, Z0, j, ct, st, ca, sa, cb, sb, 0.0, 0.0)
-                    _turn_column(1, X1, Y1, Z1, j, ct, st, ca, sa, cb, sb, 0.0, 0.0)
-                    _turn_column(1, X2, Y2, Z2, j, ct, st, ca, sa, cb, sb, 0.0, 0.0)
-                _turn_column(1, X3, Y3, Z3, j, ct, st, ca, sa, cb, sb, a, d)
+                _turn_column(1, X3, Y3, Z3, j, CT[j], ST[j], ca, sa, cb, sb, a, d)
         else:
+            if first == 0:
+                for j in range(m):
+                    _turn_column(0, X0, Y0, Z0, j, CT[j], ST[j], ca, sa, cb, sb, 0.0, 0.0)
+                    _turn_column(0, X1, Y1, Z1, j, CT[j], ST[j], ca, sa, cb, sb, 0.0, 0.0)
+                    _turn_column(0, X2, Y2, Z2, j, CT[j], ST[j], ca, sa, cb, sb, 0.0, 0.0)
             for j in range(m):
-                ct = cq[j] * c0 - sq[j] * s0
-                st = sq[j] * c0 + cq[j] * s0
-                if axes:
-                    _turn_column(0, X0, Y0, Z0, j, ct, st, ca, sa, cb, sb, 0.0, 0.0)
-                    _turn_column(0, X1, Y1, Z1, j, ct, st, ca, sa, cb, sb, 0.0, 0.0)
-                    _turn_column(0, X2, Y2, Z2, j, ct, st, ca, sa, cb, sb, 0.0, 0.0)
-                _turn_column(0, X3, Y3, Z3, j, ct, st, ca, sa, cb, sb, a, d)
+                _turn_column(0, X3, Y3, Z3, j, CT[j], ST[j], ca, sa, cb, sb, a, d)
 
 
 @njit(cache=True, inline="always")
