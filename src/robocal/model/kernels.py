@@ -186,9 +186,9 @@ def _errors(S, P, Q, use_rot, k, kind):
 
 
 @njit(cache=True, inline="always")
-def _joints_start(geom0, cols, x, S0):
-    """The chain constants (n, 8) of the particle whose joint deviations x sit at the flat positions
-    ``cols`` of the geometry geom0 (n, 5), and a fresh copy of the tool columns S0 (12, m) to turn."""
+def _joints_particle(conv, geom0, cols, x, S0, q, P, Q, use_rot, k, kind):
+    """Objective of the particle whose joint deviations x sit at the flat positions ``cols`` of
+    the geometry geom0 (n, 5), its chain run on the tool columns S0 (12, m)."""
     n = geom0.shape[0]
     geom = geom0.copy()
     flat = geom.reshape(n * geom.shape[1])
@@ -196,22 +196,24 @@ def _joints_start(geom0, cols, x, S0):
         flat[cols[c]] += x[c]
     g = np.empty((n, 8))
     _constants_one(geom, g)
-    return g, S0.copy()
+    S = S0.copy()
+    _chain_columns(conv, g, q, S, 0 if use_rot else 3)
+    return _errors(S, P, Q, use_rot, k, kind)
 
 
 @njit(cache=True, inline="always")
-def _frames_start(geom, base, tools, tidx, pm, Rm, use_rot):
-    """What a particle with its own geometry (n, 5), base (4, 4) and tools (T, 4, 4) turns and is
-    compared with: its chain constants, its tool columns and the measurements in its base frame."""
+def _frames_particle(conv, geom, base, tools, q, tidx, pm, Rm, use_rot, k, kind):
+    """Objective of a particle with its own geometry (n, 5), base (4, 4) and tools (T, 4, 4)."""
     m = tidx.shape[0]
     g = np.empty((geom.shape[0], 8))
     _constants_one(geom, g)
     S = np.empty((12, m))
     _tool_columns(tools, tidx, S)
+    _chain_columns(conv, g, q, S, 0 if use_rot else 3)
     P = np.empty((m, 3))
     Q = np.empty((m if use_rot else 1, 3, 3))
     _in_base(base, pm, Rm, use_rot, P, Q)
-    return g, S, P, Q
+    return _errors(S, P, Q, use_rot, k, kind)
 
 
 @njit(cache=True)
@@ -222,9 +224,7 @@ def objective(conv, geom, base, tools, q, tidx, pm, Rm, use_rot, k, kind):  # pr
     """
     out = np.empty(geom.shape[0])
     for p in range(geom.shape[0]):
-        g, S, P, Q = _frames_start(geom[p], base[p], tools[p], tidx, pm, Rm, use_rot)
-        _chain_columns(conv, g, q, S, 0 if use_rot else 3)
-        out[p] = _errors(S, P, Q, use_rot, k, kind)
+        out[p] = _frames_particle(conv, geom[p], base[p], tools[p], q, tidx, pm, Rm, use_rot, k, kind)
     return out
 
 
@@ -233,9 +233,7 @@ def objective_parallel(conv, geom, base, tools, q, tidx, pm, Rm, use_rot, k, kin
     """:func:`objective`, particles in parallel."""
     out = np.empty(geom.shape[0])
     for p in prange(geom.shape[0]):
-        g, S, P, Q = _frames_start(geom[p], base[p], tools[p], tidx, pm, Rm, use_rot)
-        _chain_columns(conv, g, q, S, 0 if use_rot else 3)
-        out[p] = _errors(S, P, Q, use_rot, k, kind)
+        out[p] = _frames_particle(conv, geom[p], base[p], tools[p], q, tidx, pm, Rm, use_rot, k, kind)
     return out
 
 
@@ -260,9 +258,7 @@ def objective_joints(conv, geom0, cols, X, base, tools, q, tidx, pm, Rm, use_rot
     S0, P, Q = _shared(base, tools, tidx, pm, Rm, use_rot)
     out = np.empty(X.shape[0])
     for p in range(X.shape[0]):
-        g, S = _joints_start(geom0, cols, X[p], S0)
-        _chain_columns(conv, g, q, S, 0 if use_rot else 3)
-        out[p] = _errors(S, P, Q, use_rot, k, kind)
+        out[p] = _joints_particle(conv, geom0, cols, X[p], S0, q, P, Q, use_rot, k, kind)
     return out
 
 
@@ -273,9 +269,7 @@ def objective_joints_parallel(conv, geom0, cols, X, base, tools, q, tidx, pm, Rm
     S0, P, Q = _shared(base, tools, tidx, pm, Rm, use_rot)
     out = np.empty(X.shape[0])
     for p in prange(X.shape[0]):
-        g, S = _joints_start(geom0, cols, X[p], S0)
-        _chain_columns(conv, g, q, S, 0 if use_rot else 3)
-        out[p] = _errors(S, P, Q, use_rot, k, kind)
+        out[p] = _joints_particle(conv, geom0, cols, X[p], S0, q, P, Q, use_rot, k, kind)
     return out
 
 
