@@ -72,8 +72,9 @@ def test_points_kernel_equals_numpy(convention, rng):
 
 @pytest.mark.parametrize("convention", CONVENTIONS)
 def test_each_parallel_twin_gives_its_serial_kernels_numbers_to_the_bit(convention, rng):
-    """The twins share one chain; a call large enough for the parallel one gives, particle by particle,
-    what the serial one gives, with and without orientations, both objectives, joints alone or frames."""
+    """The twins share one chain: the parallel one (called directly, as a large call runs it) gives, particle
+    by particle, what the serial one gives, with and without orientations, both objectives, joints alone or
+    frames."""
     from robocal.model import kernels
 
     robot = _robot(convention, rng)

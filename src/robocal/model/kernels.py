@@ -108,7 +108,7 @@ def _chain_columns(conv, g, q, S, first):
         cq = q[i, 0]
         sq = q[i, 1]
         for j in range(m):
-            CT[j] = cq[j] * c0 - sq[j] * s0
+            CT[j] = cq[j] * c0 - sq[j] * s0  # cos(q + θ)
             ST[j] = sq[j] * c0 + cq[j] * s0
         # the convention a constant in each loop, so that each compiles without a branch (written out: the
         # loops as an inlined helper took 5 s more to compile; numba's literal_unroll kept prange serial; one
